@@ -1,0 +1,2 @@
+//! Mill firmware core: the pure logic, host-testable.
+#![cfg_attr(not(test), no_std)]
