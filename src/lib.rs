@@ -1,2 +1,46 @@
-//! Mill firmware core: the pure logic, host-testable.
+//! Mill firmware core: the pure logic of the pipeline, host-testable.
+//!
+//! ```text
+//!  serial / SD bytes ─► protocol (line assembly, N/*, realtime bytes)
+//!                    ─► gcode (parse, modal state, interpreter)
+//!                    ─► planner (block ring, look-ahead, arcs → chords)
+//!                    ─► stepper::prep (segments, in the main loop)
+//!                    ─► stepper ISR (board, Bresenham tick from stepper::bresenham)
+//! ```
+//!
+//! Nothing in this crate touches a register: `src/board` (AVR only) does that,
+//! and `src/main.rs` wires the pieces together. Everything here compiles and is
+//! unit-tested on the host with plain `cargo test`.
 #![cfg_attr(not(test), no_std)]
+
+pub mod atc;
+pub mod config;
+pub mod fixed;
+pub mod gcode;
+pub mod math;
+pub mod planner;
+pub mod protocol;
+pub mod stepper;
+pub mod toolsetter;
+pub mod ui;
+
+/// Number of stepper axes: X, Y, Z and E0 (the tool carousel).
+pub const N_AXES: usize = 4;
+
+/// Axis indices into every `[_; N_AXES]` array.
+pub mod axis {
+    pub const X: usize = 0;
+    pub const Y: usize = 1;
+    pub const Z: usize = 2;
+    /// The E0 driver, which turns the tool carousel.
+    pub const E: usize = 3;
+    /// Axis letters in index order.
+    pub const NAMES: [u8; super::N_AXES] = *b"XYZE";
+}
+
+/// Firmware name and version, as printed at boot and by M115.
+pub const FIRMWARE_NAME: &str = "MillFW";
+/// Firmware version (the crate version).
+pub const FIRMWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
+/// CPU clock of the ATmega2560 on the Mega2560 board, in Hz.
+pub const F_CPU_HZ: u32 = 16_000_000;

@@ -1,0 +1,286 @@
+//! Machine settings (SPEC §3): defaults, limits and their EEPROM image.
+//!
+//! Everything a machine builder can change over serial (M92, M201, M203, …) and
+//! save with M500 lives in [`Settings`]. The firmware keeps one copy in RAM; the
+//! planner, interpreter, homing and ATC read it. [`Settings::to_bytes`] /
+//! [`Settings::from_bytes`] give the EEPROM image (versioned, with a checksum),
+//! so a blank or corrupt EEPROM falls back to the defaults instead of running
+//! on garbage.
+
+use crate::N_AXES;
+
+/// Settings layout version stored in EEPROM. Bump when the layout changes.
+pub const SETTINGS_VERSION: u8 = 1;
+
+/// Number of work coordinate systems, G54..G59.
+pub const N_WCS: usize = 6;
+
+/// Machine settings. All lengths in mm, except the E axis, whose unit is one
+/// carousel pocket pitch (SPEC §7).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Steps per mm (E: steps per pocket pitch).
+    pub steps_per_mm: [f32; N_AXES],
+    /// Max feed per axis, mm/min (E: pitches/min).
+    pub max_feed_mm_per_min: [f32; N_AXES],
+    /// Max acceleration per axis, mm/s² (E: pitches/s²).
+    pub accel_mm_per_s2: [f32; N_AXES],
+    /// Travel of X, Y, Z: machine coordinates run 0..travel, mm.
+    pub travel_mm: [f32; 3],
+    /// Bit per axis: invert the direction pin.
+    pub invert_dir_mask: u8,
+    /// Junction deviation for cornering speed, mm (grbl's $11).
+    pub junction_deviation_mm: f32,
+    /// Max chord error of arcs, mm.
+    pub arc_tolerance_mm: f32,
+    /// Backlash take-up on direction reversal, per axis X, Y, Z, mm. 0 = off.
+    pub backlash_mm: [f32; 3],
+    /// Homing fast seek feed, mm/min.
+    pub homing_seek_mm_per_min: f32,
+    /// Homing slow (locate) feed, mm/min.
+    pub homing_feed_mm_per_min: f32,
+    /// Homing back-off distance after each switch hit, mm.
+    pub homing_pulloff_mm: f32,
+    /// Check targets against travel before queueing.
+    pub soft_limits: bool,
+    /// Raise an alarm when a home switch trips outside homing.
+    pub hard_limits: bool,
+    /// Spindle speed at 100 % PWM, rpm.
+    pub spindle_max_rpm: f32,
+    /// Apply the new tool's length offset automatically after a change.
+    pub auto_tool_offset: bool,
+    /// Work coordinate offsets G54..G59, X/Y/Z, mm.
+    pub wcs_mm: [[f32; 3]; N_WCS],
+}
+
+/// Highest step rate the stepper ISR is allowed to be asked for, Hz.
+/// The planner caps each block's nominal rate so its dominant axis never
+/// exceeds this (SPEC §11 overload row). Measured ISR figures: see README.
+pub const MAX_STEP_RATE_HZ: f32 = 60_000.0;
+
+impl Settings {
+    /// Factory defaults (SPEC §3; thesis §5.2.2 for acceleration).
+    pub const DEFAULT: Settings = Settings {
+        steps_per_mm: [100.0, 100.0, 100.0, 200.0 * 16.0 / 18.0],
+        max_feed_mm_per_min: [3000.0, 3000.0, 3000.0, 600.0],
+        accel_mm_per_s2: [1000.0, 1000.0, 1000.0, 50.0],
+        travel_mm: [45.0, 45.0, 45.0],
+        invert_dir_mask: 0,
+        junction_deviation_mm: 0.01,
+        arc_tolerance_mm: 0.002,
+        backlash_mm: [0.0; 3],
+        homing_seek_mm_per_min: 1200.0,
+        homing_feed_mm_per_min: 100.0,
+        homing_pulloff_mm: 1.0,
+        soft_limits: true,
+        hard_limits: true,
+        spindle_max_rpm: 10300.0,
+        auto_tool_offset: true,
+        wcs_mm: [[0.0; 3]; N_WCS],
+    };
+
+    /// Size of the EEPROM image in bytes: version, fields, checksum.
+    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 3 + 1;
+
+    /// Serialise to the EEPROM image.
+    pub fn to_bytes(&self) -> [u8; Self::IMAGE_LEN] {
+        let mut w = Writer { buf: [0; Self::IMAGE_LEN], at: 0 };
+        w.u8(SETTINGS_VERSION);
+        for a in 0..N_AXES {
+            w.f32(self.steps_per_mm[a]);
+        }
+        for a in 0..N_AXES {
+            w.f32(self.max_feed_mm_per_min[a]);
+        }
+        for a in 0..N_AXES {
+            w.f32(self.accel_mm_per_s2[a]);
+        }
+        for t in self.travel_mm {
+            w.f32(t);
+        }
+        w.f32(self.junction_deviation_mm);
+        w.f32(self.arc_tolerance_mm);
+        for b in self.backlash_mm {
+            w.f32(b);
+        }
+        w.f32(self.homing_seek_mm_per_min);
+        w.f32(self.homing_feed_mm_per_min);
+        w.f32(self.homing_pulloff_mm);
+        w.f32(self.spindle_max_rpm);
+        for wcs in self.wcs_mm {
+            for v in wcs {
+                w.f32(v);
+            }
+        }
+        w.u8(self.invert_dir_mask);
+        w.u8(self.soft_limits as u8);
+        w.u8(self.hard_limits as u8);
+        w.u8(self.auto_tool_offset as u8);
+        let sum = checksum(&w.buf[..w.at]);
+        w.u8(sum);
+        debug_assert_eq!(w.at, Self::IMAGE_LEN);
+        w.buf
+    }
+
+    /// Parse an EEPROM image. `None` if blank, of another version, corrupt,
+    /// or holding values no machine could use (NaN, zero steps/mm, …).
+    pub fn from_bytes(b: &[u8]) -> Option<Settings> {
+        if b.len() < Self::IMAGE_LEN || b[0] != SETTINGS_VERSION {
+            return None;
+        }
+        if checksum(&b[..Self::IMAGE_LEN - 1]) != b[Self::IMAGE_LEN - 1] {
+            return None;
+        }
+        let mut r = Reader { buf: b, at: 1 };
+        let mut s = Settings::DEFAULT;
+        for a in 0..N_AXES {
+            s.steps_per_mm[a] = r.f32();
+        }
+        for a in 0..N_AXES {
+            s.max_feed_mm_per_min[a] = r.f32();
+        }
+        for a in 0..N_AXES {
+            s.accel_mm_per_s2[a] = r.f32();
+        }
+        for t in s.travel_mm.iter_mut() {
+            *t = r.f32();
+        }
+        s.junction_deviation_mm = r.f32();
+        s.arc_tolerance_mm = r.f32();
+        for v in s.backlash_mm.iter_mut() {
+            *v = r.f32();
+        }
+        s.homing_seek_mm_per_min = r.f32();
+        s.homing_feed_mm_per_min = r.f32();
+        s.homing_pulloff_mm = r.f32();
+        s.spindle_max_rpm = r.f32();
+        for wcs in s.wcs_mm.iter_mut() {
+            for v in wcs.iter_mut() {
+                *v = r.f32();
+            }
+        }
+        s.invert_dir_mask = r.u8();
+        s.soft_limits = r.u8() != 0;
+        s.hard_limits = r.u8() != 0;
+        s.auto_tool_offset = r.u8() != 0;
+        if s.is_sane() {
+            Some(s)
+        } else {
+            None
+        }
+    }
+
+    /// True when every value is one the planner can work with.
+    pub fn is_sane(&self) -> bool {
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        let non_neg = |v: f32| v.is_finite() && v >= 0.0;
+        self.steps_per_mm.iter().all(|&v| pos(v) && v <= 10_000.0)
+            && self.max_feed_mm_per_min.iter().all(|&v| pos(v))
+            && self.accel_mm_per_s2.iter().all(|&v| pos(v))
+            && self.travel_mm.iter().all(|&v| pos(v))
+            && pos(self.junction_deviation_mm)
+            && pos(self.arc_tolerance_mm)
+            && self.backlash_mm.iter().all(|&v| non_neg(v) && v <= 5.0)
+            && pos(self.homing_seek_mm_per_min)
+            && pos(self.homing_feed_mm_per_min)
+            && non_neg(self.homing_pulloff_mm)
+            && pos(self.spindle_max_rpm)
+            && self.wcs_mm.iter().flatten().all(|v| v.is_finite())
+    }
+
+    /// Travel of an axis in steps (X, Y, Z).
+    pub fn travel_steps(&self, axis: usize) -> i32 {
+        crate::math::round_i32(self.travel_mm[axis] * self.steps_per_mm[axis])
+    }
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings::DEFAULT
+    }
+}
+
+/// Additive checksum of the EEPROM image, seeded so an all-0xFF blank fails.
+fn checksum(b: &[u8]) -> u8 {
+    b.iter().fold(0x5Au8, |s, &x| s.rotate_left(1) ^ x)
+}
+
+struct Writer<const N: usize> {
+    buf: [u8; N],
+    at: usize,
+}
+
+impl<const N: usize> Writer<N> {
+    fn u8(&mut self, v: u8) {
+        self.buf[self.at] = v;
+        self.at += 1;
+    }
+    fn f32(&mut self, v: f32) {
+        for b in v.to_le_bytes() {
+            self.u8(b);
+        }
+    }
+}
+
+struct Reader<'a> {
+    buf: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn u8(&mut self) -> u8 {
+        let v = self.buf[self.at];
+        self.at += 1;
+        v
+    }
+    fn f32(&mut self) -> f32 {
+        let b = [self.u8(), self.u8(), self.u8(), self.u8()];
+        f32::from_le_bytes(b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_round_trip_through_the_eeprom_image() {
+        let mut s = Settings::DEFAULT;
+        s.steps_per_mm[0] = 80.0;
+        s.wcs_mm[1] = [1.0, -2.5, 3.25];
+        s.hard_limits = false;
+        let img = s.to_bytes();
+        assert_eq!(Settings::from_bytes(&img), Some(s));
+    }
+
+    #[test]
+    fn blank_eeprom_gives_none() {
+        assert_eq!(Settings::from_bytes(&[0xFF; Settings::IMAGE_LEN]), None);
+        assert_eq!(Settings::from_bytes(&[0x00; Settings::IMAGE_LEN]), None);
+    }
+
+    #[test]
+    fn a_flipped_bit_is_detected() {
+        let mut img = Settings::DEFAULT.to_bytes();
+        img[7] ^= 0x10;
+        assert_eq!(Settings::from_bytes(&img), None);
+    }
+
+    #[test]
+    fn insane_values_are_refused_even_with_a_good_checksum() {
+        let mut s = Settings::DEFAULT;
+        s.steps_per_mm[1] = 0.0;
+        assert_eq!(Settings::from_bytes(&s.to_bytes()), None);
+        s.steps_per_mm[1] = f32::NAN;
+        assert_eq!(Settings::from_bytes(&s.to_bytes()), None);
+    }
+
+    #[test]
+    fn defaults_are_sane_and_match_the_spec() {
+        let s = Settings::DEFAULT;
+        assert!(s.is_sane());
+        assert_eq!(s.travel_steps(0), 4500);
+        assert_eq!(s.max_feed_mm_per_min[0], 50.0 * 60.0);
+        assert_eq!(s.accel_mm_per_s2[2], 1000.0);
+    }
+}

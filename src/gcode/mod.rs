@@ -1,0 +1,1 @@
+//! G-code (SPEC §5): word-address parser and interpreter.

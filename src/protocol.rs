@@ -1,0 +1,1 @@
+//! Host protocol (SPEC §4).

@@ -1,0 +1,1 @@
+//! Stepper segment preparation and the Bresenham tick (SPEC §6).
