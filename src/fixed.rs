@@ -56,7 +56,7 @@ mod tests {
         assert_eq!(show(Micros(40)), "0.040");
         assert_eq!(show(Micros(0)), "0.000");
         assert_eq!(show(Micros(i32::MIN)), "-2147483.648");
-        assert_eq!(show(Micros::from_mm(-1.0005)), "-1.001");
+        assert_eq!(show(Micros::from_mm(-1.0006)), "-1.001");
     }
 
     #[test]
