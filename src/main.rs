@@ -1,3 +1,15 @@
+//! Firmware entry point for the ATmega2560 (Arduino Mega2560 + RAMPS 1.4).
+//!
+//! Wires the pipeline together:
+//! serial bytes → `protocol` (line assembly, N/*) → `machine::Machine`
+//! (parser, interpreter, planner, segment prep) → `board::stepper` ISR.
+//!
+//! The main loop never blocks for long: every wait (TX space, planner space,
+//! dwell, homing) runs [`idle`], which feeds the watchdog, tops up the segment
+//! ring and serves realtime requests (`?`, `!`, `~`, M112).
+//!
+//! On the host this file compiles to a stub so `cargo test` can build the
+//! package; the firmware is built with `cargo fw`.
 #![cfg_attr(target_arch = "avr", no_std, no_main, feature(abi_avr_interrupt))]
 
 #[cfg(not(target_arch = "avr"))]
@@ -6,22 +18,22 @@ fn main() {
 }
 
 #[cfg(target_arch = "avr")]
+mod board;
+#[cfg(target_arch = "avr")]
+mod firmware;
+
+#[cfg(target_arch = "avr")]
 #[avr_device::entry]
 fn main() -> ! {
-    let dp = avr_device::atmega2560::Peripherals::take().unwrap();
-    let u = &dp.USART0;
-    u.ubrr0().write(|w| unsafe { w.bits(3) });
-    u.ucsr0a().write(|w| w.u2x0().set_bit());
-    u.ucsr0b().write(|w| w.txen0().set_bit().rxen0().set_bit());
-    for &b in b"start\n" {
-        while u.ucsr0a().read().udre0().bit_is_clear() {}
-        u.udr0().write(|w| unsafe { w.bits(b) });
-    }
-    loop {}
+    firmware::run()
 }
 
+/// Panic: drop the stepper enables and the spindle, report, then halt
+/// (the watchdog then resets the chip into a safe state).
 #[cfg(target_arch = "avr")]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
+    avr_device::interrupt::disable();
+    board::emergency_stop();
     loop {}
 }

@@ -1,0 +1,239 @@
+//! Board layer: the only code that touches ATmega2560 registers.
+//!
+//! `arduino-hal` is not on crates.io (and GitHub cannot be reached here), so
+//! this small layer sits directly on the `avr-device` PAC. It owns:
+//! - [`pins`]: the RAMPS 1.4 pin table (SPEC §2);
+//! - [`serial`]: USART0 with interrupt-driven RX/TX rings and realtime bytes;
+//! - [`stepper`]: Timer1, the step ISR (Bresenham over X, Y, Z, E0);
+//! - the millisecond clock (Timer0) and spindle PWM (Timer2) in this file;
+//! - [`twi`] and [`spi`]: bus masters implementing the `embedded-hal` 1.0 traits;
+//! - [`eeprom`] and [`wdt`].
+//!
+//! Everything above this layer (the `mill` library) sees values, never pins.
+
+pub mod eeprom;
+pub mod pins;
+pub mod serial;
+pub mod spi;
+pub mod stepper;
+pub mod twi;
+pub mod wdt;
+
+use avr_device::atmega2560::{Peripherals, TC0, TC2};
+use core::cell::Cell;
+use avr_device::interrupt::Mutex;
+use portable_atomic::{AtomicU8, Ordering};
+
+/// Realtime request bits set from ISRs, consumed by the main loop.
+pub mod realtime {
+    /// `?` received: print one status line.
+    pub const STATUS: u8 = 1 << 0;
+    /// `!` received: feed hold.
+    pub const HOLD: u8 = 1 << 1;
+    /// `~` received: resume.
+    pub const RESUME: u8 = 1 << 2;
+    /// `M112` seen on the wire: the machine is already stopped.
+    pub const ESTOP: u8 = 1 << 3;
+}
+
+/// Pending realtime requests (bits of [`realtime`]).
+pub static REALTIME: AtomicU8 = AtomicU8::new(0);
+
+/// Take and clear all pending realtime requests.
+pub fn take_realtime() -> u8 {
+    REALTIME.swap(0, Ordering::AcqRel)
+}
+
+/// Stop everything now: drivers off, spindle off, stepper halted.
+/// Safe to call from any context, including ISRs.
+pub fn emergency_stop() {
+    avr_device::interrupt::free(|_| {
+        stepper::halt_from_isr();
+        drivers_enable_raw(false);
+        spindle_off_raw();
+    });
+    REALTIME.fetch_or(realtime::ESTOP, Ordering::AcqRel);
+}
+
+// ---- Steppers enable -----------------------------------------------------
+
+/// Enable (`true`) or disable all four stepper drivers (enable is active low).
+pub fn drivers_enable(on: bool) {
+    avr_device::interrupt::free(|_| drivers_enable_raw(on));
+}
+
+fn drivers_enable_raw(on: bool) {
+    for p in pins::ENABLE {
+        // SAFETY: RMW of PORTx; callers hold a critical section.
+        unsafe {
+            let v = core::ptr::read_volatile(p.port.port);
+            core::ptr::write_volatile(p.port.port, if on { v & !p.mask } else { v | p.mask });
+        }
+    }
+}
+
+/// True when the drivers are enabled (X's enable pin is low).
+pub fn drivers_enabled() -> bool {
+    // SAFETY: reading PORTD has no side effects.
+    unsafe { core::ptr::read_volatile(pins::X_ENABLE.port.port) & pins::X_ENABLE.mask == 0 }
+}
+
+// ---- Millisecond clock (Timer0, CTC at 1 kHz) ---------------------------
+
+static MILLIS: Mutex<Cell<u32>> = Mutex::new(Cell::new(0));
+
+fn clock_init(tc0: &TC0) {
+    // CTC, clk/64, OCR0A = 249: 16 MHz / 64 / 250 = 1 kHz.
+    tc0.tccr0a().write(|w| w.wgm0().ctc());
+    // SAFETY: any OCR value is valid.
+    tc0.ocr0a().write(|w| unsafe { w.bits(249) });
+    tc0.tccr0b().write(|w| w.cs0().prescale_64());
+    tc0.timsk0().write(|w| w.ocie0a().set_bit());
+}
+
+/// Milliseconds since boot (wraps after 49 days).
+pub fn millis() -> u32 {
+    avr_device::interrupt::free(|cs| MILLIS.borrow(cs).get())
+}
+
+/// 1 kHz tick: the millisecond clock. About 40 cycles.
+#[avr_device::interrupt(atmega2560)]
+fn TIMER0_COMPA() {
+    avr_device::interrupt::free(|cs| {
+        let c = MILLIS.borrow(cs);
+        c.set(c.get().wrapping_add(1));
+    });
+}
+
+// ---- Spindle PWM (Timer2, OC2A on PB4 = D10) -----------------------------
+
+fn spindle_init(tc2: &TC2) {
+    // Fast PWM, TOP = 0xFF, clk/8: 16 MHz / 8 / 256 = 7.8 kHz. Output off.
+    tc2.tccr2a().write(|w| w.wgm2().pwm_fast());
+    tc2.tccr2b().write(|w| w.cs2().prescale_8());
+    pins::SPINDLE_PWM.make_output(false);
+}
+
+/// Set spindle PWM duty (0 = off, 255 = full).
+pub fn spindle_set(duty: u8) {
+    avr_device::interrupt::free(|_| {
+        if duty == 0 {
+            spindle_off_raw();
+        } else {
+            // SAFETY: Timer2 is owned by the spindle; inside a critical section.
+            let tc2 = unsafe { &*TC2::ptr() };
+            tc2.ocr2a().write(|w| unsafe { w.bits(duty) });
+            tc2.tccr2a().modify(|_, w| w.com2a().match_clear());
+        }
+    });
+}
+
+/// Spindle off from an ISR (interrupts already disabled).
+pub(crate) fn spindle_off_from_isr() {
+    spindle_off_raw();
+}
+
+fn spindle_off_raw() {
+    // SAFETY: Timer2 is owned by the spindle; callers hold a critical section.
+    let tc2 = unsafe { &*TC2::ptr() };
+    tc2.tccr2a().modify(|_, w| w.com2a().disconnected());
+    // SAFETY: RMW of PORTB in a critical section; pin forced low.
+    unsafe {
+        let p = pins::SPINDLE_PWM;
+        let v = core::ptr::read_volatile(p.port.port);
+        core::ptr::write_volatile(p.port.port, v & !p.mask);
+    }
+}
+
+// ---- Inputs ----------------------------------------------------------------
+
+/// Switch and sensor levels, already converted to "triggered".
+#[derive(Clone, Copy, Default)]
+pub struct Inputs {
+    /// Home switches closed, bit i = axis i (X, Y, Z).
+    pub home: u8,
+    /// Carousel home switch closed.
+    pub carousel_home: bool,
+    /// Tool-setter beam interrupted.
+    pub tool_setter: bool,
+}
+
+/// Read all switches (closed switch pulls low; tool setter high = blocked).
+pub fn inputs() -> Inputs {
+    let mut home = 0;
+    for (i, p) in pins::HOME.iter().enumerate() {
+        if !p.is_high() {
+            home |= 1 << i;
+        }
+    }
+    Inputs {
+        home,
+        carousel_home: !pins::CAROUSEL_HOME.is_high(),
+        tool_setter: pins::TOOL_SETTER.is_high(),
+    }
+}
+
+// ---- Stack painting (for the RAM report) --------------------------------
+
+/// Byte painted over free RAM at boot; the simulator reads back how much of
+/// it the stack overwrote (stack high-water mark, SPEC §11).
+pub const STACK_PAINT: u8 = 0xC5;
+
+/// Paint the RAM between the end of .bss and the current stack with
+/// [`STACK_PAINT`]. Call first thing in `main`.
+#[inline(always)]
+pub fn paint_stack() {
+    extern "C" {
+        static mut __heap_start: u8;
+    }
+    // SAFETY: the memory between __heap_start (end of .bss, no heap is used)
+    // and the current stack pointer minus a margin is unused at this point.
+    unsafe {
+        let start = core::ptr::addr_of_mut!(__heap_start) as usize;
+        let sp = core::ptr::read_volatile(0x5D as *const u16) as usize; // SPL/SPH
+        let mut p = start;
+        while p + 16 < sp {
+            core::ptr::write_volatile(p as *mut u8, STACK_PAINT);
+            p += 1;
+        }
+    }
+}
+
+/// Bytes of RAM never touched by the stack since boot (0xC5 still in place).
+pub fn free_ram() -> u16 {
+    extern "C" {
+        static mut __heap_start: u8;
+    }
+    // SAFETY: read-only scan of RAM above .bss.
+    unsafe {
+        let start = core::ptr::addr_of_mut!(__heap_start) as usize;
+        let mut p = start;
+        while p < 0x2200 && core::ptr::read_volatile(p as *const u8) == STACK_PAINT {
+            p += 1;
+        }
+        (p - start) as u16
+    }
+}
+
+/// Bring up every peripheral the firmware uses. Interrupts stay disabled.
+pub fn init(dp: &Peripherals) {
+    for p in pins::STEP.iter().chain(pins::DIR.iter()) {
+        p.make_output(false);
+    }
+    for p in pins::ENABLE {
+        p.make_output(true); // drivers disabled
+    }
+    for p in pins::HOME {
+        p.make_input_pullup();
+    }
+    pins::CAROUSEL_HOME.make_input_pullup();
+    pins::TOOL_SETTER.make_input_pullup();
+    pins::ENC_A.make_input_pullup();
+    pins::ENC_B.make_input_pullup();
+    pins::ENC_BUTTON.make_input_pullup();
+    pins::SD_DETECT.make_input_pullup();
+    serial::init(&dp.USART0, serial::Baud::B250000);
+    clock_init(&dp.TC0);
+    spindle_init(&dp.TC2);
+    stepper::init(&dp.TC1);
+}

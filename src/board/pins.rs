@@ -1,0 +1,183 @@
+//! The RAMPS 1.4 pin table (SPEC §2): the only place that knows ports.
+//!
+//! Each pin is named after its function and mapped to an AVR port and bit,
+//! with its Arduino pin number beside it (ATmega2560 datasheet §13, "I/O
+//! ports"; Arduino Mega2560 pin map). Data-space addresses of the port
+//! registers are used directly in the stepper ISR, where one `out`/`sts`
+//! to a PINx register toggles several step pins at once, atomically.
+//!
+//! Step pins sit on three ports (PF, PL, PA), so the ISR maps the Bresenham
+//! step bits (bit 0 = X … bit 3 = E0) with [`port_bits`].
+
+/// One of the AVR's I/O ports, by its register addresses in data space.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Port {
+    /// PINx: reads the pins; writing 1s toggles PORTx bits.
+    pub pin: *mut u8,
+    /// DDRx: 1 = output.
+    pub ddr: *mut u8,
+    /// PORTx: output level, or pull-up for inputs.
+    pub port: *mut u8,
+}
+
+// SAFETY: the addresses are fixed hardware registers; sharing them between
+// contexts is coordinated by the functions that access them.
+unsafe impl Sync for Port {}
+
+/// A port pin: the port and the bit mask.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Pin {
+    pub port: Port,
+    pub mask: u8,
+}
+
+const fn port(pin_addr: usize) -> Port {
+    Port { pin: pin_addr as *mut u8, ddr: (pin_addr + 1) as *mut u8, port: (pin_addr + 2) as *mut u8 }
+}
+
+pub const PA: Port = port(0x20);
+pub const PB: Port = port(0x23);
+pub const PC: Port = port(0x26);
+pub const PD: Port = port(0x29);
+pub const PE: Port = port(0x2C);
+pub const PF: Port = port(0x2F);
+pub const PJ: Port = port(0x103);
+pub const PK: Port = port(0x106);
+pub const PL: Port = port(0x109);
+
+const fn pin(port: Port, bit: u8) -> Pin {
+    Pin { port, mask: 1 << bit }
+}
+
+// ---- Steppers (thesis Table 7) -------------------------------------------
+/// D54, PF0
+pub const X_STEP: Pin = pin(PF, 0);
+/// D55, PF1
+pub const X_DIR: Pin = pin(PF, 1);
+/// D38, PD7, active low
+pub const X_ENABLE: Pin = pin(PD, 7);
+/// D60, PF6
+pub const Y_STEP: Pin = pin(PF, 6);
+/// D61, PF7
+pub const Y_DIR: Pin = pin(PF, 7);
+/// D56, PF2, active low
+pub const Y_ENABLE: Pin = pin(PF, 2);
+/// D46, PL3
+pub const Z_STEP: Pin = pin(PL, 3);
+/// D48, PL1
+pub const Z_DIR: Pin = pin(PL, 1);
+/// D62, PK0, active low
+pub const Z_ENABLE: Pin = pin(PK, 0);
+/// D26, PA4 (E0, the carousel)
+pub const E_STEP: Pin = pin(PA, 4);
+/// D28, PA6
+pub const E_DIR: Pin = pin(PA, 6);
+/// D24, PA2, active low
+pub const E_ENABLE: Pin = pin(PA, 2);
+
+/// Step, dir and enable pins per axis, in axis order X, Y, Z, E0.
+pub const STEP: [Pin; 4] = [X_STEP, Y_STEP, Z_STEP, E_STEP];
+pub const DIR: [Pin; 4] = [X_DIR, Y_DIR, Z_DIR, E_DIR];
+pub const ENABLE: [Pin; 4] = [X_ENABLE, Y_ENABLE, Z_ENABLE, E_ENABLE];
+
+// ---- Switches and sensors ------------------------------------------------
+/// D3, PE5: X min. Closed switch pulls low.
+pub const X_HOME: Pin = pin(PE, 5);
+/// D14, PJ1: Y min.
+pub const Y_HOME: Pin = pin(PJ, 1);
+/// D18, PD3: Z min (top; Z grows downward).
+pub const Z_HOME: Pin = pin(PD, 3);
+/// D2, PE4: carousel home (X_MAX header), closed at 0°.
+pub const CAROUSEL_HOME: Pin = pin(PE, 4);
+/// D19, PD2: optical tool setter (Z_MAX header); high = beam interrupted.
+pub const TOOL_SETTER: Pin = pin(PD, 2);
+/// Home switches in axis order X, Y, Z.
+pub const HOME: [Pin; 3] = [X_HOME, Y_HOME, Z_HOME];
+
+// ---- Spindle, UI, buses --------------------------------------------------
+/// D10, PB4 = OC2A: spindle PWM (thesis: DC spindle on D10).
+pub const SPINDLE_PWM: Pin = pin(PB, 4);
+/// D31, PC6: encoder A (AUX-4).
+pub const ENC_A: Pin = pin(PC, 6);
+/// D33, PC4: encoder B.
+pub const ENC_B: Pin = pin(PC, 4);
+/// D35, PC2: encoder button.
+pub const ENC_BUTTON: Pin = pin(PC, 2);
+/// D53, PB0: SD card chip select (SPI SS).
+pub const SD_SS: Pin = pin(PB, 0);
+/// D49, PL0: SD card detect.
+pub const SD_DETECT: Pin = pin(PL, 0);
+// SDA D20 = PD1, SCL D21 = PD0 (TWI), SCK D52 = PB1, MOSI D51 = PB2,
+// MISO D50 = PB3 (SPI): owned by the TWI and SPI drivers.
+// Host serial: USART0 on D0 = PE0 (RX), D1 = PE1 (TX).
+
+/// Masks of the step pins on each of their ports for Bresenham step bits
+/// (bit 0 = X, 1 = Y, 2 = Z, 3 = E0): `(PF mask, PL mask, PA mask)`.
+/// Also used for direction bits (X PF1, Y PF7, Z PL1, E PA6) via [`dir_port_bits`].
+#[inline(always)]
+pub fn port_bits(bits: u8) -> (u8, u8, u8) {
+    // X PF0 (bit0 -> 0), Y PF6 (bit1 -> 6), Z PL3 (bit2 -> 3), E PA4 (bit3 -> 4)
+    let f = (bits & 0x01) | ((bits & 0x02) << 5);
+    let l = (bits & 0x04) << 1;
+    let a = (bits & 0x08) << 1;
+    (f, l, a)
+}
+
+/// Port masks of the direction pins for direction bits (bit i = axis i).
+#[inline(always)]
+pub fn dir_port_bits(bits: u8) -> (u8, u8, u8) {
+    // X PF1 (bit0 -> 1), Y PF7 (bit1 -> 7), Z PL1 (bit2 -> 1), E PA6 (bit3 -> 6)
+    let f = ((bits & 0x01) << 1) | ((bits & 0x02) << 6);
+    let l = (bits & 0x04) >> 1;
+    let a = (bits & 0x08) << 3;
+    (f, l, a)
+}
+
+impl Pin {
+    /// Read the pin level.
+    #[inline(always)]
+    pub fn is_high(self) -> bool {
+        // SAFETY: reading a PINx register has no side effects.
+        unsafe { core::ptr::read_volatile(self.port.pin) & self.mask != 0 }
+    }
+
+    /// Make the pin an output at `high`. Read-modify-write: call with
+    /// interrupts disabled if an ISR writes the same port (see [`Pin::set`]).
+    pub fn make_output(self, high: bool) {
+        self.set(high);
+        avr_device::interrupt::free(|_| {
+            // SAFETY: RMW of DDRx inside a critical section.
+            unsafe {
+                let v = core::ptr::read_volatile(self.port.ddr);
+                core::ptr::write_volatile(self.port.ddr, v | self.mask);
+            }
+        });
+    }
+
+    /// Make the pin an input with the pull-up on.
+    pub fn make_input_pullup(self) {
+        avr_device::interrupt::free(|_| {
+            // SAFETY: RMW of DDRx/PORTx inside a critical section.
+            unsafe {
+                let d = core::ptr::read_volatile(self.port.ddr);
+                core::ptr::write_volatile(self.port.ddr, d & !self.mask);
+                let p = core::ptr::read_volatile(self.port.port);
+                core::ptr::write_volatile(self.port.port, p | self.mask);
+            }
+        });
+    }
+
+    /// Drive an output pin. The read-modify-write of PORTx happens in a
+    /// critical section, because the stepper ISR toggles pins on PF, PL, PA.
+    #[inline(always)]
+    pub fn set(self, high: bool) {
+        avr_device::interrupt::free(|_| {
+            // SAFETY: RMW of PORTx inside a critical section.
+            unsafe {
+                let v = core::ptr::read_volatile(self.port.port);
+                let v = if high { v | self.mask } else { v & !self.mask };
+                core::ptr::write_volatile(self.port.port, v);
+            }
+        });
+    }
+}

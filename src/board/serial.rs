@@ -1,0 +1,182 @@
+//! USART0, the host serial port (SPEC §4), interrupt driven (datasheet §22).
+//!
+//! RX: the `USART0_RX` ISR takes every byte as it arrives. Realtime bytes
+//! (`?` `!` `~`) become bits in [`super::REALTIME`] and never reach the ring;
+//! `M112` is spotted by `protocol::EstopScanner` and stops the machine from
+//! inside the ISR. Other bytes go into a 256-byte `heapless::spsc` ring whose
+//! consumer is the main loop. If the ring is full the byte is dropped and
+//! [`rx_overrun`] reports it, so the line assembler throws the damaged line
+//! away instead of running it: the ring itself can never overflow.
+//!
+//! TX: [`write`] queues bytes in a 128-byte ring drained by `USART0_UDRE`.
+//! While the ring is full the writer runs the idle hook (segment prep), so a
+//! long reply never starves the stepper.
+
+use super::{realtime, REALTIME};
+use avr_device::atmega2560::USART0;
+use core::ptr::addr_of_mut;
+use heapless::spsc::{Consumer, Producer, Queue};
+use mill::protocol::EstopScanner;
+
+/// RX ring capacity + 1 (heapless keeps one slot free): 255 bytes usable.
+/// A character-counting host may keep this many bytes in flight.
+pub const RX_LEN: usize = 256;
+/// TX ring capacity + 1.
+pub const TX_LEN: usize = 128;
+
+static mut RX: Queue<u8, RX_LEN> = Queue::new();
+static mut TX: Queue<u8, TX_LEN> = Queue::new();
+// Ends of the rings. Each is touched by exactly one context: the RX producer
+// and TX consumer by the ISRs, the others by the main loop.
+static mut RX_PROD: Option<Producer<'static, u8, RX_LEN>> = None;
+static mut RX_CONS: Option<Consumer<'static, u8, RX_LEN>> = None;
+static mut TX_PROD: Option<Producer<'static, u8, TX_LEN>> = None;
+static mut TX_CONS: Option<Consumer<'static, u8, TX_LEN>> = None;
+static mut ESTOP_SCAN: EstopScanner = EstopScanner::new();
+/// Set by the RX ISR when a byte was lost (ring full or hardware overrun).
+static OVERRUN: portable_atomic::AtomicBool = portable_atomic::AtomicBool::new(false);
+/// Run while waiting for TX space (set by main: segment prep).
+static mut TX_WAIT_HOOK: fn() = || {};
+
+/// Baud rates the firmware offers. 250000 is the default (Repetier's).
+#[derive(Clone, Copy)]
+pub enum Baud {
+    B250000,
+    B115200,
+}
+
+/// Set up USART0 (8N1, U2X) and the rings. Call once, interrupts off.
+pub fn init(usart: &USART0, baud: Baud) {
+    // SAFETY: called once at boot with interrupts disabled; nothing else
+    // holds references into the queues yet.
+    unsafe {
+        let (p, c) = (*addr_of_mut!(RX)).split();
+        *addr_of_mut!(RX_PROD) = Some(p);
+        *addr_of_mut!(RX_CONS) = Some(c);
+        let (p, c) = (*addr_of_mut!(TX)).split();
+        *addr_of_mut!(TX_PROD) = Some(p);
+        *addr_of_mut!(TX_CONS) = Some(c);
+    }
+    // U2X: baud = 16 MHz / (8 (UBRR + 1)). 7 -> 250000 exactly; 16 -> 117647 (+2.1 %).
+    let ubrr = match baud {
+        Baud::B250000 => 7,
+        Baud::B115200 => 16,
+    };
+    // SAFETY: any UBRR value is valid.
+    usart.ubrr0().write(|w| unsafe { w.bits(ubrr) });
+    usart.ucsr0a().write(|w| w.u2x0().set_bit());
+    usart.ucsr0c().write(|w| w.ucsz0().chr8());
+    usart.ucsr0b().write(|w| w.rxen0().set_bit().txen0().set_bit().rxcie0().set_bit());
+}
+
+/// Set the function run while waiting for TX space.
+pub fn set_tx_wait_hook(f: fn()) {
+    // SAFETY: written by the main loop only, read by the main loop only.
+    unsafe { *addr_of_mut!(TX_WAIT_HOOK) = f };
+}
+
+/// Next received byte, if any (main loop only).
+#[inline]
+pub fn read() -> Option<u8> {
+    // SAFETY: the RX consumer is only used from the main loop.
+    unsafe { (*addr_of_mut!(RX_CONS)).as_mut().and_then(|c| c.dequeue()) }
+}
+
+/// Bytes waiting in the RX ring.
+pub fn rx_len() -> usize {
+    // SAFETY: main loop only; len() reads the indices atomically.
+    unsafe { (*addr_of_mut!(RX_CONS)).as_ref().map_or(0, |c| c.len()) }
+}
+
+/// True once after a received byte was lost.
+pub fn rx_overrun() -> bool {
+    OVERRUN.swap(false, portable_atomic::Ordering::AcqRel)
+}
+
+/// Queue bytes for sending; waits (running the idle hook) while the ring is full.
+pub fn write(bytes: &[u8]) {
+    for &b in bytes {
+        loop {
+            // SAFETY: the TX producer is only used from the main loop.
+            let ok = unsafe { (*addr_of_mut!(TX_PROD)).as_mut().map_or(true, |p| p.enqueue(b).is_ok()) };
+            if ok {
+                break;
+            }
+            kick_tx();
+            // SAFETY: the hook is a plain fn set by the main loop.
+            unsafe { (*addr_of_mut!(TX_WAIT_HOOK))() };
+        }
+    }
+    kick_tx();
+}
+
+/// True when every queued byte has left the TX ring.
+pub fn tx_empty() -> bool {
+    // SAFETY: main loop only.
+    unsafe { (*addr_of_mut!(TX_PROD)).as_ref().map_or(true, |p| p.len() == 0) }
+}
+
+/// Enable the data-register-empty interrupt so the ISR drains the ring.
+fn kick_tx() {
+    avr_device::interrupt::free(|_| {
+        // SAFETY: UCSR0B RMW inside a critical section; the UDRE ISR also
+        // writes it, but never while interrupts are off.
+        let u = unsafe { &*USART0::ptr() };
+        u.ucsr0b().modify(|_, w| w.udrie0().set_bit());
+    });
+}
+
+/// A `ufmt` writer onto the serial port.
+pub struct Writer;
+
+impl ufmt::uWrite for Writer {
+    type Error = core::convert::Infallible;
+    fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
+        write(s.as_bytes());
+        Ok(())
+    }
+}
+
+/// RX complete. Measured with the realtime scan: see README "ISR budgets".
+#[avr_device::interrupt(atmega2560)]
+fn USART0_RX() {
+    // SAFETY: the ISR is the only user of USART0's data register for reading.
+    let u = unsafe { &*USART0::ptr() };
+    let lost = u.ucsr0a().read().dor0().bit_is_set();
+    let b = u.udr0().read().bits();
+    if lost {
+        OVERRUN.store(true, portable_atomic::Ordering::Release);
+    }
+    match b {
+        b'?' => REALTIME.fetch_or(realtime::STATUS, portable_atomic::Ordering::AcqRel),
+        b'!' => REALTIME.fetch_or(realtime::HOLD, portable_atomic::Ordering::AcqRel),
+        b'~' => REALTIME.fetch_or(realtime::RESUME, portable_atomic::Ordering::AcqRel),
+        _ => {
+            // SAFETY: the scanner and RX producer are only used by this ISR.
+            unsafe {
+                if (*addr_of_mut!(ESTOP_SCAN)).feed(b) {
+                    super::emergency_stop();
+                }
+                let full = (*addr_of_mut!(RX_PROD)).as_mut().map_or(true, |p| p.enqueue(b).is_err());
+                if full {
+                    OVERRUN.store(true, portable_atomic::Ordering::Release);
+                }
+            }
+            0
+        }
+    };
+}
+
+/// TX data register empty: send the next byte or switch the interrupt off.
+#[avr_device::interrupt(atmega2560)]
+fn USART0_UDRE() {
+    // SAFETY: the TX consumer is only used by this ISR; UCSR0B is modified
+    // here with interrupts already disabled (ISRs do not nest).
+    unsafe {
+        let u = &*USART0::ptr();
+        match (*addr_of_mut!(TX_CONS)).as_mut().and_then(|c| c.dequeue()) {
+            Some(b) => u.udr0().write(|w| w.bits(b)),
+            None => u.ucsr0b().modify(|_, w| w.udrie0().clear_bit()),
+        }
+    }
+}

@@ -1,0 +1,493 @@
+//! The machine controller: everything between the serial bytes and the
+//! segment ring, as plain logic over the [`Io`] trait.
+//!
+//! ```text
+//!  bytes ─► protocol::LineAssembler ─► protocol::LineChecker ─► gcode::parse
+//!        ─► interpreter (gcode::interp, modal state) ─► Planner ─► Prep ─► Io::push_segment
+//! ```
+//!
+//! The firmware implements [`Io`] over `board` (AVR); host tests implement it
+//! with a fake stepper, so the whole controller (alarms, homing, hold, the
+//! protocol replies) is tested without a simulator.
+//!
+//! Nothing here blocks without serving realtime requests: every wait goes
+//! through [`Machine::wait_step`], which tops up the segment ring and handles
+//! `?`, `!`, `~`, M112 and switch trips.
+
+use crate::config::Settings;
+use crate::fixed::Micros;
+use crate::gcode::interp::{self, Interp};
+use crate::planner::{PlanError, Planner};
+use crate::protocol::{Assembled, LineAssembler, LineChecker};
+use crate::stepper::{Prep, StepperCmd};
+use crate::N_AXES;
+use core::convert::Infallible;
+use ufmt::{uwrite, uwriteln};
+
+/// Realtime events collected by the hardware since the last poll.
+#[derive(Clone, Copy, Default, Debug)]
+pub struct Realtime {
+    pub status: bool,
+    pub hold: bool,
+    pub resume: bool,
+    pub estop: bool,
+    pub limit: bool,
+    pub home_tripped: bool,
+    pub probe_tripped: bool,
+    pub rx_overrun: bool,
+}
+
+/// What the stepper ISR reports.
+#[derive(Clone, Copy, Default, Debug)]
+pub struct StepperStatus {
+    /// Machine position in steps, counted by the ISR.
+    pub position: [i32; N_AXES],
+    /// Steps still being produced or queued.
+    pub busy: bool,
+    /// Position latched at the last homing/probe trip.
+    pub trip_position: [i32; N_AXES],
+}
+
+/// Switch levels, already as "triggered".
+#[derive(Clone, Copy, Default, Debug)]
+pub struct Switches {
+    /// Home switches, bit i = axis i (X, Y, Z).
+    pub home: u8,
+    pub carousel_home: bool,
+    pub tool_setter: bool,
+}
+
+/// The hardware as the controller sees it.
+pub trait Io: ufmt::uWrite<Error = Infallible> {
+    /// Feed the watchdog and collect realtime events.
+    fn poll(&mut self) -> Realtime;
+    /// Queue a command for the stepper ISR; false if the ring is full.
+    fn push_segment(&mut self, cmd: StepperCmd) -> bool;
+    /// Free slots in the segment ring.
+    fn segment_space(&self) -> usize;
+    /// Stepper position and activity.
+    fn stepper(&self) -> StepperStatus;
+    /// Overwrite the stepper's position counter (only while stopped).
+    fn set_stepper_position(&mut self, p: [i32; N_AXES]);
+    /// Stop stepping at once, dropping queued segments.
+    fn stop_motion(&mut self);
+    /// Accept segments again after a stop; clears trip flags.
+    fn clear_stop(&mut self);
+    /// What the ISR watches: homing axes, probe input, hard-limit axes,
+    /// homed axes, direction inversion mask.
+    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8);
+    /// Enable or disable the stepper drivers.
+    fn drivers(&mut self, on: bool);
+    /// Spindle PWM duty, 0 = off.
+    fn spindle(&mut self, duty: u8);
+    /// Current switch levels.
+    fn switches(&self) -> Switches;
+    /// Milliseconds since boot.
+    fn millis(&self) -> u32;
+    /// Read EEPROM bytes.
+    fn eeprom_read(&mut self, addr: u16, buf: &mut [u8]);
+    /// Write EEPROM bytes (only the ones that differ are programmed).
+    fn eeprom_write(&mut self, addr: u16, data: &[u8]);
+    /// RAM never touched by the stack since boot, bytes.
+    fn free_ram(&self) -> u16;
+    /// Bytes waiting in the serial RX ring.
+    fn rx_pending(&self) -> usize;
+}
+
+/// Machine state, as reported by `?` (grbl 1.1 names).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum State {
+    Idle,
+    Run,
+    Hold,
+    Alarm,
+    Home,
+    Tool,
+    Probe,
+}
+
+impl State {
+    /// The grbl 1.1 status word.
+    pub fn name(self) -> &'static str {
+        match self {
+            State::Idle => "Idle",
+            State::Run => "Run",
+            State::Hold => "Hold",
+            State::Alarm => "Alarm",
+            State::Home => "Home",
+            State::Tool => "Tool",
+            State::Probe => "Probe",
+        }
+    }
+}
+
+/// Why the machine is in alarm (SPEC §10).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Alarm {
+    /// M112 received.
+    EmergencyStop,
+    /// A home switch closed outside homing.
+    HardLimit,
+    /// G28 did not find a switch within travel + 10 %.
+    HomingFailed,
+    /// The probe input did not trip (G38.2).
+    ProbeFailed,
+    /// Booted after a watchdog reset.
+    WatchdogReset,
+}
+
+impl Alarm {
+    /// Text after `Error:alarm ` / `ALARM:`.
+    pub fn message(self) -> &'static str {
+        match self {
+            Alarm::EmergencyStop => "emergency stop",
+            Alarm::HardLimit => "hard limit",
+            Alarm::HomingFailed => "homing failed",
+            Alarm::ProbeFailed => "probe failed",
+            Alarm::WatchdogReset => "watchdog reset",
+        }
+    }
+}
+
+/// Interpreter-level error shown to the host as `Error:<text>`.
+pub type CmdResult = Result<(), interp::Error>;
+
+/// EEPROM address of the settings image.
+pub const EEPROM_SETTINGS_ADDR: u16 = 0;
+
+/// The controller.
+pub struct Machine {
+    pub settings: Settings,
+    pub planner: Planner,
+    pub prep: Prep,
+    pub interp: Interp,
+    asm: LineAssembler,
+    chk: LineChecker,
+    pub state: State,
+    pub alarm: Option<Alarm>,
+    /// Axes with a known position (bit i = axis i).
+    pub homed: u8,
+    /// Feed-hold requested and not yet resumed.
+    holding: bool,
+    /// Milliseconds of the last `busy:processing`.
+    last_busy_ms: u32,
+}
+
+impl Machine {
+    /// A machine with default settings (the EEPROM is read in [`Machine::boot`]).
+    pub const fn new() -> Machine {
+        Machine {
+            settings: Settings::DEFAULT,
+            planner: Planner::new(),
+            prep: Prep::new(),
+            interp: Interp::new(),
+            asm: LineAssembler::new(),
+            chk: LineChecker::new(),
+            state: State::Idle,
+            alarm: None,
+            homed: 0,
+            holding: false,
+            last_busy_ms: 0,
+        }
+    }
+
+    /// Start-up: load settings, print the banner and the reset reason.
+    pub fn boot(&mut self, io: &mut impl Io, reset_cause: &str) {
+        let mut img = [0u8; Settings::IMAGE_LEN];
+        io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
+        let loaded = Settings::from_bytes(&img);
+        if let Some(s) = loaded {
+            self.settings = s;
+        }
+        self.interp.load_settings(&self.settings);
+        self.apply_watch(io, 0, false);
+        uwriteln!(io, "start").ok();
+        self.firmware_line(io);
+        uwriteln!(io, "echo:reset cause: {}", reset_cause).ok();
+        if loaded.is_none() {
+            uwriteln!(io, "echo:EEPROM settings invalid or blank, using defaults").ok();
+        }
+        if reset_cause == "watchdog" {
+            self.raise(io, Alarm::WatchdogReset);
+        }
+    }
+
+    /// The M115 / boot firmware line.
+    pub fn firmware_line(&self, io: &mut impl Io) {
+        uwriteln!(
+            io,
+            "FIRMWARE_NAME:{} {} FIRMWARE_URL:none PROTOCOL_VERSION:1.0 MACHINE_TYPE:Mill EXTRUDER_COUNT:1 AXIS_COUNT:3 TOOLS:12",
+            crate::FIRMWARE_NAME,
+            crate::FIRMWARE_VERSION
+        )
+        .ok();
+    }
+
+    /// Feed one received byte; runs complete lines.
+    pub fn push_byte(&mut self, b: u8, io: &mut impl Io) {
+        match self.asm.push(b) {
+            None => {}
+            Some(Assembled::Line) => {
+                let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
+                let raw = self.asm.line();
+                let n = raw.len();
+                buf[..n].copy_from_slice(raw);
+                self.run_raw_line(&buf[..n], io);
+            }
+            Some(other) => {
+                let msg = match other {
+                    Assembled::TooLong => "line too long (max 96 characters), ignored",
+                    Assembled::Overrun => "serial receive overrun, line dropped",
+                    _ => "binary data in line, ignored",
+                };
+                uwriteln!(io, "Error:{}", msg).ok();
+                self.resend(io);
+                uwriteln!(io, "ok").ok();
+            }
+        }
+    }
+
+    fn resend(&self, io: &mut impl Io) {
+        if self.chk.numbered() {
+            uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
+        }
+    }
+
+    /// Check N/* and run one line; always ends with exactly one `ok`.
+    fn run_raw_line(&mut self, raw: &[u8], io: &mut impl Io) {
+        match self.chk.check(raw) {
+            Err(e) => {
+                uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.resend_line() - 1).ok();
+                uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
+            }
+            Ok(cmd) => {
+                let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
+                let n = cmd.len();
+                buf[..n].copy_from_slice(cmd);
+                if let Err(e) = self.execute(&buf[..n], io) {
+                    self.report_error(io, e);
+                }
+            }
+        }
+        uwriteln!(io, "ok").ok();
+    }
+
+    fn report_error(&mut self, io: &mut impl Io, e: interp::Error) {
+        match e {
+            interp::Error::Alarm => {
+                let why = self.alarm.map_or("unknown", |a| a.message());
+                uwriteln!(io, "Error:alarm {}; home or M999", why).ok();
+            }
+            interp::Error::Parse(p) => {
+                uwriteln!(io, "Error:{} at col {}", p.kind.message(), p.col).ok();
+            }
+            other => {
+                uwriteln!(io, "Error:{}", other.message()).ok();
+            }
+        }
+    }
+
+    /// Parse and run one command line (without N and checksum).
+    pub fn execute(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        let line = crate::gcode::parse(text).map_err(interp::Error::Parse)?;
+        interp::execute(self, &line, text, io)
+    }
+
+    // ---- Motion plumbing --------------------------------------------------
+
+    /// Queue a straight move to `target` (absolute steps). Waits for planner
+    /// space while serving realtime requests.
+    pub fn queue_line(&mut self, io: &mut impl Io, target: [i32; N_AXES], feed_mm_per_min: f32, rapid: bool) -> CmdResult {
+        if self.alarm.is_some() {
+            return Err(interp::Error::Alarm);
+        }
+        loop {
+            match self.planner.push_line(target, feed_mm_per_min, rapid, &self.settings) {
+                Ok(p) => {
+                    if p.rate_capped {
+                        uwriteln!(io, "echo:warning: feed capped to the maximum step rate").ok();
+                    }
+                    if self.state == State::Idle {
+                        self.state = State::Run;
+                    }
+                    return Ok(());
+                }
+                Err(PlanError::Full) => self.wait_step(io)?,
+                Err(_) => return Err(interp::Error::BadFeed),
+            }
+        }
+    }
+
+    /// One turn of every wait loop: top up segments, serve realtime.
+    /// Fails when an alarm stops the machine meanwhile.
+    pub fn wait_step(&mut self, io: &mut impl Io) -> CmdResult {
+        self.idle(io);
+        if self.alarm.is_some() {
+            Err(interp::Error::Alarm)
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Wait until every queued move has been stepped out.
+    pub fn wait_idle(&mut self, io: &mut impl Io) -> CmdResult {
+        loop {
+            self.wait_step(io)?;
+            if self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Send `busy:processing` every 2 s during long operations (SPEC §4).
+    pub fn keepalive(&mut self, io: &mut impl Io) {
+        let now = io.millis();
+        if now.wrapping_sub(self.last_busy_ms) >= 2000 {
+            self.last_busy_ms = now;
+            uwriteln!(io, "busy:processing").ok();
+        }
+    }
+
+    /// Top up the segment ring from the planner.
+    pub fn fill_segments(&mut self, io: &mut impl Io) {
+        while io.segment_space() > 0 {
+            match self.prep.next_segment(&mut self.planner, &self.settings) {
+                Some(cmd) => {
+                    if !io.push_segment(cmd) {
+                        break;
+                    }
+                }
+                None => break,
+            }
+        }
+    }
+
+    /// Main-loop housekeeping: segments, realtime requests, state.
+    pub fn idle(&mut self, io: &mut impl Io) {
+        self.fill_segments(io);
+        let rt = io.poll();
+        if rt.estop && self.alarm != Some(Alarm::EmergencyStop) {
+            self.raise(io, Alarm::EmergencyStop);
+        }
+        if rt.limit && self.alarm.is_none() {
+            self.raise(io, Alarm::HardLimit);
+        }
+        if rt.rx_overrun {
+            self.asm.mark_overrun();
+        }
+        if rt.hold && self.alarm.is_none() && !self.holding {
+            self.holding = true;
+            self.prep.hold();
+            if self.state == State::Run || self.state == State::Idle {
+                self.state = State::Hold;
+            }
+        }
+        if rt.resume && self.holding {
+            self.holding = false;
+            if self.prep.is_held() || !io.stepper().busy {
+                self.planner.cycle_reinitialize();
+            }
+            self.prep.resume();
+            if self.state == State::Hold {
+                self.state = State::Run;
+            }
+            self.fill_segments(io);
+        }
+        if rt.status {
+            self.status_report(io);
+        }
+        if self.state == State::Run && self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy {
+            self.state = State::Idle;
+        }
+    }
+
+    /// Enter the alarm state: stop steps, spindle off, forget the queue.
+    pub fn raise(&mut self, io: &mut impl Io, alarm: Alarm) {
+        io.stop_motion();
+        io.spindle(0);
+        if alarm == Alarm::EmergencyStop {
+            io.drivers(false);
+        }
+        self.alarm = Some(alarm);
+        self.state = State::Alarm;
+        self.homed = 0;
+        self.holding = false;
+        self.planner.clear();
+        self.prep.reset();
+        let p = io.stepper().position;
+        self.planner.set_position(p);
+        self.interp.sync_position(&self.settings, p);
+        uwriteln!(io, "ALARM:{}", alarm.message()).ok();
+        uwriteln!(io, "echo:home (G28) or M999 to continue").ok();
+    }
+
+    /// M999: leave the alarm state. Position stays unknown until homed.
+    pub fn clear_alarm(&mut self, io: &mut impl Io) {
+        io.clear_stop();
+        let p = io.stepper().position;
+        self.planner.set_position(p);
+        self.interp.sync_position(&self.settings, p);
+        self.alarm = None;
+        self.state = State::Idle;
+        self.apply_watch(io, 0, false);
+    }
+
+    /// Tell the ISR what to watch.
+    pub fn apply_watch(&mut self, io: &mut impl Io, homing: u8, probe: bool) {
+        let limits = if self.settings.hard_limits && homing == 0 { 0b111 } else { 0 };
+        io.set_watch(homing, probe, limits, self.homed, self.settings.invert_dir_mask);
+    }
+
+    /// `?`: one grbl 1.1 status line.
+    pub fn status_report(&mut self, io: &mut impl Io) {
+        let st = io.stepper();
+        uwrite!(io, "<{}|MPos:", self.state.name()).ok();
+        let mpos = self.steps_to_mm(st.position);
+        self.write_xyz(io, mpos);
+        uwrite!(io, "|WPos:").ok();
+        let wpos = self.interp.machine_to_work(mpos);
+        self.write_xyz(io, wpos);
+        let (feed, rpm) = self.interp.feed_and_speed();
+        uwrite!(io, "|FS:{},{}|T:{}", feed as i32, rpm as i32, self.interp.tool).ok();
+        uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
+        if let Some(a) = self.alarm {
+            uwrite!(io, "|A:{}", a.message()).ok();
+        }
+        uwriteln!(io, ">").ok();
+    }
+
+    /// Steps → mm for X, Y, Z (E in carousel units).
+    pub fn steps_to_mm(&self, steps: [i32; N_AXES]) -> [f32; N_AXES] {
+        let mut mm = [0.0; N_AXES];
+        for a in 0..N_AXES {
+            mm[a] = steps[a] as f32 / self.settings.steps_per_mm[a];
+        }
+        mm
+    }
+
+    /// Print `x,y,z` with three decimals.
+    pub fn write_xyz(&self, io: &mut impl Io, v: [f32; N_AXES]) {
+        uwrite!(io, "{},{},{}", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
+    }
+
+    /// Save the settings image to EEPROM (M500).
+    pub fn save_settings(&mut self, io: &mut impl Io) {
+        self.interp.store_settings(&mut self.settings);
+        let img = self.settings.to_bytes();
+        io.eeprom_write(EEPROM_SETTINGS_ADDR, &img);
+    }
+
+    /// Load the settings from EEPROM (M501). False if the image is invalid.
+    pub fn load_settings(&mut self, io: &mut impl Io) -> bool {
+        let mut img = [0u8; Settings::IMAGE_LEN];
+        io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
+        match Settings::from_bytes(&img) {
+            Some(s) => {
+                self.settings = s;
+                self.interp.load_settings(&self.settings);
+                true
+            }
+            None => false,
+        }
+    }
+}
