@@ -1,1 +1,752 @@
-//! Host protocol (SPEC §4).
+//! Host line protocol (SPEC §4): bytes in, checked command text out.
+//!
+//! ```text
+//!  USART0 RX ISR ── EstopScanner (M112), is_realtime (? ! ~ taken out)
+//!       │ 256-byte ring
+//!       ▼
+//!  main loop ─► LineAssembler (lines ≤ MAX_LINE_LEN, garbage and overruns flagged)
+//!            ─► LineChecker   (Marlin/Repetier `N<n> … *<xor>`, M110)
+//!            ─► gcode::parse
+//! ```
+//!
+//! Everything here is pure: no I/O, no allocation, no panics. The firmware
+//! owns the replies. For a rejected line it prints
+//! `Error:<message>, Last Line: <last>`, then `Resend:<last+1>`, then `ok`
+//! (Marlin's format, which Pronterface/printcore, Repetier-Host and OctoPrint
+//! understand); see [`ProtoError::message`] and [`LineChecker::resend_line`].
+
+/// Longest accepted line, in characters, not counting the line terminator nor
+/// leading blanks. A longer line is rejected whole ([`Assembled::TooLong`]),
+/// never truncated and run.
+pub const MAX_LINE_LEN: usize = 96;
+
+/// True for the realtime bytes that the RX ISR takes out of the stream before
+/// they reach the ring: `?` (status), `!` (feed hold), `~` (resume).
+///
+/// They act even when the command queue is full. Because they are removed
+/// wherever they appear, they can never be part of a command, a comment or a
+/// file name.
+#[inline]
+pub fn is_realtime(b: u8) -> bool {
+    matches!(b, b'?' | b'!' | b'~')
+}
+
+/// A line-level protocol error: the line is dropped and the host is asked to
+/// resend it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ProtoError {
+    /// The XOR of the bytes before `*` differs from the number after it.
+    Checksum,
+    /// `N<n>` is not the last line number + 1 (and the line is not M110).
+    LineNumber,
+    /// `N<n>` without `*<checksum>`.
+    MissingChecksum,
+    /// `*<checksum>` without a leading `N<n>`.
+    MissingLineNumber,
+    /// `N` not followed by an integer that fits in an i32.
+    BadLineNumber,
+    /// The line was longer than [`MAX_LINE_LEN`].
+    TooLong,
+    /// The RX ring overflowed while this line arrived: bytes are missing.
+    Overrun,
+    /// The line held a non-ASCII or control byte (other than tab).
+    BadByte,
+}
+
+impl ProtoError {
+    /// Text printed after `Error:`.
+    pub fn message(&self) -> &'static str {
+        match self {
+            ProtoError::Checksum => "checksum mismatch",
+            ProtoError::LineNumber => "line number is not last line number+1",
+            ProtoError::MissingChecksum => "no checksum with line number",
+            ProtoError::MissingLineNumber => "no line number with checksum",
+            ProtoError::BadLineNumber => "bad line number",
+            ProtoError::TooLong => "line too long",
+            ProtoError::Overrun => "serial receive overrun, line dropped",
+            ProtoError::BadByte => "binary or control byte in line",
+        }
+    }
+}
+
+/// What [`LineAssembler::push`] reports when a line ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Assembled {
+    /// A complete, non-empty line: read it with [`LineAssembler::line`].
+    Line,
+    /// The line was longer than [`MAX_LINE_LEN`]; it is dropped.
+    TooLong,
+    /// [`LineAssembler::mark_overrun`] was called during this line; it is dropped.
+    Overrun,
+    /// The line held a byte outside printable ASCII and tab; it is dropped.
+    BadByte,
+}
+
+impl Assembled {
+    /// The protocol error for a dropped line, `None` for [`Assembled::Line`].
+    pub fn error(self) -> Option<ProtoError> {
+        match self {
+            Assembled::Line => None,
+            Assembled::TooLong => Some(ProtoError::TooLong),
+            Assembled::Overrun => Some(ProtoError::Overrun),
+            Assembled::BadByte => Some(ProtoError::BadByte),
+        }
+    }
+}
+
+/// Flag bits of [`LineAssembler`].
+const F_TOO_LONG: u8 = 1 << 0;
+const F_OVERRUN: u8 = 1 << 1;
+const F_BAD_BYTE: u8 = 1 << 2;
+/// The last push completed a line that `line()` may return.
+const F_READY: u8 = 1 << 3;
+
+/// Collects bytes into lines in a fixed buffer (RAM: `MAX_LINE_LEN` + 2 bytes).
+///
+/// `\n` or `\r` ends a line, so `\r\n` gives one line and one ignored empty
+/// line. Leading blanks are not stored; trailing blanks are trimmed. Blank
+/// lines give no result, hence no `ok`.
+pub struct LineAssembler {
+    buf: [u8; MAX_LINE_LEN],
+    /// Bytes stored for the line in progress (or of the completed line while
+    /// `F_READY` is set), ≤ MAX_LINE_LEN.
+    len: u8,
+    /// `F_*` bits.
+    flags: u8,
+}
+
+impl Default for LineAssembler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl LineAssembler {
+    /// An empty assembler.
+    pub const fn new() -> Self {
+        LineAssembler { buf: [0; MAX_LINE_LEN], len: 0, flags: 0 }
+    }
+
+    /// Feed one byte from the RX ring. Returns `Some` when a line ends; after
+    /// `Some(Assembled::Line)`, [`line`](Self::line) holds its text until the
+    /// next push.
+    pub fn push(&mut self, b: u8) -> Option<Assembled> {
+        if self.flags & F_READY != 0 {
+            self.flags = 0;
+            self.len = 0;
+        }
+        match b {
+            b'\n' | b'\r' => self.finish(),
+            b' ' | b'\t' if self.len == 0 => None,
+            _ => {
+                if !(0x20..0x7f).contains(&b) && b != b'\t' {
+                    self.flags |= F_BAD_BYTE;
+                }
+                match self.buf.get_mut(self.len as usize) {
+                    Some(slot) => {
+                        *slot = b;
+                        self.len += 1;
+                    }
+                    None => self.flags |= F_TOO_LONG,
+                }
+                None
+            }
+        }
+    }
+
+    /// The RX ring dropped bytes: the line in progress is reported as
+    /// [`Assembled::Overrun`] when it ends, even if what arrived of it is blank
+    /// (the lost bytes may have held whole lines).
+    ///
+    /// Call it just before pushing the first byte that the ISR stored after it
+    /// dropped one, so that the damaged line, not an earlier one, is marked.
+    pub fn mark_overrun(&mut self) {
+        if self.flags & F_READY != 0 {
+            self.flags = 0;
+            self.len = 0;
+        }
+        self.flags |= F_OVERRUN;
+    }
+
+    /// Forget the line in progress (after an e-stop, or when a job aborts).
+    pub fn reset(&mut self) {
+        self.flags = 0;
+        self.len = 0;
+    }
+
+    /// The line completed by the last [`push`](Self::push), trimmed, without
+    /// its terminator. Empty unless that push returned `Some(Assembled::Line)`.
+    pub fn line(&self) -> &[u8] {
+        if self.flags & F_READY == 0 {
+            return &[];
+        }
+        self.buf.get(..self.len as usize).unwrap_or(&[])
+    }
+
+    /// End of line: classify it and set up `line()`.
+    fn finish(&mut self) -> Option<Assembled> {
+        let flags = self.flags;
+        // Trim trailing blanks (leading ones were never stored).
+        while self.len > 0 && matches!(self.buf.get(self.len as usize - 1), Some(b' ' | b'\t')) {
+            self.len -= 1;
+        }
+        let result = if flags & F_OVERRUN != 0 {
+            Some(Assembled::Overrun)
+        } else if flags & F_TOO_LONG != 0 {
+            Some(Assembled::TooLong)
+        } else if flags & F_BAD_BYTE != 0 {
+            Some(Assembled::BadByte)
+        } else if self.len == 0 {
+            None
+        } else {
+            Some(Assembled::Line)
+        };
+        if result == Some(Assembled::Line) {
+            self.flags = F_READY;
+        } else {
+            self.flags = 0;
+            self.len = 0;
+        }
+        result
+    }
+}
+
+/// Checks Marlin/Repetier line numbers and checksums (`N<n> <command>*<xor>`).
+///
+/// - `N<n> … *<cs>`: `cs` is the XOR of every byte before the last `*`,
+///   starting at `N`. The line must be number last+1, unless it is M110.
+/// - `N<n> M110 [N<m>]*<cs>` sets the last line number to `m`, or to `n`
+///   without one (printcore sends `N-1 M110*cs`).
+/// - A line with neither `N` nor `*` passes as it is (manual console); a bare
+///   `M110 N<m>` still sets the last line number to `m`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LineChecker {
+    /// Number of the last accepted numbered line.
+    last: i32,
+}
+
+impl LineChecker {
+    /// A checker whose last line number is 0.
+    pub const fn new() -> Self {
+        LineChecker { last: 0 }
+    }
+
+    /// Number of the last accepted line (printed as `Last Line: <n>`).
+    pub fn last_line(&self) -> i32 {
+        self.last
+    }
+
+    /// Number the host must resend after an error (`Resend: <n>`): last + 1.
+    pub fn resend_line(&self) -> i32 {
+        self.last.wrapping_add(1)
+    }
+
+    /// Check one assembled line. On success returns the command text, without
+    /// the `N<n>` prefix and the `*<cs>` suffix, trimmed. On error the last
+    /// line number is unchanged.
+    pub fn check<'a>(&mut self, line: &'a [u8]) -> Result<&'a [u8], ProtoError> {
+        let line = trim(line);
+        let star = line.iter().rposition(|&b| b == b'*');
+        let numbered = matches!(line.first(), Some(b'N' | b'n'));
+        if !numbered {
+            if star.is_some() {
+                return Err(ProtoError::MissingLineNumber);
+            }
+            if let Some(m) = m110_param(line) {
+                self.last = m;
+            }
+            return Ok(line);
+        }
+        let star = star.ok_or(ProtoError::MissingChecksum)?;
+        let (body, tail) = line.split_at(star);
+        let sum = body.iter().fold(0u8, |acc, &b| acc ^ b);
+        if parse_checksum(tail.get(1..).unwrap_or(&[])) != Some(sum) {
+            return Err(ProtoError::Checksum);
+        }
+        let (n, used) = parse_i32(body.get(1..).unwrap_or(&[])).ok_or(ProtoError::BadLineNumber)?;
+        let command = trim(body.get(1 + used..).unwrap_or(&[]));
+        if is_m110(command) {
+            self.last = m110_param(command).unwrap_or(n);
+        } else if n != self.last.wrapping_add(1) {
+            return Err(ProtoError::LineNumber);
+        } else {
+            self.last = n;
+        }
+        Ok(command)
+    }
+}
+
+/// Strip leading and trailing spaces and tabs.
+fn trim(mut s: &[u8]) -> &[u8] {
+    while let [b' ' | b'\t', rest @ ..] = s {
+        s = rest;
+    }
+    while let [rest @ .., b' ' | b'\t'] = s {
+        s = rest;
+    }
+    s
+}
+
+/// Parse blanks, an optional sign and decimal digits into an i32. Returns the
+/// value and the bytes used; `None` without digits or on overflow.
+fn parse_i32(s: &[u8]) -> Option<(i32, usize)> {
+    let mut i = 0;
+    while matches!(s.get(i), Some(b' ' | b'\t')) {
+        i += 1;
+    }
+    let negative = match s.get(i) {
+        Some(b'-') => {
+            i += 1;
+            true
+        }
+        Some(b'+') => {
+            i += 1;
+            false
+        }
+        _ => false,
+    };
+    let start = i;
+    // Accumulate negatively so that i32::MIN parses too.
+    let mut v: i32 = 0;
+    while let Some(&d) = s.get(i) {
+        if !d.is_ascii_digit() {
+            break;
+        }
+        v = v.checked_mul(10)?.checked_sub((d - b'0') as i32)?;
+        i += 1;
+    }
+    if i == start {
+        return None;
+    }
+    let v = if negative { v } else { v.checked_neg()? };
+    Some((v, i))
+}
+
+/// The checksum after `*`: decimal 0..=255, blanks around it allowed.
+fn parse_checksum(s: &[u8]) -> Option<u8> {
+    let s = trim(s);
+    if s.is_empty() || s.len() > 3 || !s.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    let v = s.iter().fold(0u16, |acc, &d| acc * 10 + (d - b'0') as u16);
+    u8::try_from(v).ok()
+}
+
+/// True if the command is M110 (not M1100), case-insensitive.
+fn is_m110(cmd: &[u8]) -> bool {
+    match cmd {
+        [m, b'1', b'1', b'0', rest @ ..] if m.eq_ignore_ascii_case(&b'M') => {
+            !matches!(rest.first(), Some(d) if d.is_ascii_digit() || *d == b'.')
+        }
+        _ => false,
+    }
+}
+
+/// For an M110 command, its own `N<m>` parameter.
+fn m110_param(cmd: &[u8]) -> Option<i32> {
+    if !is_m110(cmd) {
+        return None;
+    }
+    let rest = cmd.get(4..)?;
+    let n = rest.iter().position(|b| b.eq_ignore_ascii_case(&b'N'))?;
+    parse_i32(rest.get(n + 1..)?).map(|(v, _)| v)
+}
+
+/// Watches the raw RX stream for `M112` inside the ISR (SPEC §4: e-stop acts
+/// as the bytes arrive, not when the line is parsed). One byte of state, O(1)
+/// per byte.
+///
+/// Triggers on `M112` (any case, no blanks inside) that does not follow a
+/// letter, once the next byte shows it is not a longer number: `M112\n`,
+/// `N7 M112*40`, `G0M112 ` trigger; `M1120`, `M11 2`, `AM112.GCO` do not.
+/// It does not know about comments: `(M112)` triggers, which errs on the
+/// safe side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EstopScanner {
+    /// Low 3 bits: how many bytes of `M112` matched (0..=4).
+    /// `PREV_LETTER`: the previous byte was a letter.
+    state: u8,
+}
+
+const PREV_LETTER: u8 = 0x80;
+const MATCHED_MASK: u8 = 0x07;
+
+impl EstopScanner {
+    /// A scanner that has seen nothing.
+    pub const fn new() -> Self {
+        EstopScanner { state: 0 }
+    }
+
+    /// Feed one received byte; true when it completes an `M112` token.
+    #[inline]
+    pub fn feed(&mut self, b: u8) -> bool {
+        let up = b.to_ascii_uppercase();
+        let matched = self.state & MATCHED_MASK;
+        let prev_letter = self.state & PREV_LETTER != 0;
+        let mut fire = false;
+        let next = match (matched, up) {
+            (4, b'0'..=b'9') => 0,
+            (4, _) => {
+                fire = true;
+                0
+            }
+            (1, b'1') | (2, b'1') | (3, b'2') => matched + 1,
+            _ => 0,
+        };
+        let next = if next == 0 && up == b'M' && !prev_letter { 1 } else { next };
+        let letter = if up.is_ascii_uppercase() { PREV_LETTER } else { 0 };
+        self.state = next | letter;
+        fire
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Feed `bytes`, collecting each result with its line text.
+    fn assemble(a: &mut LineAssembler, bytes: &[u8]) -> Vec<(Assembled, Vec<u8>)> {
+        let mut out = Vec::new();
+        for &b in bytes {
+            if let Some(r) = a.push(b) {
+                out.push((r, a.line().to_vec()));
+            }
+        }
+        out
+    }
+
+    fn xor(s: &[u8]) -> u8 {
+        s.iter().fold(0, |a, &b| a ^ b)
+    }
+
+    /// `N<n> <cmd>` with its correct checksum.
+    fn numbered(n: i32, cmd: &str) -> Vec<u8> {
+        let body = format!("N{} {}", n, cmd);
+        format!("{}*{}", body, xor(body.as_bytes())).into_bytes()
+    }
+
+    #[test]
+    fn realtime_bytes_are_question_bang_tilde() {
+        assert!(is_realtime(b'?') && is_realtime(b'!') && is_realtime(b'~'));
+        assert!(!is_realtime(b'G') && !is_realtime(b'\n') && !is_realtime(b'*'));
+    }
+
+    #[test]
+    fn newline_or_carriage_return_ends_a_trimmed_line() {
+        let mut a = LineAssembler::new();
+        let out = assemble(&mut a, b"  G1 X10 \t\r\nM114\n");
+        assert_eq!(
+            out,
+            vec![(Assembled::Line, b"G1 X10".to_vec()), (Assembled::Line, b"M114".to_vec())]
+        );
+    }
+
+    #[test]
+    fn blank_lines_give_no_result() {
+        let mut a = LineAssembler::new();
+        assert!(assemble(&mut a, b"\n\r\n   \t \n\r\r").is_empty());
+    }
+
+    #[test]
+    fn line_is_empty_when_no_line_just_completed() {
+        let mut a = LineAssembler::new();
+        assert_eq!(a.push(b'G'), None);
+        assert_eq!(a.line(), b"");
+        assert_eq!(a.push(b'\n'), Some(Assembled::Line));
+        assert_eq!(a.line(), b"G");
+        assert_eq!(a.push(b'X'), None);
+        assert_eq!(a.line(), b"");
+    }
+
+    #[test]
+    fn a_line_of_exactly_max_len_is_accepted() {
+        let mut a = LineAssembler::new();
+        let mut bytes = vec![b'X'; MAX_LINE_LEN];
+        bytes.push(b'\n');
+        let out = assemble(&mut a, &bytes);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].0, Assembled::Line);
+        assert_eq!(out[0].1.len(), MAX_LINE_LEN);
+    }
+
+    #[test]
+    fn an_over_long_line_is_rejected_whole_and_the_next_line_is_clean() {
+        let mut a = LineAssembler::new();
+        let mut bytes = vec![b'Y'; MAX_LINE_LEN + 1];
+        bytes.extend_from_slice(b"\nG0 X1\n");
+        let out = assemble(&mut a, &bytes);
+        assert_eq!(out, vec![(Assembled::TooLong, vec![]), (Assembled::Line, b"G0 X1".to_vec())]);
+        assert_eq!(Assembled::TooLong.error(), Some(ProtoError::TooLong));
+    }
+
+    #[test]
+    fn an_over_long_line_of_blanks_after_text_is_still_too_long() {
+        let mut a = LineAssembler::new();
+        let mut bytes = b"G1".to_vec();
+        bytes.extend(std::iter::repeat(b' ').take(200));
+        bytes.push(b'\n');
+        assert_eq!(assemble(&mut a, &bytes), vec![(Assembled::TooLong, vec![])]);
+    }
+
+    #[test]
+    fn leading_blanks_do_not_count_toward_the_limit() {
+        let mut a = LineAssembler::new();
+        let mut bytes = vec![b' '; 50];
+        bytes.extend(vec![b'Z'; MAX_LINE_LEN]);
+        bytes.push(b'\n');
+        let out = assemble(&mut a, &bytes);
+        assert_eq!(out[0].0, Assembled::Line);
+    }
+
+    #[test]
+    fn an_overrun_drops_the_line_in_progress_only() {
+        let mut a = LineAssembler::new();
+        let mut out = assemble(&mut a, b"G1 X");
+        a.mark_overrun();
+        out.extend(assemble(&mut a, b"10\nG1 X2\n"));
+        assert_eq!(out, vec![(Assembled::Overrun, vec![]), (Assembled::Line, b"G1 X2".to_vec())]);
+    }
+
+    #[test]
+    fn an_overrun_at_a_line_start_is_reported_even_if_the_rest_is_blank() {
+        let mut a = LineAssembler::new();
+        assert_eq!(a.push(b'\r'), None);
+        a.mark_overrun();
+        assert_eq!(a.push(b'\n'), Some(Assembled::Overrun));
+        assert_eq!(assemble(&mut a, b"M5\n"), vec![(Assembled::Line, b"M5".to_vec())]);
+    }
+
+    #[test]
+    fn binary_bytes_reject_the_line() {
+        let mut a = LineAssembler::new();
+        let out = assemble(&mut a, b"G1 X\x0010\nG1\xff\nM3\x1b\nG1\tX1\n");
+        assert_eq!(
+            out,
+            vec![
+                (Assembled::BadByte, vec![]),
+                (Assembled::BadByte, vec![]),
+                (Assembled::BadByte, vec![]),
+                (Assembled::Line, b"G1\tX1".to_vec()),
+            ]
+        );
+    }
+
+    #[test]
+    fn reset_forgets_the_line_in_progress() {
+        let mut a = LineAssembler::new();
+        assemble(&mut a, b"G1 X1");
+        a.mark_overrun();
+        a.reset();
+        assert_eq!(assemble(&mut a, b"M5\n"), vec![(Assembled::Line, b"M5".to_vec())]);
+    }
+
+    /// Tiny xorshift32 PRNG for the random-bytes tests.
+    struct XorShift(u32);
+    impl XorShift {
+        fn next(&mut self) -> u32 {
+            let mut x = self.0;
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            self.0 = x;
+            x
+        }
+    }
+
+    #[test]
+    fn random_bytes_never_panic_and_never_give_a_line_over_the_limit() {
+        let mut rng = XorShift(0x1234_5678);
+        let mut a = LineAssembler::new();
+        let mut checker = LineChecker::new();
+        let mut lines = 0;
+        for i in 0..200_000u32 {
+            let r = rng.next();
+            // Bias toward printable text and terminators so that lines end.
+            let b = match r % 8 {
+                0 => b'\n',
+                1 => (r >> 8) as u8,
+                _ => b' ' + ((r >> 8) % 95) as u8,
+            };
+            if i % 9973 == 0 {
+                a.mark_overrun();
+            }
+            if let Some(Assembled::Line) = a.push(b) {
+                let line = a.line();
+                assert!(!line.is_empty() && line.len() <= MAX_LINE_LEN);
+                assert!(line.iter().all(|&c| (0x20..0x7f).contains(&c) || c == b'\t'));
+                let _ = checker.check(line);
+                lines += 1;
+            }
+        }
+        assert!(lines > 1000);
+    }
+
+    #[test]
+    fn unnumbered_lines_pass_as_they_are() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(b"G1 X10"), Ok(&b"G1 X10"[..]));
+        assert_eq!(c.last_line(), 0);
+    }
+
+    #[test]
+    fn numbered_lines_with_good_checksums_advance_the_line_number() {
+        let mut c = LineChecker::new();
+        let l1 = numbered(1, "G1 X10");
+        assert_eq!(c.check(&l1), Ok(&b"G1 X10"[..]));
+        let l2 = numbered(2, "M114");
+        assert_eq!(c.check(&l2), Ok(&b"M114"[..]));
+        assert_eq!(c.last_line(), 2);
+        assert_eq!(c.resend_line(), 3);
+    }
+
+    #[test]
+    fn a_known_printcore_line_checks() {
+        // printcore: prefix = "N1 G28", checksum = XOR of the prefix.
+        let mut c = LineChecker::new();
+        assert_eq!(xor(b"N1 G28"), 18);
+        assert_eq!(c.check(b"N1 G28*18"), Ok(&b"G28"[..]));
+    }
+
+    #[test]
+    fn a_wrong_checksum_is_rejected_and_keeps_the_last_line() {
+        let mut c = LineChecker::new();
+        let mut l = numbered(1, "G1 X10");
+        let n = l.len();
+        l[n - 1] = if l[n - 1] == b'0' { b'1' } else { b'0' };
+        assert_eq!(c.check(&l), Err(ProtoError::Checksum));
+        assert_eq!(c.check(b"N1 G1*"), Err(ProtoError::Checksum));
+        assert_eq!(c.check(b"N1 G1*abc"), Err(ProtoError::Checksum));
+        assert_eq!(c.check(b"N1 G1*1000"), Err(ProtoError::Checksum));
+        assert_eq!(c.last_line(), 0);
+        assert_eq!(c.resend_line(), 1);
+    }
+
+    #[test]
+    fn a_skipped_or_repeated_line_number_is_rejected() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(&numbered(2, "G0 X1")), Err(ProtoError::LineNumber));
+        assert_eq!(c.check(&numbered(1, "G0 X1")), Ok(&b"G0 X1"[..]));
+        assert_eq!(c.check(&numbered(1, "G0 X1")), Err(ProtoError::LineNumber));
+        assert_eq!(c.resend_line(), 2);
+    }
+
+    #[test]
+    fn line_number_without_checksum_and_checksum_without_number_are_errors() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(b"N1 G1 X1"), Err(ProtoError::MissingChecksum));
+        assert_eq!(c.check(b"G1 X1*12"), Err(ProtoError::MissingLineNumber));
+        let body = "NX G1";
+        let l = format!("{}*{}", body, xor(body.as_bytes()));
+        assert_eq!(c.check(l.as_bytes()), Err(ProtoError::BadLineNumber));
+        assert_eq!(c.last_line(), 0);
+    }
+
+    #[test]
+    fn m110_sets_the_line_number_from_its_own_n_word() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(&numbered(5, "M110 N100")), Ok(&b"M110 N100"[..]));
+        assert_eq!(c.last_line(), 100);
+        assert!(c.check(&numbered(101, "G1 X1")).is_ok());
+    }
+
+    #[test]
+    fn m110_without_n_word_uses_the_line_number_even_when_negative() {
+        let mut c = LineChecker::new();
+        c.check(&numbered(40, "M110")).unwrap();
+        assert_eq!(c.last_line(), 40);
+        // printcore resets with N-1 M110.
+        assert_eq!(c.check(&numbered(-1, "M110")), Ok(&b"M110"[..]));
+        assert_eq!(c.last_line(), -1);
+        assert!(c.check(&numbered(0, "G28")).is_ok());
+        assert_eq!(c.last_line(), 0);
+    }
+
+    #[test]
+    fn m1100_is_not_m110() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(&numbered(7, "M1100 N3")), Err(ProtoError::LineNumber));
+    }
+
+    #[test]
+    fn a_bare_m110_sets_the_line_number() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(b"M110 N42"), Ok(&b"M110 N42"[..]));
+        assert_eq!(c.last_line(), 42);
+        assert_eq!(c.check(b"m110 n-7"), Ok(&b"m110 n-7"[..]));
+        assert_eq!(c.last_line(), -7);
+        // Without an N word nothing changes.
+        c.check(b"M110").unwrap();
+        assert_eq!(c.last_line(), -7);
+    }
+
+    #[test]
+    fn extreme_line_numbers_do_not_overflow() {
+        let mut c = LineChecker::new();
+        c.check(&numbered(1, "M110 N2147483647")).unwrap();
+        assert_eq!(c.resend_line(), i32::MIN);
+        assert!(c.check(&numbered(-2147483648, "G0")).is_ok());
+        assert_eq!(c.check(&numbered(1, "M110 N2147483648")), Ok(&b"M110 N2147483648"[..]));
+        // An unparsable M110 N falls back to the line's own number.
+        assert_eq!(c.last_line(), 1);
+        let body = "N99999999999 G0";
+        let l = format!("{}*{}", body, xor(body.as_bytes()));
+        assert_eq!(c.check(l.as_bytes()), Err(ProtoError::BadLineNumber));
+    }
+
+    #[test]
+    fn the_checksum_covers_everything_before_the_last_star() {
+        let mut c = LineChecker::new();
+        let body = "N1 G1 (a*b) X1";
+        let l = format!("{}*{}", body, xor(body.as_bytes()));
+        assert_eq!(c.check(l.as_bytes()), Ok(&b"G1 (a*b) X1"[..]));
+    }
+
+    #[test]
+    fn every_error_has_a_message() {
+        for e in [
+            ProtoError::Checksum,
+            ProtoError::LineNumber,
+            ProtoError::MissingChecksum,
+            ProtoError::MissingLineNumber,
+            ProtoError::BadLineNumber,
+            ProtoError::TooLong,
+            ProtoError::Overrun,
+            ProtoError::BadByte,
+        ] {
+            assert!(!e.message().is_empty());
+        }
+        assert_eq!(ProtoError::Checksum.message(), "checksum mismatch");
+    }
+
+    fn estop_fires(stream: &[u8]) -> usize {
+        let mut s = EstopScanner::new();
+        stream.iter().filter(|&&b| s.feed(b)).count()
+    }
+
+    #[test]
+    fn m112_followed_by_a_non_digit_triggers_the_estop() {
+        assert_eq!(estop_fires(b"M112\n"), 1);
+        assert_eq!(estop_fires(b"m112 "), 1);
+        assert_eq!(estop_fires(b"N7 M112*40\n"), 1);
+        assert_eq!(estop_fires(b"G1 X5 M112;\n"), 1);
+        assert_eq!(estop_fires(b"G0M112\n"), 1);
+        assert_eq!(estop_fires(b"MM112\n"), 0);
+        assert_eq!(estop_fires(b"M11M112\n"), 1);
+        assert_eq!(estop_fires(b"M112\nM112\n"), 2);
+    }
+
+    #[test]
+    fn near_misses_do_not_trigger_the_estop() {
+        assert_eq!(estop_fires(b"M1120\n"), 0);
+        assert_eq!(estop_fires(b"M11 2\n"), 0);
+        assert_eq!(estop_fires(b"M 112\n"), 0);
+        assert_eq!(estop_fires(b"M111\n"), 0);
+        assert_eq!(estop_fires(b"M23 AM112.GCO\n"), 0);
+        assert_eq!(estop_fires(b"M112"), 0, "needs the next byte to decide");
+    }
+
+    #[test]
+    fn estop_scanner_is_one_byte() {
+        assert_eq!(core::mem::size_of::<EstopScanner>(), 1);
+    }
+}

@@ -1,0 +1,1224 @@
+//! G-code line parser (SPEC §5): RS274/NGC word-address syntax → [`Line`].
+//!
+//! Sits between `protocol::LineChecker`, which hands over the command text
+//! (`N<n>` and `*<cs>` already stripped), and the interpreter, which owns the
+//! modal state. Zero allocation, no panics, f32 only; one [`Line`] is about
+//! 100 bytes and lives on the stack.
+//!
+//! Syntax accepted:
+//! - letters in any case; blanks (space, tab) between words and between a
+//!   letter and its number are optional (`G1X10Y-2.5`, `X 10`), but a number
+//!   is one unbroken token (`X1 0` is an error);
+//! - `( … )` comments (no nesting; an unclosed `(` is an error) and `;` to the
+//!   end of the line;
+//! - numbers `[+|-][digits][.digits]` with at least one digit, below 1e6 in
+//!   magnitude and with at most 9 significant digits. There is no exponent:
+//!   a number directly followed by `E` (`X1e99`) is an error, so write a
+//!   blank before an `E` word (`X1 E5`);
+//! - a leading `N<n>` is skipped; an `N` word later on the line is a value
+//!   word (M110 reads it);
+//! - a line that is only `%` (a program delimiter in files) is empty;
+//! - `M23` and `M28` take the rest of the line, up to `;`, as a file name.
+//!
+//! Every error points at a 1-based column of the text given to [`parse`]:
+//! number errors at the word's letter, code errors at the `G`/`M`, the rest
+//! at the offending character.
+
+use ufmt::{uDisplay, uWrite, uwrite};
+
+/// Longest text [`parse`] accepts, in bytes (columns and file name offsets
+/// are `u8`). The protocol already limits lines to 96 characters.
+pub const MAX_PARSE_LEN: usize = 255;
+
+/// Value words, in the bit order of [`Words`].
+///
+/// `B` is the G37 broken-tool tolerance (SPEC §5); `A` and `C` (rotary axes)
+/// and `O`, `U`, `V`, `W` are not part of the dialect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Word {
+    B,
+    D,
+    E,
+    F,
+    H,
+    I,
+    J,
+    K,
+    L,
+    N,
+    P,
+    Q,
+    R,
+    S,
+    T,
+    X,
+    Y,
+    Z,
+}
+
+impl Word {
+    /// Number of value words.
+    pub const COUNT: usize = 18;
+    /// Every word, in bit order.
+    pub const ALL: [Word; Word::COUNT] = [
+        Word::B,
+        Word::D,
+        Word::E,
+        Word::F,
+        Word::H,
+        Word::I,
+        Word::J,
+        Word::K,
+        Word::L,
+        Word::N,
+        Word::P,
+        Word::Q,
+        Word::R,
+        Word::S,
+        Word::T,
+        Word::X,
+        Word::Y,
+        Word::Z,
+    ];
+
+    /// The word for a letter, any case; `None` for letters outside the
+    /// dialect and for `G` and `M`, which are codes.
+    pub fn from_letter(c: u8) -> Option<Word> {
+        Some(match c.to_ascii_uppercase() {
+            b'B' => Word::B,
+            b'D' => Word::D,
+            b'E' => Word::E,
+            b'F' => Word::F,
+            b'H' => Word::H,
+            b'I' => Word::I,
+            b'J' => Word::J,
+            b'K' => Word::K,
+            b'L' => Word::L,
+            b'N' => Word::N,
+            b'P' => Word::P,
+            b'Q' => Word::Q,
+            b'R' => Word::R,
+            b'S' => Word::S,
+            b'T' => Word::T,
+            b'X' => Word::X,
+            b'Y' => Word::Y,
+            b'Z' => Word::Z,
+            _ => return None,
+        })
+    }
+
+    /// The upper-case letter of the word.
+    pub fn letter(self) -> u8 {
+        b"BDEFHIJKLNPQRSTXYZ"[self as usize % Word::COUNT]
+    }
+
+    /// Bit of this word in a presence mask.
+    #[inline]
+    const fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+}
+
+/// The value words of one line: a presence mask and one f32 per word.
+///
+/// Values are in the units written on the line (the interpreter applies
+/// G20/G21 and G90/G91); every value is finite and within ±1e6.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Words {
+    /// Bit `w as u32` set when word `w` is present.
+    present: u32,
+    /// Value per word, 0.0 when absent.
+    values: [f32; Word::COUNT],
+}
+
+impl Words {
+    /// No words.
+    pub const fn new() -> Self {
+        Words { present: 0, values: [0.0; Word::COUNT] }
+    }
+
+    /// The value of word `w`, if present.
+    #[inline]
+    pub fn get(&self, w: Word) -> Option<f32> {
+        if self.contains(w) {
+            self.values.get(w as usize).copied()
+        } else {
+            None
+        }
+    }
+
+    /// True if word `w` is present.
+    #[inline]
+    pub fn contains(&self, w: Word) -> bool {
+        self.present & w.bit() != 0
+    }
+
+    /// Set word `w`. Returns false (and changes nothing) if it was already
+    /// present.
+    pub fn insert(&mut self, w: Word, value: f32) -> bool {
+        if self.contains(w) {
+            return false;
+        }
+        if let Some(slot) = self.values.get_mut(w as usize) {
+            *slot = value;
+            self.present |= w.bit();
+        }
+        true
+    }
+
+    /// Take word `w` out, returning its value. An interpreter can take the
+    /// words each code uses and then reject whatever is left over.
+    pub fn remove(&mut self, w: Word) -> Option<f32> {
+        let v = self.get(w);
+        self.present &= !w.bit();
+        if let Some(slot) = self.values.get_mut(w as usize) {
+            *slot = 0.0;
+        }
+        v
+    }
+
+    /// True when no word is present.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.present == 0
+    }
+
+    /// The first present word in bit order (e.g. to name a left-over word).
+    pub fn first(&self) -> Option<Word> {
+        Word::ALL.iter().copied().find(|&w| self.contains(w))
+    }
+
+    /// The present words and their values, in bit order.
+    pub fn iter(&self) -> impl Iterator<Item = (Word, f32)> + '_ {
+        Word::ALL.iter().filter_map(move |&w| self.get(w).map(|v| (w, v)))
+    }
+}
+
+/// Motion group (NGC group 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    /// G0: rapid.
+    Rapid,
+    /// G1: linear feed.
+    Linear,
+    /// G2: clockwise arc.
+    ArcCw,
+    /// G3: counter-clockwise arc.
+    ArcCcw,
+    /// G38.2: probe toward the setter, error if it does not trip.
+    ProbeToward,
+    /// G38.3: probe toward the setter, no error if it does not trip.
+    ProbeTowardNoError,
+    /// G80: cancel motion mode.
+    Cancel,
+}
+
+/// Arc plane (NGC group 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plane {
+    /// G17.
+    Xy,
+    /// G18.
+    Zx,
+    /// G19.
+    Yz,
+}
+
+/// Length units (NGC group 6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Units {
+    /// G20.
+    Inch,
+    /// G21.
+    Mm,
+}
+
+/// Distance mode (NGC group 3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Distance {
+    /// G90.
+    Absolute,
+    /// G91.
+    Incremental,
+}
+
+/// Feed rate mode (NGC group 5). G93 is not supported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FeedMode {
+    /// G94: units per minute.
+    UnitsPerMinute,
+}
+
+/// Tool length offset (NGC group 8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ToolLength {
+    /// G43 [H].
+    Apply,
+    /// G49.
+    Cancel,
+}
+
+/// Non-modal codes (NGC group 0), at most one per line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NonModal {
+    /// G4 P<ms> / S<s>: dwell.
+    Dwell,
+    /// G10 L1/L2/L20: set tool table or work offsets.
+    SetOffsets,
+    /// G28: home.
+    Home,
+    /// G53: machine coordinates for this line.
+    MachineCoords,
+    /// G92: set the current position.
+    SetPosition,
+    /// G37: measure the tool with the optical setter.
+    MeasureTool,
+    /// G201: auxiliary motor move.
+    AuxMove,
+    /// G202: auxiliary motor set position.
+    AuxSetPosition,
+    /// G203: auxiliary motor report.
+    AuxReport,
+    /// G204: auxiliary motor enable/disable.
+    AuxEnable,
+    /// G205: auxiliary motor home.
+    AuxHome,
+}
+
+/// Program stopping (NGC group 4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stopping {
+    /// M0: pause.
+    Pause,
+    /// M1: optional pause.
+    OptionalPause,
+    /// M2: program end.
+    End,
+    /// M30: program end (never "delete file").
+    EndRewind,
+}
+
+/// Spindle (NGC group 7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Spindle {
+    /// M3: on, clockwise.
+    Cw,
+    /// M4: on, counter-clockwise (parsed; the interpreter rejects it).
+    Ccw,
+    /// M5: off.
+    Off,
+}
+
+/// M codes outside the stopping, tool-change and spindle groups: at most one
+/// of them per line, in [`Line::other_m`]. Add new ones here.
+pub const OTHER_M_CODES: &[u16] = &[
+    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 84, 92, 108, 110, 112, 114, 115, 119, 201, 203, 220,
+    400, 500, 501, 502, 503, 999,
+];
+
+/// M codes whose argument is the rest of the line (a file name).
+const TEXT_ARG_M_CODES: &[u16] = &[23, 28];
+
+/// One parsed line: at most one code per modal group, and the value words.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Line {
+    /// G0 G1 G2 G3 G38.2 G38.3 G80.
+    pub motion: Option<Motion>,
+    /// G17 G18 G19.
+    pub plane: Option<Plane>,
+    /// G20 G21.
+    pub units: Option<Units>,
+    /// G90 G91.
+    pub distance: Option<Distance>,
+    /// G94.
+    pub feed_mode: Option<FeedMode>,
+    /// G54..G59 as 0..=5.
+    pub wcs: Option<u8>,
+    /// G43 G49.
+    pub tool_length: Option<ToolLength>,
+    /// G4 G10 G28 G53 G92 G37 G201..G205.
+    pub non_modal: Option<NonModal>,
+    /// M0 M1 M2 M30.
+    pub stopping: Option<Stopping>,
+    /// M6.
+    pub tool_change: bool,
+    /// M3 M4 M5.
+    pub spindle: Option<Spindle>,
+    /// One of [`OTHER_M_CODES`], as its number.
+    pub other_m: Option<u16>,
+    /// For M23/M28: (start, len) of the file name in the parsed text; see
+    /// [`Line::text`].
+    pub text_arg: Option<(u8, u8)>,
+    /// Value words.
+    pub words: Words,
+}
+
+// RAM budget: a Line lives on the stack of the interpreter call.
+const _: () = assert!(core::mem::size_of::<Line>() <= 120);
+
+impl Line {
+    /// The value of word `w`, if present.
+    #[inline]
+    pub fn word(&self, w: Word) -> Option<f32> {
+        self.words.get(w)
+    }
+
+    /// The T word as a tool number (the parser guarantees a whole number
+    /// 0..=255; the interpreter checks the carousel range).
+    pub fn tool(&self) -> Option<u8> {
+        self.words.get(Word::T).map(|t| t as u8)
+    }
+
+    /// The M23/M28 file name, out of `src`, the same text given to [`parse`].
+    pub fn text<'a>(&self, src: &'a [u8]) -> Option<&'a [u8]> {
+        let (start, len) = self.text_arg?;
+        src.get(start as usize..start as usize + len as usize)
+    }
+
+    /// True when the line holds no code and no word (blank or comment only).
+    pub fn is_empty(&self) -> bool {
+        *self == Line::default()
+    }
+}
+
+/// What is wrong with a rejected line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParseErrorKind {
+    /// Not a number: `X`, `X-`, `X.`, `X+.`, `X1.2.3`, `X1-2`.
+    BadNumber,
+    /// A number directly followed by `E`, read as an exponent: `X1e99`.
+    Exponent,
+    /// |value| ≥ 1e6, or more than 9 significant digits.
+    NumberOutOfRange,
+    /// A letter that is no word of the dialect (`A`, `C`, `O`, …).
+    UnknownWord,
+    /// A character where a word should start (`X1 0`, `#`, `)`).
+    Unexpected,
+    /// A G or M number that is not supported (`G93`, `G1.5`, `M7`).
+    UnsupportedCode,
+    /// The same word twice on one line (`G1 X1 X2`).
+    RepeatedWord,
+    /// Two codes of one modal group (`G0 G1`, `M3 M5`).
+    ModalGroupConflict,
+    /// `(` without `)`.
+    UnclosedComment,
+    /// T that is not a whole number 0..=255.
+    BadToolNumber,
+    /// M23 or M28 without a file name.
+    MissingFileName,
+    /// More than [`MAX_PARSE_LEN`] bytes.
+    LineTooLong,
+}
+
+impl ParseErrorKind {
+    /// Text printed after `Error:`.
+    pub fn message(&self) -> &'static str {
+        match self {
+            ParseErrorKind::BadNumber => "bad number",
+            ParseErrorKind::Exponent => "bad number: exponent not allowed",
+            ParseErrorKind::NumberOutOfRange => "number out of range",
+            ParseErrorKind::UnknownWord => "unknown word",
+            ParseErrorKind::Unexpected => "unexpected character",
+            ParseErrorKind::UnsupportedCode => "unsupported code",
+            ParseErrorKind::RepeatedWord => "word repeated",
+            ParseErrorKind::ModalGroupConflict => "two codes of one modal group",
+            ParseErrorKind::UnclosedComment => "unclosed comment",
+            ParseErrorKind::BadToolNumber => "tool number must be a whole number",
+            ParseErrorKind::MissingFileName => "missing file name",
+            ParseErrorKind::LineTooLong => "line too long",
+        }
+    }
+}
+
+/// A rejected line: what, and where (1-based column in the parsed text).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParseError {
+    /// What is wrong.
+    pub kind: ParseErrorKind,
+    /// 1-based column of the offending word or character.
+    pub col: u8,
+}
+
+impl ParseError {
+    /// Text printed after `Error:`, before ` at col <c>`.
+    pub fn message(&self) -> &'static str {
+        self.kind.message()
+    }
+}
+
+impl uDisplay for ParseError {
+    /// `<message> at col <c>`, as printed after `Error:`.
+    fn fmt<W: uWrite + ?Sized>(&self, f: &mut ufmt::Formatter<'_, W>) -> Result<(), W::Error> {
+        uwrite!(f, "{} at col {}", self.message(), self.col)
+    }
+}
+
+/// Shorthand for an error at a column.
+fn err<T>(kind: ParseErrorKind, col: u8) -> Result<T, ParseError> {
+    Err(ParseError { kind, col })
+}
+
+/// 1-based column of byte index `i`, saturating.
+fn col_of(i: usize) -> u8 {
+    u8::try_from(i + 1).unwrap_or(u8::MAX)
+}
+
+/// A lexed decimal number: value = ±mantissa / 10^scale, trailing fraction
+/// zeros dropped.
+#[derive(Clone, Copy, Debug)]
+struct Number {
+    negative: bool,
+    /// Significant digits, < 1e9.
+    mantissa: u32,
+    /// Power of ten to divide by.
+    scale: u16,
+}
+
+/// Powers of ten exactly representable in f32 (5^10 < 2^24).
+const POW10: [f32; 11] = [1.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10];
+
+impl Number {
+    /// The nearest f32 (exact rounding while the mantissa is below 2^24, i.e.
+    /// up to 7 significant digits; within about one ulp above).
+    fn to_f32(self) -> f32 {
+        if self.mantissa == 0 {
+            return 0.0;
+        }
+        let mut v = self.mantissa as f32;
+        let mut scale = self.scale;
+        while scale > 10 {
+            v /= 1e10;
+            scale -= 10;
+        }
+        v /= POW10.get(scale as usize).copied().unwrap_or(1.0);
+        if self.negative {
+            -v
+        } else {
+            v
+        }
+    }
+
+    /// The value × 10 as a code number (`38.2` → 382), if it is a
+    /// non-negative number with at most one decimal.
+    fn code_x10(self) -> Option<u16> {
+        if self.negative && self.mantissa != 0 {
+            return None;
+        }
+        let m = u16::try_from(self.mantissa).ok()?;
+        match self.scale {
+            0 => m.checked_mul(10),
+            1 => Some(m),
+            _ => None,
+        }
+    }
+}
+
+/// Most significant digits a number may have.
+const MAX_SIG_DIGITS: u8 = 9;
+/// Most significant digits before the point (|value| < 1e6).
+const MAX_INT_DIGITS: u8 = 6;
+
+/// Skip spaces and tabs from `pos`.
+fn skip_blanks(s: &[u8], mut pos: usize) -> usize {
+    while matches!(s.get(pos), Some(b' ' | b'\t')) {
+        pos += 1;
+    }
+    pos
+}
+
+/// Append digit `d` to the mantissa; false (and no change) when it already
+/// holds [`MAX_SIG_DIGITS`] digits.
+fn push_digit(mantissa: &mut u32, sig: &mut u8, d: u32) -> bool {
+    if *sig >= MAX_SIG_DIGITS {
+        return false;
+    }
+    *mantissa = *mantissa * 10 + d;
+    *sig += 1;
+    true
+}
+
+/// Lex the number of the word whose letter is at column `col`, starting at
+/// `pos` (just after the letter). Returns the number and the index after it.
+fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseError> {
+    let mut pos = skip_blanks(s, pos);
+    let mut negative = false;
+    match s.get(pos) {
+        Some(b'-') => {
+            negative = true;
+            pos += 1;
+        }
+        Some(b'+') => pos += 1,
+        _ => {}
+    }
+    let mut mantissa: u32 = 0;
+    let mut sig: u8 = 0;
+    let mut scale: u16 = 0;
+    // Fraction zeros not yet known to be followed by a non-zero digit.
+    let mut pending_zeros: u16 = 0;
+    let mut digits = false;
+    let mut in_fraction = false;
+    let mut too_long = false;
+    loop {
+        match s.get(pos) {
+            Some(&c @ b'0'..=b'9') => {
+                digits = true;
+                let d = (c - b'0') as u32;
+                if in_fraction {
+                    scale = scale.saturating_add(1);
+                    if d == 0 {
+                        pending_zeros = pending_zeros.saturating_add(1);
+                    } else {
+                        if mantissa != 0 {
+                            for _ in 0..pending_zeros {
+                                too_long |= !push_digit(&mut mantissa, &mut sig, 0);
+                            }
+                        }
+                        pending_zeros = 0;
+                        too_long |= !push_digit(&mut mantissa, &mut sig, d);
+                    }
+                } else if mantissa != 0 || d != 0 {
+                    too_long |= !push_digit(&mut mantissa, &mut sig, d);
+                    if sig > MAX_INT_DIGITS {
+                        too_long = true;
+                    }
+                }
+            }
+            Some(b'.') if !in_fraction => in_fraction = true,
+            _ => break,
+        }
+        pos += 1;
+    }
+    scale -= pending_zeros.min(scale);
+    if !digits {
+        return err(ParseErrorKind::BadNumber, col);
+    }
+    match s.get(pos) {
+        Some(b'e' | b'E') => return err(ParseErrorKind::Exponent, col),
+        Some(b'.' | b'+' | b'-') => return err(ParseErrorKind::BadNumber, col),
+        _ => {}
+    }
+    if too_long {
+        return err(ParseErrorKind::NumberOutOfRange, col);
+    }
+    Ok((Number { negative, mantissa, scale }, pos))
+}
+
+/// Skip a leading `N<n>` line number (any length, optional sign, integer).
+fn skip_line_number(s: &[u8], pos: usize, col: u8) -> Result<usize, ParseError> {
+    let mut pos = skip_blanks(s, pos);
+    if matches!(s.get(pos), Some(b'-' | b'+')) {
+        pos += 1;
+    }
+    let start = pos;
+    while matches!(s.get(pos), Some(b'0'..=b'9')) {
+        pos += 1;
+    }
+    if pos == start || matches!(s.get(pos), Some(b'.' | b'e' | b'E' | b'+' | b'-')) {
+        return err(ParseErrorKind::BadNumber, col);
+    }
+    Ok(pos)
+}
+
+/// Put `v` in a modal group slot, or report the conflict at `col`.
+fn set_group<T>(slot: &mut Option<T>, v: T, col: u8) -> Result<(), ParseError> {
+    if slot.is_some() {
+        return err(ParseErrorKind::ModalGroupConflict, col);
+    }
+    *slot = Some(v);
+    Ok(())
+}
+
+/// Record G code `code_x10` (G38.2 → 382) in `line`.
+fn apply_g(line: &mut Line, code_x10: u16, col: u8) -> Result<(), ParseError> {
+    match code_x10 {
+        0 => set_group(&mut line.motion, Motion::Rapid, col),
+        10 => set_group(&mut line.motion, Motion::Linear, col),
+        20 => set_group(&mut line.motion, Motion::ArcCw, col),
+        30 => set_group(&mut line.motion, Motion::ArcCcw, col),
+        382 => set_group(&mut line.motion, Motion::ProbeToward, col),
+        383 => set_group(&mut line.motion, Motion::ProbeTowardNoError, col),
+        800 => set_group(&mut line.motion, Motion::Cancel, col),
+        170 => set_group(&mut line.plane, Plane::Xy, col),
+        180 => set_group(&mut line.plane, Plane::Zx, col),
+        190 => set_group(&mut line.plane, Plane::Yz, col),
+        200 => set_group(&mut line.units, Units::Inch, col),
+        210 => set_group(&mut line.units, Units::Mm, col),
+        900 => set_group(&mut line.distance, Distance::Absolute, col),
+        910 => set_group(&mut line.distance, Distance::Incremental, col),
+        940 => set_group(&mut line.feed_mode, FeedMode::UnitsPerMinute, col),
+        540 | 550 | 560 | 570 | 580 | 590 => {
+            set_group(&mut line.wcs, ((code_x10 - 540) / 10) as u8, col)
+        }
+        430 => set_group(&mut line.tool_length, ToolLength::Apply, col),
+        490 => set_group(&mut line.tool_length, ToolLength::Cancel, col),
+        40 => set_group(&mut line.non_modal, NonModal::Dwell, col),
+        100 => set_group(&mut line.non_modal, NonModal::SetOffsets, col),
+        280 => set_group(&mut line.non_modal, NonModal::Home, col),
+        530 => set_group(&mut line.non_modal, NonModal::MachineCoords, col),
+        920 => set_group(&mut line.non_modal, NonModal::SetPosition, col),
+        370 => set_group(&mut line.non_modal, NonModal::MeasureTool, col),
+        2010 => set_group(&mut line.non_modal, NonModal::AuxMove, col),
+        2020 => set_group(&mut line.non_modal, NonModal::AuxSetPosition, col),
+        2030 => set_group(&mut line.non_modal, NonModal::AuxReport, col),
+        2040 => set_group(&mut line.non_modal, NonModal::AuxEnable, col),
+        2050 => set_group(&mut line.non_modal, NonModal::AuxHome, col),
+        _ => err(ParseErrorKind::UnsupportedCode, col),
+    }
+}
+
+/// Record M code `code` in `line`.
+fn apply_m(line: &mut Line, code: u16, col: u8) -> Result<(), ParseError> {
+    match code {
+        0 => set_group(&mut line.stopping, Stopping::Pause, col),
+        1 => set_group(&mut line.stopping, Stopping::OptionalPause, col),
+        2 => set_group(&mut line.stopping, Stopping::End, col),
+        30 => set_group(&mut line.stopping, Stopping::EndRewind, col),
+        3 => set_group(&mut line.spindle, Spindle::Cw, col),
+        4 => set_group(&mut line.spindle, Spindle::Ccw, col),
+        5 => set_group(&mut line.spindle, Spindle::Off, col),
+        6 if line.tool_change => err(ParseErrorKind::ModalGroupConflict, col),
+        6 => {
+            line.tool_change = true;
+            Ok(())
+        }
+        _ if OTHER_M_CODES.contains(&code) => set_group(&mut line.other_m, code, col),
+        _ => err(ParseErrorKind::UnsupportedCode, col),
+    }
+}
+
+/// The file name after M23/M28 starting at `pos`: up to `;`, blanks trimmed.
+/// Returns (start, len).
+fn text_arg(s: &[u8], pos: usize, col: u8) -> Result<(u8, u8), ParseError> {
+    let start = skip_blanks(s, pos);
+    let rest = s.get(start..).unwrap_or(&[]);
+    let mut len = rest.iter().position(|&b| b == b';').unwrap_or(rest.len());
+    while len > 0 && matches!(rest.get(len - 1), Some(b' ' | b'\t')) {
+        len -= 1;
+    }
+    match (u8::try_from(start), u8::try_from(len)) {
+        (Ok(start), Ok(len)) if len > 0 => Ok((start, len)),
+        _ => err(ParseErrorKind::MissingFileName, col),
+    }
+}
+
+/// Parse one line of G-code (the command text after protocol stripping).
+///
+/// A malformed line is rejected whole with the column of the first problem;
+/// a blank or comment-only line gives an empty [`Line`].
+pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
+    if s.len() > MAX_PARSE_LEN {
+        return err(ParseErrorKind::LineTooLong, col_of(MAX_PARSE_LEN));
+    }
+    let mut line = Line::default();
+    let mut pos = 0;
+    let mut seen_word = false;
+    // Column of a `%` program delimiter, 0 if none.
+    let mut percent_col = 0u8;
+    while let Some(&c) = s.get(pos) {
+        let col = col_of(pos);
+        match c {
+            b' ' | b'\t' => pos += 1,
+            b'(' => {
+                let rest = s.get(pos + 1..).unwrap_or(&[]);
+                match rest.iter().position(|&b| b == b')') {
+                    Some(i) => pos += i + 2,
+                    None => return err(ParseErrorKind::UnclosedComment, col),
+                }
+            }
+            b';' => break,
+            b'%' if !seen_word && percent_col == 0 => {
+                percent_col = col;
+                pos += 1;
+            }
+            _ if c.is_ascii_alphabetic() => {
+                if percent_col != 0 {
+                    return err(ParseErrorKind::Unexpected, percent_col);
+                }
+                pos += 1;
+                match c.to_ascii_uppercase() {
+                    b'G' => {
+                        let (n, next) = lex_number(s, pos, col)?;
+                        pos = next;
+                        let code = n.code_x10();
+                        let code = code.ok_or(ParseError { kind: ParseErrorKind::UnsupportedCode, col })?;
+                        apply_g(&mut line, code, col)?;
+                    }
+                    b'M' => {
+                        let (n, next) = lex_number(s, pos, col)?;
+                        pos = next;
+                        let code = match n.code_x10() {
+                            Some(c) if c % 10 == 0 => c / 10,
+                            _ => return err(ParseErrorKind::UnsupportedCode, col),
+                        };
+                        apply_m(&mut line, code, col)?;
+                        if TEXT_ARG_M_CODES.contains(&code) {
+                            line.text_arg = Some(text_arg(s, pos, col)?);
+                            break;
+                        }
+                    }
+                    b'N' if !seen_word => pos = skip_line_number(s, pos, col)?,
+                    up => {
+                        let Some(w) = Word::from_letter(up) else {
+                            return err(ParseErrorKind::UnknownWord, col);
+                        };
+                        let (n, next) = lex_number(s, pos, col)?;
+                        pos = next;
+                        if w == Word::T && (n.scale != 0 || (n.negative && n.mantissa != 0) || n.mantissa > 255) {
+                            return err(ParseErrorKind::BadToolNumber, col);
+                        }
+                        if !line.words.insert(w, n.to_f32()) {
+                            return err(ParseErrorKind::RepeatedWord, col);
+                        }
+                    }
+                }
+                seen_word = true;
+            }
+            _ => return err(ParseErrorKind::Unexpected, col),
+        }
+    }
+    Ok(line)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ok(s: &str) -> Line {
+        match parse(s.as_bytes()) {
+            Ok(l) => l,
+            Err(e) => panic!("{:?} rejected: {:?}", s, e),
+        }
+    }
+
+    fn fails(s: &str) -> (ParseErrorKind, u8) {
+        match parse(s.as_bytes()) {
+            Ok(l) => panic!("{:?} accepted: {:?}", s, l),
+            Err(e) => (e.kind, e.col),
+        }
+    }
+
+    fn x(s: &str) -> f32 {
+        ok(s).word(Word::X).unwrap()
+    }
+
+    #[test]
+    fn line_fits_the_ram_budget() {
+        let size = core::mem::size_of::<Line>();
+        println!("size_of::<Line>() = {size} bytes (host)");
+        assert!(size <= 120);
+    }
+
+    #[test]
+    fn every_supported_g_code_is_accepted_in_its_group() {
+        assert_eq!(ok("G0").motion, Some(Motion::Rapid));
+        assert_eq!(ok("G1").motion, Some(Motion::Linear));
+        assert_eq!(ok("G2").motion, Some(Motion::ArcCw));
+        assert_eq!(ok("G3").motion, Some(Motion::ArcCcw));
+        assert_eq!(ok("G38.2").motion, Some(Motion::ProbeToward));
+        assert_eq!(ok("G38.3").motion, Some(Motion::ProbeTowardNoError));
+        assert_eq!(ok("G80").motion, Some(Motion::Cancel));
+        assert_eq!(ok("G17").plane, Some(Plane::Xy));
+        assert_eq!(ok("G18").plane, Some(Plane::Zx));
+        assert_eq!(ok("G19").plane, Some(Plane::Yz));
+        assert_eq!(ok("G20").units, Some(Units::Inch));
+        assert_eq!(ok("G21").units, Some(Units::Mm));
+        assert_eq!(ok("G90").distance, Some(Distance::Absolute));
+        assert_eq!(ok("G91").distance, Some(Distance::Incremental));
+        assert_eq!(ok("G94").feed_mode, Some(FeedMode::UnitsPerMinute));
+        for (i, g) in ["G54", "G55", "G56", "G57", "G58", "G59"].iter().enumerate() {
+            assert_eq!(ok(g).wcs, Some(i as u8));
+        }
+        assert_eq!(ok("G43 H3").tool_length, Some(ToolLength::Apply));
+        assert_eq!(ok("G49").tool_length, Some(ToolLength::Cancel));
+        let non_modal = [
+            ("G4", NonModal::Dwell),
+            ("G10", NonModal::SetOffsets),
+            ("G28", NonModal::Home),
+            ("G53", NonModal::MachineCoords),
+            ("G92", NonModal::SetPosition),
+            ("G37", NonModal::MeasureTool),
+            ("G201", NonModal::AuxMove),
+            ("G202", NonModal::AuxSetPosition),
+            ("G203", NonModal::AuxReport),
+            ("G204", NonModal::AuxEnable),
+            ("G205", NonModal::AuxHome),
+        ];
+        for (g, want) in non_modal {
+            assert_eq!(ok(g).non_modal, Some(want), "{g}");
+        }
+    }
+
+    #[test]
+    fn leading_zeros_and_zero_decimals_in_codes_are_the_same_code() {
+        assert_eq!(ok("G00").motion, Some(Motion::Rapid));
+        assert_eq!(ok("G01").motion, Some(Motion::Linear));
+        assert_eq!(ok("G1.0").motion, Some(Motion::Linear));
+        assert_eq!(ok("G038.20").motion, Some(Motion::ProbeToward));
+        assert_eq!(ok("M03").spindle, Some(Spindle::Cw));
+        assert_eq!(ok("M3.0").spindle, Some(Spindle::Cw));
+    }
+
+    #[test]
+    fn every_supported_m_code_is_accepted_in_its_group() {
+        assert_eq!(ok("M0").stopping, Some(Stopping::Pause));
+        assert_eq!(ok("M1").stopping, Some(Stopping::OptionalPause));
+        assert_eq!(ok("M2").stopping, Some(Stopping::End));
+        assert_eq!(ok("M30").stopping, Some(Stopping::EndRewind));
+        assert_eq!(ok("M3 S1000").spindle, Some(Spindle::Cw));
+        assert_eq!(ok("M4").spindle, Some(Spindle::Ccw));
+        assert_eq!(ok("M5").spindle, Some(Spindle::Off));
+        assert!(ok("M6").tool_change);
+        assert!(!ok("G0").tool_change);
+        for &m in OTHER_M_CODES {
+            let text = if TEXT_ARG_M_CODES.contains(&m) { format!("M{m} A.GCO") } else { format!("M{m}") };
+            assert_eq!(ok(&text).other_m, Some(m), "{text}");
+        }
+    }
+
+    #[test]
+    fn g_codes_with_a_decimal_other_than_g38_2_and_g38_3_are_unsupported() {
+        assert_eq!(fails("G1.5"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G38.1"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G38.25"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G38"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("M3.5"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G-1"), (ParseErrorKind::UnsupportedCode, 1));
+    }
+
+    #[test]
+    fn unknown_g_and_m_codes_point_at_the_word() {
+        assert_eq!(fails("G93"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G1 X1 G41"), (ParseErrorKind::UnsupportedCode, 7));
+        assert_eq!(fails("M7"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G0 M105"), (ParseErrorKind::UnsupportedCode, 4));
+        assert_eq!(fails("M65535"), (ParseErrorKind::UnsupportedCode, 1));
+        assert_eq!(fails("G7000"), (ParseErrorKind::UnsupportedCode, 1));
+    }
+
+    #[test]
+    fn two_codes_of_one_group_conflict_at_the_second() {
+        assert_eq!(fails("G0 G1"), (ParseErrorKind::ModalGroupConflict, 4));
+        assert_eq!(fails("G1 G1"), (ParseErrorKind::ModalGroupConflict, 4));
+        assert_eq!(fails("G54 G55"), (ParseErrorKind::ModalGroupConflict, 5));
+        assert_eq!(fails("G4 P1 G53"), (ParseErrorKind::ModalGroupConflict, 7));
+        assert_eq!(fails("M3 M5"), (ParseErrorKind::ModalGroupConflict, 4));
+        assert_eq!(fails("M6 M6"), (ParseErrorKind::ModalGroupConflict, 4));
+        assert_eq!(fails("M114 M115"), (ParseErrorKind::ModalGroupConflict, 6));
+        assert_eq!(fails("M0 M30"), (ParseErrorKind::ModalGroupConflict, 4));
+    }
+
+    #[test]
+    fn codes_of_different_groups_share_a_line() {
+        let l = ok("G90 G21 G17 G54 G94 G49 G53 G0 X1 M5 M6 T2 M400");
+        assert_eq!(l.distance, Some(Distance::Absolute));
+        assert_eq!(l.units, Some(Units::Mm));
+        assert_eq!(l.plane, Some(Plane::Xy));
+        assert_eq!(l.wcs, Some(0));
+        assert_eq!(l.feed_mode, Some(FeedMode::UnitsPerMinute));
+        assert_eq!(l.tool_length, Some(ToolLength::Cancel));
+        assert_eq!(l.non_modal, Some(NonModal::MachineCoords));
+        assert_eq!(l.motion, Some(Motion::Rapid));
+        assert_eq!(l.spindle, Some(Spindle::Off));
+        assert!(l.tool_change);
+        assert_eq!(l.tool(), Some(2));
+        assert_eq!(l.other_m, Some(400));
+    }
+
+    #[test]
+    fn every_value_word_is_read() {
+        let l = ok("B1 D2 E3 F4 H5 I6 J7 K8 L9 N10 P11 Q12 R13 S14 T15 X16 Y17 Z18");
+        for (i, w) in Word::ALL.iter().enumerate() {
+            assert_eq!(l.word(*w), Some((i + 1) as f32), "{}", w.letter() as char);
+        }
+        assert_eq!(l.words.iter().count(), Word::COUNT);
+    }
+
+    #[test]
+    fn letters_outside_the_dialect_are_unknown_words() {
+        assert_eq!(fails("G1 A5"), (ParseErrorKind::UnknownWord, 4));
+        assert_eq!(fails("C1"), (ParseErrorKind::UnknownWord, 1));
+        assert_eq!(fails("O100"), (ParseErrorKind::UnknownWord, 1));
+        assert_eq!(fails("G0 x1 u2"), (ParseErrorKind::UnknownWord, 7));
+    }
+
+    #[test]
+    fn a_repeated_word_is_an_error_at_the_second() {
+        assert_eq!(fails("G1 X1 X2"), (ParseErrorKind::RepeatedWord, 7));
+        assert_eq!(fails("G1X1Y2x3"), (ParseErrorKind::RepeatedWord, 7));
+        assert_eq!(fails("M110 N1 N2"), (ParseErrorKind::RepeatedWord, 9));
+    }
+
+    #[test]
+    fn case_does_not_matter() {
+        assert_eq!(ok("g1 x10 y-2.5 f300"), ok("G1 X10 Y-2.5 F300"));
+        assert_eq!(ok("g38.2 z-5").motion, Some(Motion::ProbeToward));
+    }
+
+    #[test]
+    fn blanks_are_optional_between_words_and_allowed_after_a_letter() {
+        let l = ok("G1X10Y-2.5");
+        assert_eq!(l.motion, Some(Motion::Linear));
+        assert_eq!(l.word(Word::X), Some(10.0));
+        assert_eq!(l.word(Word::Y), Some(-2.5));
+        assert_eq!(ok("G1 X 10\tY -2.5"), l);
+        assert_eq!(ok("  G 1   X10 Y-2.5  "), l);
+    }
+
+    #[test]
+    fn a_blank_inside_a_number_is_an_error() {
+        assert_eq!(fails("X1 0"), (ParseErrorKind::Unexpected, 4));
+        assert_eq!(fails("X- 1"), (ParseErrorKind::BadNumber, 1));
+    }
+
+    #[test]
+    fn comments_are_ignored() {
+        let l = ok("G1 (move) X1 ; to the end (not a comment");
+        assert_eq!(l.motion, Some(Motion::Linear));
+        assert_eq!(l.word(Word::X), Some(1.0));
+        assert_eq!(ok("G1(no blanks)X2").word(Word::X), Some(2.0));
+        assert_eq!(ok("(a (b) G0"), ok("G0"), "no nesting: the first ) closes");
+        assert!(ok("(only a comment)").is_empty());
+        assert!(ok("; only a comment").is_empty());
+        assert!(ok("").is_empty());
+        assert!(ok("   \t ").is_empty());
+    }
+
+    #[test]
+    fn an_unclosed_comment_is_an_error_at_its_paren() {
+        assert_eq!(fails("G1 X1 (oops"), (ParseErrorKind::UnclosedComment, 7));
+        assert_eq!(fails("("), (ParseErrorKind::UnclosedComment, 1));
+    }
+
+    #[test]
+    fn stray_characters_are_unexpected() {
+        assert_eq!(fails("G1 )"), (ParseErrorKind::Unexpected, 4));
+        assert_eq!(fails("#1=5"), (ParseErrorKind::Unexpected, 1));
+        assert_eq!(fails("G1 X1*12"), (ParseErrorKind::Unexpected, 6));
+        assert_eq!(fails("$H"), (ParseErrorKind::Unexpected, 1));
+    }
+
+    #[test]
+    fn a_percent_line_is_an_empty_program_delimiter() {
+        assert!(ok("%").is_empty());
+        assert!(ok(" % (start)").is_empty());
+        assert_eq!(fails("% G1"), (ParseErrorKind::Unexpected, 1));
+        assert_eq!(fails("G1 %"), (ParseErrorKind::Unexpected, 4));
+        assert_eq!(fails("%%"), (ParseErrorKind::Unexpected, 2));
+    }
+
+    #[test]
+    fn a_leading_line_number_is_skipped() {
+        assert_eq!(ok("N10 G1 X1"), ok("G1 X1"));
+        assert_eq!(ok("n123456789012 G0"), ok("G0"));
+        assert_eq!(ok("N-1 M110"), ok("M110"));
+        assert_eq!(ok("M110 N100").word(Word::N), Some(100.0));
+        assert_eq!(fails("N G1"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("N1.5 G1"), (ParseErrorKind::BadNumber, 1));
+    }
+
+    #[test]
+    fn numbers_with_signs_points_and_leading_zeros() {
+        assert_eq!(x("X-0.5"), -0.5);
+        assert_eq!(x("X+1"), 1.0);
+        assert_eq!(x("X.5"), 0.5);
+        assert_eq!(x("X5."), 5.0);
+        assert_eq!(x("X007"), 7.0);
+        assert_eq!(x("X-.25"), -0.25);
+        assert_eq!(x("X0"), 0.0);
+        assert_eq!(x("X-0").to_bits(), 0.0f32.to_bits(), "no negative zero");
+        assert_eq!(x("X000000000000.5"), 0.5, "leading zeros are not significant");
+        assert_eq!(x("X1.50000000000"), 1.5, "trailing zeros are not significant");
+        assert_eq!(x("X0.000000001"), 1e-9);
+    }
+
+    #[test]
+    fn decimals_parse_to_the_nearest_f32() {
+        assert_eq!(x("X0.1"), 0.1f32);
+        assert_eq!(x("X-0.1"), -0.1f32);
+        assert_eq!(x("X0.3"), 0.3f32);
+        assert_eq!(x("X123.456"), 123.456f32);
+        assert_eq!(x("X2.675"), 2.675f32);
+        assert_eq!(x("X999999.9"), 999999.9f32);
+        assert_eq!(x("X0.001"), 0.001f32);
+        assert_eq!(x("X45.0005"), 45.0005f32);
+        // Exhaustive over three decimals up to 100 mm.
+        for i in 0..100_000u32 {
+            let s = format!("X{}.{:03}", i / 1000, i % 1000);
+            let want: f32 = s[1..].parse().unwrap();
+            assert_eq!(x(&s), want, "{s}");
+        }
+    }
+
+    #[test]
+    fn malformed_numbers_are_bad_numbers_at_the_word() {
+        for s in ["X", "X-", "X.", "X+.", "X-.", "X+", "X1.2.3", "X1-2", "X1+", "X--1", "X+-1"] {
+            assert_eq!(fails(s), (ParseErrorKind::BadNumber, 1), "{s}");
+        }
+        assert_eq!(fails("G1 Y2 X"), (ParseErrorKind::BadNumber, 7));
+        assert_eq!(fails("G1 Xa"), (ParseErrorKind::BadNumber, 4));
+        assert_eq!(fails("G"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("M"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("G1 X10 F"), (ParseErrorKind::BadNumber, 8));
+    }
+
+    #[test]
+    fn an_exponent_is_rejected_but_an_e_word_after_a_blank_is_fine() {
+        assert_eq!(fails("X1e99"), (ParseErrorKind::Exponent, 1));
+        assert_eq!(fails("G1 X1E5"), (ParseErrorKind::Exponent, 4));
+        assert_eq!(fails("X1.5e-3"), (ParseErrorKind::Exponent, 1));
+        let l = ok("M92 X100 E3200");
+        assert_eq!(l.word(Word::E), Some(3200.0));
+    }
+
+    #[test]
+    fn numbers_too_big_or_too_precise_are_out_of_range() {
+        assert_eq!(fails("X1000000"), (ParseErrorKind::NumberOutOfRange, 1));
+        assert_eq!(fails("X-1000000.0"), (ParseErrorKind::NumberOutOfRange, 1));
+        assert_eq!(fails("G1 F99999999999999999999999"), (ParseErrorKind::NumberOutOfRange, 4));
+        assert_eq!(fails("X1.234567891"), (ParseErrorKind::NumberOutOfRange, 1));
+        assert_eq!(fails("X0.0000000001234567891"), (ParseErrorKind::NumberOutOfRange, 1));
+        assert_eq!(x("X999999.999"), 1_000_000.0, "9 digits round to the nearest f32");
+        // Beyond 7 digits the mantissa itself rounds: within one ulp.
+        let v = x("X-123.456789");
+        assert!((v - -123.456789f32).abs() <= 8e-6, "{v}");
+        assert_eq!(fails("G1234567"), (ParseErrorKind::NumberOutOfRange, 1));
+    }
+
+    #[test]
+    fn tiny_numbers_stay_finite() {
+        let v = x("X0.000000000000000000000000000000000000000000000000001");
+        assert!(v.is_finite() && v.abs() < 1e-30);
+    }
+
+    #[test]
+    fn t_must_be_a_whole_number_up_to_255() {
+        assert_eq!(ok("T0").tool(), Some(0));
+        assert_eq!(ok("T12").tool(), Some(12));
+        assert_eq!(ok("T255").tool(), Some(255));
+        assert_eq!(ok("T5.0").tool(), Some(5));
+        assert_eq!(ok("T5 M6").tool(), Some(5));
+        assert_eq!(fails("T1.5"), (ParseErrorKind::BadToolNumber, 1));
+        assert_eq!(fails("M6 T-1"), (ParseErrorKind::BadToolNumber, 4));
+        assert_eq!(fails("T256"), (ParseErrorKind::BadToolNumber, 1));
+    }
+
+    #[test]
+    fn m23_and_m28_take_the_rest_of_the_line_as_a_file_name() {
+        let src = b"M23 Part-1 X5.GCO ; select";
+        let l = parse(src).unwrap();
+        assert_eq!(l.other_m, Some(23));
+        assert_eq!(l.text(src), Some(&b"Part-1 X5.GCO"[..]));
+        assert!(l.words.is_empty());
+        let src = b"m28\tjob.nc  ";
+        let l = parse(src).unwrap();
+        assert_eq!(l.other_m, Some(28));
+        assert_eq!(l.text(src), Some(&b"job.nc"[..]));
+        assert_eq!(ok("M30").text_arg, None);
+        assert_eq!(fails("M23"), (ParseErrorKind::MissingFileName, 1));
+        assert_eq!(fails("G4 P1 M28   ; nothing"), (ParseErrorKind::MissingFileName, 7));
+    }
+
+    #[test]
+    fn words_can_be_taken_out_one_by_one() {
+        let mut w = ok("G1 X1 Y2").words;
+        assert_eq!(w.first(), Some(Word::X));
+        assert_eq!(w.remove(Word::X), Some(1.0));
+        assert_eq!(w.remove(Word::X), None);
+        assert_eq!(w.first(), Some(Word::Y));
+        assert_eq!(w.remove(Word::Y), Some(2.0));
+        assert!(w.is_empty());
+        assert!(w.insert(Word::Z, 3.0));
+        assert!(!w.insert(Word::Z, 4.0));
+        assert_eq!(w.get(Word::Z), Some(3.0));
+    }
+
+    #[test]
+    fn a_full_length_line_of_many_words_parses() {
+        let mut s = String::from("G1M3");
+        for w in Word::ALL {
+            if w == Word::T {
+                s.push_str("T12");
+            } else if w == Word::E {
+                // A blank before E, or `-1.5E` would read as an exponent.
+                s.push_str(" E-1.5");
+            } else {
+                s.push(w.letter() as char);
+                s.push_str("-1.5");
+            }
+        }
+        s.push_str("G54");
+        while s.len() < crate::protocol::MAX_LINE_LEN {
+            s.push(' ');
+        }
+        assert_eq!(s.len(), crate::protocol::MAX_LINE_LEN);
+        let l = ok(&s);
+        assert_eq!(l.words.iter().count(), Word::COUNT);
+        assert_eq!(l.word(Word::Z), Some(-1.5));
+        assert_eq!(l.wcs, Some(0));
+    }
+
+    #[test]
+    fn an_over_long_line_is_rejected() {
+        let s = vec![b' '; MAX_PARSE_LEN + 1];
+        assert_eq!(parse(&s).unwrap_err().kind, ParseErrorKind::LineTooLong);
+        let s = vec![b' '; MAX_PARSE_LEN];
+        assert!(parse(&s).unwrap().is_empty());
+    }
+
+    #[test]
+    fn every_error_kind_has_a_message_and_prints_with_its_column() {
+        let kinds = [
+            ParseErrorKind::BadNumber,
+            ParseErrorKind::Exponent,
+            ParseErrorKind::NumberOutOfRange,
+            ParseErrorKind::UnknownWord,
+            ParseErrorKind::Unexpected,
+            ParseErrorKind::UnsupportedCode,
+            ParseErrorKind::RepeatedWord,
+            ParseErrorKind::ModalGroupConflict,
+            ParseErrorKind::UnclosedComment,
+            ParseErrorKind::BadToolNumber,
+            ParseErrorKind::MissingFileName,
+            ParseErrorKind::LineTooLong,
+        ];
+        for k in kinds {
+            assert!(!k.message().is_empty());
+        }
+        let e = parse(b"G1 X1 X2").unwrap_err();
+        let mut out = String::new();
+        ufmt::uwrite!(out, "Error:{}", e).unwrap();
+        assert_eq!(out, "Error:word repeated at col 7");
+    }
+
+    /// Tiny xorshift32 PRNG for the random-text test.
+    struct XorShift(u32);
+    impl XorShift {
+        fn next(&mut self) -> u32 {
+            let mut x = self.0;
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            self.0 = x;
+            x
+        }
+    }
+
+    #[test]
+    fn random_g_code_like_text_never_panics_and_values_stay_in_range() {
+        let alphabet = b"GMXYZFNTSPE0123456789.-+ ();%eabc*\t";
+        let mut rng = XorShift(0xdead_beef);
+        for _ in 0..50_000 {
+            let len = (rng.next() % 40) as usize;
+            let s: Vec<u8> = (0..len).map(|_| alphabet[rng.next() as usize % alphabet.len()]).collect();
+            match parse(&s) {
+                Ok(l) => {
+                    for (_, v) in l.words.iter() {
+                        assert!(v.is_finite() && v.abs() <= 1e6, "{:?}", String::from_utf8_lossy(&s));
+                    }
+                }
+                Err(e) => assert!(e.col >= 1 && e.col as usize <= s.len().max(1)),
+            }
+        }
+    }
+}
