@@ -1,1 +1,49 @@
-pub fn x(){}
+//! `sim`: the mill's virtual machine (SPEC §12).
+//!
+//! The real firmware ELF runs in simavr as an ATmega2560 at 16 MHz; around it
+//! sits a model of the RAMPS 1.4 machine:
+//!
+//! - [`vm`]: the simavr instance, its clock, reset handling and every hook
+//!   (and the simavr quirks of SPEC §14 it works around; see that module).
+//! - [`recorder`]: step/dir/enable pins → positions, DRV8825 timing and travel
+//!   violations, step rates, acceleration. Pure, unit-tested on synthetic events.
+//! - [`physics`]: positions → home switches, carousel sensor, tool-setter beam,
+//!   with per-input test overrides.
+//! - [`host`]: the scripted G-code host on UART0 (ok / character-counting flow,
+//!   line numbers and checksums, resends).
+//! - [`isr`]: per-vector interrupt service times.
+//! - [`spindle`]: PWM duty of OC2A.
+//! - [`elf`]: ELF symbols (RAM addresses, `__heap_start`).
+//! - [`report`]: JSON report and CSV step trace.
+//! - [`pins`]: the RAMPS pin map, the only place `sim/` knows pins.
+//!
+//! ```no_run
+//! use sim::{Vm, VmConfig, Axis, Input, Flow};
+//! let mut vm = Vm::new(VmConfig::default())?;          // $MILL_ELF or target/.../mill.elf
+//! vm.wait_for_start(2.0)?;
+//! let reply = vm.command("G1 X10 F1200")?;            // lines up to and including "ok"
+//! vm.command("M400")?;
+//! assert_eq!(vm.position(Axis::X), 1000);
+//! vm.set_input(Input::HomeX, Some(true));              // force the X switch closed
+//! let job = vm.stream(&["G0 X1", "G0 X2"], Flow::CharCount(127))?;
+//! println!("{}", vm.report(Some(&job)).human());
+//! # Ok::<(), sim::VmError>(())
+//! ```
+
+pub mod elf;
+pub mod host;
+pub mod isr;
+pub mod physics;
+pub mod pins;
+pub mod recorder;
+pub mod report;
+pub mod spindle;
+pub mod vm;
+
+pub use host::{Flow, StreamOptions, StreamReport};
+pub use isr::{IsrStats, STEPPER_VECTOR};
+pub use physics::{CarouselConfig, MachineConfig, Physics, ToolSetter};
+pub use pins::{Axis, Input, Pin, SignalKind};
+pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
+pub use report::Report;
+pub use vm::{ResetKind, ResetRecord, Vm, VmConfig, VmError};

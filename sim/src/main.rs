@@ -1,0 +1,150 @@
+//! `sim`: run a G-code job on the firmware in the virtual machine.
+//!
+//! ```text
+//! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv]
+//!                               [--checksums] [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]
+//! ```
+//!
+//! Boots the ELF, waits for `start`, streams the job (default
+//! `sim/jobs/demo.gcode`), sends `M400` and waits for its `ok`, settles
+//! 100 ms, prints the report and writes the JSON/CSV. Exit code 1 if there
+//! were violations, a crash or a timeout; 2 on bad usage or a load error.
+
+use sim::host::prepare_gcode;
+use sim::{Flow, StreamOptions, Vm, VmConfig};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+struct Args {
+    elf: Option<PathBuf>,
+    json: Option<PathBuf>,
+    csv: Option<PathBuf>,
+    checksums: bool,
+    flow: Flow,
+    timeout_s: f64,
+    job: PathBuf,
+}
+
+const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--checksums] \
+[--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]";
+
+fn parse_args() -> Result<Args, String> {
+    let mut a = Args {
+        elf: None,
+        json: None,
+        csv: None,
+        checksums: false,
+        flow: Flow::PingPong,
+        timeout_s: 600.0,
+        job: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("jobs/demo.gcode"),
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(arg) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match arg.as_str() {
+            "--elf" => a.elf = Some(value("--elf")?.into()),
+            "--json" => a.json = Some(value("--json")?.into()),
+            "--csv" => a.csv = Some(value("--csv")?.into()),
+            "--checksums" => a.checksums = true,
+            "--flow" => a.flow = value("--flow")?.parse()?,
+            "--timeout" => {
+                a.timeout_s = value("--timeout")?.parse().map_err(|e| format!("--timeout: {e}"))?;
+            }
+            "-h" | "--help" => return Err(USAGE.to_string()),
+            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
+            s => a.job = PathBuf::from(s),
+        }
+    }
+    Ok(a)
+}
+
+fn main() -> ExitCode {
+    let args = match parse_args() {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(2);
+        }
+    };
+    let text = match std::fs::read_to_string(&args.job) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("cannot read {}: {e}", args.job.display());
+            return ExitCode::from(2);
+        }
+    };
+    let lines = prepare_gcode(&text);
+    let mut config = VmConfig::default();
+    if let Some(elf) = args.elf {
+        config.elf = elf;
+    }
+    let mut vm = match Vm::new(config) {
+        Ok(vm) => vm,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(2);
+        }
+    };
+
+    println!("job: {} ({} lines), flow {:?}{}", args.job.display(), lines.len(), args.flow, if args.checksums { ", checksums" } else { "" });
+    let mut failure: Option<String> = None;
+    let mut job = None;
+    match vm.wait_for_start(5.0) {
+        Err(e) => failure = Some(format!("no `start` from the firmware: {e}")),
+        Ok(_) => {
+            let opts = StreamOptions::new(args.flow).with_checksums(args.checksums).timeout(args.timeout_s);
+            match vm.stream(&lines, opts) {
+                Err(e) => failure = Some(e.to_string()),
+                Ok(mut r) => {
+                    if !r.timed_out {
+                        // Wait for the motion queue to drain, then settle.
+                        let left = (args.timeout_s - r.duration_s).max(1.0);
+                        match vm.command_timeout("M400", left) {
+                            Ok(_) => {
+                                r.end_s = vm.seconds();
+                                r.duration_s = r.end_s - r.start_s;
+                                if let Err(e) = vm.run_for(0.1) {
+                                    failure = Some(e.to_string());
+                                }
+                            }
+                            Err(e) => failure = Some(format!("M400: {e}")),
+                        }
+                    }
+                    job = Some(r);
+                }
+            }
+        }
+    }
+
+    let mut report = vm.report(job.as_ref());
+    if let Some(f) = &failure {
+        if !report.errors.contains(f) {
+            report.errors.push(f.clone());
+        }
+    }
+    print!("{}", report.human());
+    if let Some(j) = &job {
+        for e in j.errors.iter().take(10) {
+            println!("{:<22}{e}", "firmware error");
+        }
+    }
+    if let Some(p) = &args.json {
+        if let Err(e) = report.write_json(p) {
+            eprintln!("cannot write {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
+        println!("{:<22}{}", "json", p.display());
+    }
+    if let Some(p) = &args.csv {
+        if let Err(e) = vm.write_trace_csv(p) {
+            eprintln!("cannot write {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
+        println!("{:<22}{}", "csv", p.display());
+    }
+    if report.clean() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}

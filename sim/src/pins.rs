@@ -1,0 +1,241 @@
+//! The RAMPS 1.4 pin map as the virtual machine sees it (SPEC §2).
+//!
+//! This is the sim's copy of the firmware's `board` pin table: the only place
+//! in `sim/` that knows which AVR port bit is which machine signal. The
+//! recorder (outputs) and the physics model (inputs) refer to pins only
+//! through [`Axis`], [`SignalKind`] and [`Input`].
+
+use serde::Serialize;
+
+/// One AVR port pin, e.g. `PF0` is `Pin { port: b'F', bit: 0 }`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct Pin {
+    /// Port letter, upper case (`b'A'`..=`b'L'`).
+    pub port: u8,
+    /// Bit 0..=7.
+    pub bit: u8,
+}
+
+impl Pin {
+    /// `Pin::new(b'F', 0)` is PF0.
+    pub const fn new(port: u8, bit: u8) -> Pin {
+        Pin { port, bit }
+    }
+
+    /// Data-space address of the PINx register of this port on the ATmega2560.
+    pub const fn pin_reg(self) -> u16 {
+        port_regs(self.port).0
+    }
+
+    /// Data-space address of the DDRx register.
+    pub const fn ddr_reg(self) -> u16 {
+        port_regs(self.port).1
+    }
+
+    /// Data-space address of the PORTx register.
+    pub const fn port_reg(self) -> u16 {
+        port_regs(self.port).2
+    }
+}
+
+impl std::fmt::Display for Pin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "P{}{}", self.port as char, self.bit)
+    }
+}
+
+/// (PINx, DDRx, PORTx) data-space addresses on the ATmega2560 (datasheet §33,
+/// register summary). Ports A–G sit in the low I/O space, H–L in extended I/O.
+pub const fn port_regs(port: u8) -> (u16, u16, u16) {
+    match port {
+        b'A' => (0x20, 0x21, 0x22),
+        b'B' => (0x23, 0x24, 0x25),
+        b'C' => (0x26, 0x27, 0x28),
+        b'D' => (0x29, 0x2A, 0x2B),
+        b'E' => (0x2C, 0x2D, 0x2E),
+        b'F' => (0x2F, 0x30, 0x31),
+        b'G' => (0x32, 0x33, 0x34),
+        b'H' => (0x100, 0x101, 0x102),
+        b'J' => (0x103, 0x104, 0x105),
+        b'K' => (0x106, 0x107, 0x108),
+        b'L' => (0x109, 0x10A, 0x10B),
+        _ => (0, 0, 0),
+    }
+}
+
+/// A stepper axis. `E` is the E0 driver, which turns the tool carousel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub enum Axis {
+    X = 0,
+    Y = 1,
+    Z = 2,
+    E = 3,
+}
+
+impl Axis {
+    /// All four axes in index order.
+    pub const ALL: [Axis; 4] = [Axis::X, Axis::Y, Axis::Z, Axis::E];
+
+    /// 0..=3.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Inverse of [`Axis::index`].
+    pub const fn from_index(i: usize) -> Axis {
+        match i {
+            0 => Axis::X,
+            1 => Axis::Y,
+            2 => Axis::Z,
+            _ => Axis::E,
+        }
+    }
+
+    /// "X", "Y", "Z" or "E".
+    pub const fn name(self) -> &'static str {
+        match self {
+            Axis::X => "X",
+            Axis::Y => "Y",
+            Axis::Z => "Z",
+            Axis::E => "E",
+        }
+    }
+
+    /// The step/dir/enable pins of this axis' driver.
+    pub const fn pins(self) -> DriverPins {
+        DRIVERS[self as usize]
+    }
+}
+
+impl std::fmt::Display for Axis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which of a driver's three inputs a pin is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum SignalKind {
+    /// Rising edge = one microstep.
+    Step,
+    /// High = positive direction (unless inverted in the machine config).
+    Dir,
+    /// Active low: high = driver disabled.
+    Enable,
+}
+
+/// The three control pins of one DRV8825.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DriverPins {
+    pub step: Pin,
+    pub dir: Pin,
+    pub enable: Pin,
+}
+
+/// RAMPS 1.4 driver pins, indexed by [`Axis::index`] (SPEC §2, thesis Table 7).
+pub const DRIVERS: [DriverPins; 4] = [
+    DriverPins { step: Pin::new(b'F', 0), dir: Pin::new(b'F', 1), enable: Pin::new(b'D', 7) },
+    DriverPins { step: Pin::new(b'F', 6), dir: Pin::new(b'F', 7), enable: Pin::new(b'F', 2) },
+    DriverPins { step: Pin::new(b'L', 3), dir: Pin::new(b'L', 1), enable: Pin::new(b'K', 0) },
+    DriverPins { step: Pin::new(b'A', 4), dir: Pin::new(b'A', 6), enable: Pin::new(b'A', 2) },
+];
+
+/// Spindle PWM output: D10 = PB4 = OC2A.
+pub const SPINDLE_PWM: Pin = Pin::new(b'B', 4);
+
+/// A machine input the firmware reads.
+///
+/// "Active" means: switch closed, beam interrupted, button pressed, encoder
+/// contact closed. The electrical level that corresponds to "active" is given
+/// by [`Input::active_level`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub enum Input {
+    HomeX,
+    HomeY,
+    HomeZ,
+    CarouselHome,
+    ToolSetter,
+    EncoderA,
+    EncoderB,
+    EncoderButton,
+}
+
+impl Input {
+    /// Every input, in a fixed order (also the index order).
+    pub const ALL: [Input; 8] = [
+        Input::HomeX,
+        Input::HomeY,
+        Input::HomeZ,
+        Input::CarouselHome,
+        Input::ToolSetter,
+        Input::EncoderA,
+        Input::EncoderB,
+        Input::EncoderButton,
+    ];
+
+    /// Position in [`Input::ALL`].
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The AVR pin this input is wired to (SPEC §2).
+    pub const fn pin(self) -> Pin {
+        match self {
+            Input::HomeX => Pin::new(b'E', 5),
+            Input::HomeY => Pin::new(b'J', 1),
+            Input::HomeZ => Pin::new(b'D', 3),
+            Input::CarouselHome => Pin::new(b'E', 4),
+            Input::ToolSetter => Pin::new(b'D', 2),
+            Input::EncoderA => Pin::new(b'C', 6),
+            Input::EncoderB => Pin::new(b'C', 4),
+            Input::EncoderButton => Pin::new(b'C', 2),
+        }
+    }
+
+    /// Electrical level when the input is active.
+    ///
+    /// Switches, button and encoder contacts close to ground against the
+    /// firmware's pull-ups (active = LOW); the optical tool setter drives HIGH
+    /// when its beam is interrupted.
+    pub const fn active_level(self) -> bool {
+        matches!(self, Input::ToolSetter)
+    }
+
+    /// Electrical level for a logical state.
+    pub const fn level(self, active: bool) -> bool {
+        active == self.active_level()
+    }
+
+    /// The home switch of an axis, if it has one.
+    pub const fn home_of(axis: Axis) -> Option<Input> {
+        match axis {
+            Axis::X => Some(Input::HomeX),
+            Axis::Y => Some(Input::HomeY),
+            Axis::Z => Some(Input::HomeZ),
+            Axis::E => Some(Input::CarouselHome),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn driver_table_matches_spec() {
+        assert_eq!(Axis::X.pins().step.to_string(), "PF0");
+        assert_eq!(Axis::Y.pins().enable.to_string(), "PF2");
+        assert_eq!(Axis::Z.pins().dir.to_string(), "PL1");
+        assert_eq!(Axis::E.pins().step.to_string(), "PA4");
+        assert_eq!(Pin::new(b'L', 3).port_reg(), 0x10B);
+        assert_eq!(Pin::new(b'F', 0).pin_reg(), 0x2F);
+    }
+
+    #[test]
+    fn switch_polarity_is_active_low_except_tool_setter() {
+        assert!(!Input::HomeX.level(true));
+        assert!(Input::HomeX.level(false));
+        assert!(Input::ToolSetter.level(true));
+        assert!(!Input::ToolSetter.level(false));
+    }
+}
