@@ -153,6 +153,11 @@ pub struct AxisStats {
     pub position: i64,
     /// Shortest interval between two rising edges, cycles.
     pub min_step_interval_cycles: Option<u64>,
+    /// Shortest and longest STEP high time, cycles.
+    pub min_step_high_cycles: Option<u64>,
+    pub max_step_high_cycles: Option<u64>,
+    /// Shortest STEP low time between two pulses, cycles.
+    pub min_step_low_cycles: Option<u64>,
     /// `frequency / min_step_interval`, Hz.
     pub peak_rate_hz: f64,
     /// Most rising edges in any sliding window, divided by the window, Hz.
@@ -175,6 +180,9 @@ struct AxisState {
     steps_neg: u64,
     steps_while_disabled: u64,
     min_interval: Option<u64>,
+    min_high: Option<u64>,
+    max_high: Option<u64>,
+    min_low: Option<u64>,
     window: VecDeque<u64>,
     max_in_window: usize,
     beyond: bool,
@@ -267,6 +275,8 @@ impl Recorder {
                     a.last_fall = Some(cycle);
                     if let Some(rise) = a.last_rise {
                         let high = cycle - rise;
+                        a.min_high = Some(a.min_high.map_or(high, |m| m.min(high)));
+                        a.max_high = Some(a.max_high.map_or(high, |m| m.max(high)));
                         if high < self.config.min_step_high_cycles {
                             let limit = self.config.min_step_high_cycles as i64;
                             self.flag(axis, cycle, ViolationKind::StepHighTooShort, high as i64, limit);
@@ -284,6 +294,8 @@ impl Recorder {
         // Timing checks against the previous edges.
         if let Some(fall) = self.axes[i].last_fall {
             let low = cycle - fall;
+            let a = &mut self.axes[i];
+            a.min_low = Some(a.min_low.map_or(low, |m| m.min(low)));
             if low < cfg.min_step_low_cycles {
                 self.flag(axis, cycle, ViolationKind::StepLowTooShort, low as i64, cfg.min_step_low_cycles as i64);
             }
@@ -350,6 +362,9 @@ impl Recorder {
         for a in &mut self.axes {
             if a.step {
                 a.last_fall = Some(cycle);
+            }
+            if a.dir {
+                a.last_dir_change = Some(cycle);
             }
             a.step = false;
             a.dir = false;
@@ -449,6 +464,9 @@ impl Recorder {
             steps_while_disabled: a.steps_while_disabled,
             position: a.position,
             min_step_interval_cycles: a.min_interval,
+            min_step_high_cycles: a.min_high,
+            max_step_high_cycles: a.max_high,
+            min_step_low_cycles: a.min_low,
             peak_rate_hz: a.min_interval.map_or(0.0, |m| f / m as f64),
             peak_rate_windowed_hz: a.max_in_window as f64 * f / self.config.rate_window_cycles as f64,
             max_accel_steps_per_s2: self.max_accel(axis),
@@ -620,6 +638,8 @@ mod tests {
         assert_eq!((s.steps_pos, s.steps_neg), (10, 3));
         assert_eq!(s.min_step_interval_cycles, Some(1000));
         assert_eq!(s.peak_rate_hz, 16_000.0);
+        assert_eq!((s.min_step_high_cycles, s.max_step_high_cycles), (Some(40), Some(40)));
+        assert_eq!(s.min_step_low_cycles, Some(960));
         assert!(r.violations().is_empty(), "{:?}", r.violations());
     }
 
@@ -660,6 +680,7 @@ mod tests {
     #[test]
     fn step_while_disabled_is_flagged_and_does_not_move() {
         let mut r = rec();
+        r.on_pin(0, Axis::E, SignalKind::Dir, true);
         r.on_pin(0, Axis::E, SignalKind::Enable, true);
         assert!(pulse(&mut r, 100, Axis::E, 40).is_none());
         assert_eq!(r.position(Axis::E), 0);

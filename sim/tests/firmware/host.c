@@ -15,6 +15,7 @@
  *                    edge reads PINE5; prints "trip=K" (K = first step after
  *                    which the switch read closed, 0 = never)
  *   stats         -> "rx=<bytes received> lost=<ring overflows> dor=<DOR seen>"
+ *   busy N        -> interrupts off for N ms (the UART is not read meanwhile)
  *   sleep         -> cli; sleep (halts the core for good)
  */
 #include <avr/io.h>
@@ -152,6 +153,12 @@ static void handle(void)
         puts0(" dor=");
         putdec(dor_seen);
         putc0('\n');
+    } else if (!strncmp(line, "busy ", 5)) {
+        uint16_t ms = strtoul(line + 5, 0, 10);
+        cli();
+        while (ms--)
+            __builtin_avr_delay_cycles(16000);
+        sei();
     } else if (!strcmp(line, "sleep")) {
         cli();
         set_sleep_mode(SLEEP_MODE_PWR_DOWN);

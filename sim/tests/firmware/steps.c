@@ -14,6 +14,7 @@
 
 static volatile uint16_t remaining;
 static volatile uint8_t phase;
+static volatile uint8_t finished; /* 8-bit: read atomically by main */
 
 ISR(TIMER1_COMPA_vect)
 {
@@ -28,7 +29,8 @@ ISR(TIMER1_COMPA_vect)
         __builtin_avr_delay_cycles(60);
         PORTF &= ~_BV(6);
     }
-    remaining--;
+    if (!--remaining)
+        finished = 1;
 }
 
 static void uart_puts(const char *s)
@@ -47,10 +49,11 @@ static void run_phase(uint8_t p, uint16_t n, uint16_t ocr)
     OCR1A = ocr;
     phase = p;
     remaining = n;
+    finished = 0;
     TIFR1 = _BV(OCF1A);
     TIMSK1 = _BV(OCIE1A);
     TCCR1B = _BV(WGM12) | _BV(CS10); /* CTC, clk/1 */
-    while (remaining)
+    while (!finished)
         ;
     TCCR1B = 0;
     TIMSK1 = 0;

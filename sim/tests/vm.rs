@@ -1,0 +1,277 @@
+//! The VM against small C firmwares with known behaviour (tests/firmware/*.c).
+
+mod common;
+
+use sim::*;
+
+fn host_vm() -> Vm {
+    let mut vm = Vm::with_elf(common::firmware("host")).unwrap();
+    vm.wait_for_start(1.0).unwrap();
+    assert_eq!(vm.wait_line(|l| l.starts_with("reset"), 0.1).unwrap(), "reset 01");
+    vm
+}
+
+fn steps_vm(config: impl FnOnce(&mut VmConfig)) -> Vm {
+    let mut c = VmConfig::new(common::firmware("steps"));
+    config(&mut c);
+    let mut vm = Vm::new(c).unwrap();
+    vm.wait_line(|l| l == "done", 1.0).unwrap();
+    vm
+}
+
+#[test]
+fn recorder_reports_exact_count_direction_and_timing_of_a_step_train() {
+    let vm = steps_vm(|_| {});
+    let x = vm.recorder().axis_stats(Axis::X);
+    let y = vm.recorder().axis_stats(Axis::Y);
+    // 1000 train steps + the short pulse forward, one step back after the dir flip.
+    assert_eq!((x.steps_pos, x.steps_neg), (1001, 1));
+    assert_eq!(vm.position(Axis::X), 2250 + 1000);
+    assert_eq!((y.steps_pos, y.steps_neg), (0, 500));
+    assert_eq!(vm.position(Axis::Y), 2250 - 500);
+    // Z stepped once while disabled: flagged, did not move.
+    assert_eq!(vm.position(Axis::Z), 2250);
+    assert_eq!(vm.recorder().axis_stats(Axis::Z).steps_while_disabled, 1);
+
+    // Timing of the trains: every 1600 cycles (100 µs) on X, 800 (50 µs) on Y.
+    let xs: Vec<u64> = vm.recorder().trace().iter().filter(|t| t.axis == Axis::X).map(|t| t.cycle).collect();
+    let ys: Vec<u64> = vm.recorder().trace().iter().filter(|t| t.axis == Axis::Y).map(|t| t.cycle).collect();
+    // Interrupt latency depends on the instruction being executed when the
+    // compare matches (as on hardware): ±1 cycle per pulse, exact on average.
+    assert!(xs[..1000].windows(2).all(|w| (w[1] - w[0]).abs_diff(1600) <= 1));
+    assert!(ys.windows(2).all(|w| (w[1] - w[0]).abs_diff(800) <= 1));
+    assert!((xs[999] - xs[0]).abs_diff(999 * 1600) <= 1);
+    assert!((ys[499] - ys[0]).abs_diff(499 * 800) <= 1);
+    assert_eq!(y.min_step_interval_cycles, Some(799));
+    assert_eq!(y.min_step_high_cycles, Some(62));
+    assert_eq!(y.max_step_high_cycles, Some(62));
+    assert_eq!(x.min_step_high_cycles, Some(8));
+
+    // Exactly the three deliberate violations.
+    let v: Vec<(Axis, ViolationKind, i64)> = vm.violations().iter().map(|v| (v.axis, v.kind, v.measured)).collect();
+    assert_eq!(
+        v,
+        vec![
+            (Axis::X, ViolationKind::StepHighTooShort, 8),
+            (Axis::X, ViolationKind::DirSetupTooShort, 2),
+            (Axis::Z, ViolationKind::StepWhileDisabled, -1), // dir low: a - step
+        ]
+    );
+
+    // The stepper vector ran once per train step.
+    let isr = vm.stepper_isr_stats().unwrap();
+    assert_eq!(isr.count, 1500);
+    assert!(isr.min_cycles > 62 && isr.max_cycles < 200, "{isr:?}");
+}
+
+#[test]
+fn pulse_widths_are_measured_as_coded() {
+    // Raise the limit above the coded 62-cycle pulse: every train pulse is flagged with its width.
+    let vm = steps_vm(|c| c.recorder.min_step_high_cycles = 63);
+    let widths: Vec<i64> = vm
+        .violations()
+        .iter()
+        .filter(|v| v.kind == ViolationKind::StepHighTooShort)
+        .map(|v| v.measured)
+        .collect();
+    assert_eq!(widths.len(), 1501);
+    assert_eq!(widths.iter().filter(|&&w| w == 62).count(), 1500);
+}
+
+#[test]
+fn inverted_dir_mask_flips_the_count() {
+    let vm = steps_vm(|c| c.machine.invert_dir_mask = 0b0001);
+    assert_eq!(vm.position(Axis::X), 2250 - 1000);
+    assert_eq!(vm.position(Axis::Y), 2250 - 500);
+}
+
+#[test]
+fn uart_round_trip_and_streaming() {
+    let mut vm = host_vm();
+    assert_eq!(vm.command("hello").unwrap(), vec!["echo:hello", "ok"]);
+    let lines: Vec<String> = (0..40).map(|i| format!("G1 X{i}")).collect();
+    for opts in [
+        StreamOptions::new(Flow::PingPong),
+        StreamOptions::new(Flow::CharCount(63)),
+        StreamOptions::new(Flow::CharCount(127)).with_checksums(true),
+    ] {
+        let r = vm.stream(&lines, opts.clone()).unwrap();
+        let extra = opts.checksums as usize;
+        assert_eq!(r.oks, 40 + extra, "{opts:?}");
+        assert_eq!(r.lines_sent, 40 + extra);
+        assert!(r.errors.is_empty() && r.resends == 0 && !r.timed_out);
+        assert!(r.duration_s > 0.0);
+    }
+    assert!(vm.output().contains("echo:G1 X39"));
+    assert_eq!(vm.uart_rx_dropped(), 0);
+}
+
+#[test]
+fn eeprom_persists_across_reset_and_ram_is_cleared() {
+    let mut vm = host_vm();
+    vm.command("eew 10 42").unwrap();
+    assert_eq!(vm.eeprom()[10], 42);
+    assert_eq!(vm.eeprom().len(), 4096);
+    vm.set_eeprom_at(100, &[7, 8, 9]);
+    vm.reset();
+    assert!(vm.read_ram(0x200, 64).iter().all(|&b| b == 0));
+    vm.wait_for_start(1.0).unwrap();
+    assert_eq!(vm.wait_line(|l| l.starts_with("reset"), 0.1).unwrap(), "reset 02"); // EXTRF
+    assert_eq!(vm.command("eer 10").unwrap()[0], "ee 10=42");
+    assert_eq!(vm.command("eer 101").unwrap()[0], "ee 101=8");
+    vm.power_cycle();
+    vm.wait_for_start(1.0).unwrap();
+    assert_eq!(vm.wait_line(|l| l.starts_with("reset"), 0.1).unwrap(), "reset 01"); // PORF
+    assert_eq!(vm.command("eer 10").unwrap()[0], "ee 10=42");
+}
+
+#[test]
+fn watchdog_reset_keeps_the_clock_monotonic_and_inputs_applied() {
+    let mut vm = host_vm();
+    vm.set_input(Input::HomeY, Some(true));
+    let before = vm.command("pins").unwrap()[0].clone();
+    let c0 = vm.cycles();
+    vm.send_line("wdt");
+    vm.wait_for_start(1.0).unwrap();
+    assert_eq!(vm.wait_line(|l| l.starts_with("reset"), 0.1).unwrap(), "reset 08"); // WDRF
+    let c1 = vm.cycles();
+    assert!(c1 > c0 + 15 * 16_000, "clock went from {c0} to {c1}");
+    assert_eq!(vm.resets().last().unwrap().kind, ResetKind::Watchdog);
+    assert_eq!(vm.command("pins").unwrap()[0], before);
+    assert!(vm.cycles() > c1);
+}
+
+#[test]
+fn input_overrides_and_model_are_seen_by_the_firmware() {
+    let mut vm = host_vm();
+    // Model at power-on: X/Y/Z mid-travel (switches open = high), carousel at 0° (closed = low),
+    // beam clear (low), encoder idle (high).
+    assert_eq!(vm.command("pins").unwrap()[0], "pins E=20 J=02 D=08 C=54");
+    vm.set_input(Input::HomeX, Some(true));
+    vm.set_input(Input::CarouselHome, Some(false));
+    vm.set_input(Input::ToolSetter, Some(true));
+    vm.set_input(Input::EncoderButton, Some(true));
+    assert_eq!(vm.command("pins").unwrap()[0], "pins E=10 J=02 D=0c C=50");
+    assert!(!vm.input_level(Input::HomeX) && vm.input_level(Input::ToolSetter));
+    for i in Input::ALL {
+        vm.set_input(i, None);
+    }
+    vm.set_carousel_connected(false);
+    assert_eq!(vm.command("pins").unwrap()[0], "pins E=30 J=02 D=08 C=54");
+}
+
+#[test]
+fn home_switch_closes_within_the_step_that_reaches_zero() {
+    let mut c = VmConfig::new(common::firmware("host"));
+    c.machine.initial_position = [5, 100, 100, 0];
+    let mut vm = Vm::new(c).unwrap();
+    vm.wait_for_start(1.0).unwrap();
+    let reply = vm.command("jogx 8").unwrap();
+    assert!(reply.contains(&"trip=5".to_string()), "{reply:?}");
+    assert_eq!(vm.position(Axis::X), -3);
+    assert!(vm.input_active(Input::HomeX));
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
+#[test]
+fn interrupt_nesting_overflow_is_an_error_not_a_host_crash() {
+    let mut vm = host_vm();
+    vm.send_line("nest");
+    let e = vm.run_for(0.1).unwrap_err();
+    match e {
+        VmError::InterruptNesting { depth, vector, .. } => assert_eq!((depth, vector), (61, 32)),
+        e => panic!("unexpected {e}"),
+    }
+    assert!(vm.run_for(0.01).is_err(), "the error is sticky");
+    assert!(vm.report(None).errors[0].contains("nesting"));
+    vm.reset();
+    vm.wait_for_start(1.0).unwrap();
+    assert_eq!(vm.command("hello").unwrap().last().unwrap(), "ok");
+}
+
+#[test]
+fn sleep_with_interrupts_off_is_reported_with_the_pc() {
+    let mut vm = host_vm();
+    vm.send_line("sleep");
+    match vm.run_for(0.05).unwrap_err() {
+        VmError::Halted { pc, .. } => assert!(pc > 0),
+        e => panic!("unexpected {e}"),
+    }
+}
+
+#[test]
+fn spindle_state_follows_oc2a() {
+    let mut vm = host_vm();
+    assert!(!vm.spindle_on());
+    vm.command("spin 127").unwrap();
+    assert!(vm.spindle_on());
+    assert_eq!(vm.spindle_duty(), 0.5);
+    vm.command("spin 0").unwrap();
+    assert!(!vm.spindle_on());
+    vm.command("spin 255").unwrap();
+    assert_eq!(vm.spindle_duty(), 1.0);
+    vm.command("spin off").unwrap();
+    assert!(!vm.spindle_on());
+    assert_eq!(vm.spindle_history().iter().map(|h| h.1).collect::<Vec<_>>(), vec![0.5, 0.0, 1.0, 0.0]);
+}
+
+#[test]
+fn unpaced_flood_loses_bytes_only_when_the_chip_does_not_read() {
+    let mut vm = host_vm();
+    // The chip reads every byte: a 4 KiB random flood arrives whole.
+    let mut x: u32 = 12345;
+    let noise: Vec<u8> = (0..4096)
+        .map(|_| {
+            x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (x >> 16) as u8
+        })
+        .collect();
+    vm.send_unpaced_flood(&noise);
+    vm.run_until(|vm| vm.tx_pending() == 0, 1.0).unwrap();
+    vm.run_for(0.01).unwrap();
+    assert_eq!(vm.uart_rx_dropped(), 0);
+    vm.send_line("");
+    vm.run_for(0.01).unwrap();
+    vm.take_lines();
+    let stats = vm.command("stats").unwrap();
+    let rx_line = stats.iter().find(|l| l.starts_with("rx=")).unwrap().clone();
+    let rx: u32 = rx_line[3..].split(' ').next().unwrap().parse().unwrap();
+
+    // The chip does not read for 50 ms: of 1000 bytes, the 2-byte FIFO keeps 2.
+    vm.send_line("busy 50");
+    vm.run_for(0.002).unwrap();
+    vm.send_unpaced_flood(vec![b'x'; 1000]);
+    vm.wait_line(|l| l == "ok", 1.0).unwrap();
+    assert_eq!(vm.uart_rx_dropped(), 998);
+    assert_eq!(vm.command("").unwrap(), vec!["echo:xx", "ok"]);
+    let stats = vm.command("stats").unwrap();
+    let after = stats.iter().find(|l| l.starts_with("rx=")).unwrap();
+    let rx2: u32 = after[3..].split(' ').next().unwrap().parse().unwrap();
+    // "stats\n" (6) + "\n" (1) + "busy 50\n" (8) + 2 kept + "\n" (1) + "stats\n" (6)
+    assert_eq!(rx2 - rx, 2 + 1 + 8 + 6);
+    assert!(after.contains("dor=1"), "{after}");
+}
+
+#[test]
+fn stack_high_water_and_symbols() {
+    let mut vm = host_vm();
+    vm.command("pins").unwrap();
+    let heap = vm.symbol_addr("__heap_start").unwrap();
+    assert!((0x200..0x2200).contains(&heap));
+    let hw = vm.stack_high_water_bytes().unwrap();
+    assert!(hw > 8 && hw < 512, "{hw}");
+}
+
+#[test]
+fn simulation_speed() {
+    let mut vm = host_vm();
+    let t = std::time::Instant::now();
+    vm.run_for(3.0).unwrap();
+    let idle = 3.0 / t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let mut vm = steps_vm(|_| {});
+    let s = vm.seconds() / t.elapsed().as_secs_f64();
+    vm.run_for(0.0).unwrap();
+    println!("sim speed: idle UART loop {idle:.1} s/s, step trains {s:.1} s/s");
+    assert!(idle > 1.0);
+}
