@@ -315,6 +315,7 @@ unsafe impl Send for Vm {}
 // ---------------------------------------------------------------- callbacks
 
 /// simavr's logger: keep warnings and errors per VM, drop traces.
+// SAFETY (contract): simavr calls this with a live instance (or null) and a matching format/va_list.
 unsafe extern "C" fn logger(avr: *mut ffi::avr_t, level: c_int, fmt: *const c_char, ap: *mut ffi::__va_list_tag) {
     if level > ffi::LOG_WARNING as c_int || fmt.is_null() {
         return;
@@ -340,10 +341,12 @@ unsafe extern "C" fn logger(avr: *mut ffi::avr_t, level: c_int, fmt: *const c_ch
 }
 
 /// Replaces simavr's `avr->sleep`, which `usleep`s to keep wall-clock pace.
+// SAFETY (contract): does nothing with its arguments.
 unsafe extern "C" fn no_sleep(_avr: *mut ffi::avr_t, _how_long: ffi::avr_cycle_count_t) {}
 
 /// Wraps the core's reset callback: remember the cycle count simavr is about
 /// to zero. Called by `avr_reset` (watchdog or ours) before the I/O modules reset.
+// SAFETY (contract): installed as `avr->reset` after `custom.data` points to our Inner.
 unsafe extern "C" fn reset_hook(avr: *mut ffi::avr_t) {
     // SAFETY: installed only after custom.data was set to our Inner.
     let inner = unsafe { &mut *((*avr).custom.data as *mut Inner) };
@@ -357,6 +360,8 @@ unsafe extern "C" fn reset_hook(avr: *mut ffi::avr_t) {
 }
 
 /// A driver pin changed level.
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn pin_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
     // SAFETY: param is a PinHook in Vm::hooks, alive while the avr is.
     let hook = unsafe { &*(param as *const PinHook) };
@@ -371,6 +376,8 @@ unsafe extern "C" fn pin_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *m
 }
 
 /// An interrupt vector was entered (value 1) or left by RETI (value 0).
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn isr_notify(irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
     // SAFETY: param is our Inner (see pin_notify); irq is the vector's RUNNING IRQ.
     let inner = unsafe { &mut *(param as *mut Inner) };
@@ -390,6 +397,8 @@ unsafe extern "C" fn isr_notify(irq: *mut ffi::avr_irq_t, value: u32, param: *mu
 }
 
 /// simavr met an opcode it does not know.
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn bad_opcode_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
     // SAFETY: param is our Inner.
     let inner = unsafe { &mut *(param as *mut Inner) };
@@ -402,6 +411,8 @@ unsafe extern "C" fn bad_opcode_notify(_irq: *mut ffi::avr_irq_t, value: u32, pa
 }
 
 /// UART0 transmitted a byte.
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn uart_out_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
     // SAFETY: param is our Inner.
     let inner = unsafe { &mut *(param as *mut Inner) };
@@ -422,12 +433,16 @@ unsafe extern "C" fn uart_out_notify(_irq: *mut ffi::avr_irq_t, value: u32, para
     }
 }
 
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn uart_xoff_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
     // SAFETY: param is our Inner.
     let inner = unsafe { &mut *(param as *mut Inner) };
     inner.host.xoff = value != 0;
 }
 
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn uart_xon_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
     // SAFETY: param is our Inner.
     let inner = unsafe { &mut *(param as *mut Inner) };
@@ -437,43 +452,61 @@ unsafe extern "C" fn uart_xon_notify(_irq: *mut ffi::avr_irq_t, value: u32, para
 }
 
 /// One byte-time of the host's transmitter: hand the next byte to simavr.
-unsafe extern "C" fn uart_feed_timer(avr: *mut ffi::avr_t, when: ffi::avr_cycle_count_t, param: *mut c_void) -> u64 {
-    // SAFETY: param is our Inner.
-    let inner = unsafe { &mut *(param as *mut Inner) };
-    // SAFETY: inner.uart points into the live mcu struct.
-    let uart = unsafe { &mut *inner.uart };
-    let rxen = regbit_get(inner, uart.rxen) != 0;
-    let unread = (uart.input.write.wrapping_sub(uart.input.read) & 63) as usize;
-    // SAFETY: the UART's IRQ array has UART_IRQ_COUNT entries.
-    let input_irq = unsafe { uart.io.irq.add(ffi::UART_IRQ_INPUT as usize) };
-    if let Some(b) = inner.host.flood.pop_front() {
-        inner.host.bytes_to_chip += 1;
-        if !rxen || unread >= 2 {
-            inner.host.rx_dropped += 1;
-            let dor = uart.dor;
-            regbit_set(inner, dor);
-        } else {
-            // SAFETY: raising the UART input IRQ is how simavr receives a byte.
-            unsafe { ffi::avr_raise_irq(input_irq, b as u32) };
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
+unsafe extern "C" fn uart_feed_timer(_avr: *mut ffi::avr_t, when: ffi::avr_cycle_count_t, param: *mut c_void) -> u64 {
+    let inner_p = param as *mut Inner;
+    // Decide with short-lived borrows: raising the input IRQ below may call
+    // uart_xoff_notify, which borrows Inner itself.
+    let (raise, input_irq) = {
+        // SAFETY: param is our Inner; no other borrow of it is live here.
+        let inner = unsafe { &mut *inner_p };
+        // SAFETY: inner.uart points into the live mcu struct; read by value.
+        let (rxen_rb, dor_rb, read, write, irqs) = unsafe {
+            let u = &*inner.uart;
+            (u.rxen, u.dor, u.input.read, u.input.write, u.io.irq)
+        };
+        let rxen = regbit_get(inner, rxen_rb) != 0;
+        let unread = (write.wrapping_sub(read) & 63) as usize;
+        // SAFETY: the UART's IRQ array has UART_IRQ_COUNT entries.
+        let input_irq = unsafe { irqs.add(ffi::UART_IRQ_INPUT as usize) };
+        let h = &mut inner.host;
+        let mut raise = None;
+        if let Some(b) = h.flood.pop_front() {
+            h.bytes_to_chip += 1;
+            if !rxen || unread >= 2 {
+                h.rx_dropped += 1;
+                regbit_set(inner, dor_rb);
+            } else {
+                raise = Some(b);
+            }
+        } else if !h.paced.is_empty() && rxen && !h.xoff && unread < 62 {
+            if unread >= 2 {
+                h.rx_deep += 1;
+            }
+            h.bytes_to_chip += 1;
+            raise = h.paced.pop_front();
         }
-    } else if !inner.host.paced.is_empty() && rxen && !inner.host.xoff && unread < 62 {
-        if unread >= 2 {
-            inner.host.rx_deep += 1;
-        }
-        let b = inner.host.paced.pop_front().unwrap_or(0);
-        inner.host.bytes_to_chip += 1;
-        // SAFETY: as above.
+        (raise, input_irq)
+    };
+    if let Some(b) = raise {
+        // SAFETY: raising the UART input IRQ is how simavr receives a byte; no Rust borrow is live.
         unsafe { ffi::avr_raise_irq(input_irq, b as u32) };
     }
+    // SAFETY: as above; the raise has returned.
+    let inner = unsafe { &mut *inner_p };
     if inner.host.flood.is_empty() && inner.host.paced.is_empty() {
         inner.host.feeding = false;
         return 0;
     }
-    let _ = avr;
-    when + uart.cycles_per_byte.max(16)
+    // SAFETY: reading a field of the live UART struct.
+    let per_byte = unsafe { (*inner.uart).cycles_per_byte };
+    when + per_byte.max(16)
 }
 
 /// Bounds an `avr_run` batch at a VM-chosen cycle.
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn stop_timer(_avr: *mut ffi::avr_t, _when: ffi::avr_cycle_count_t, param: *mut c_void) -> u64 {
     // SAFETY: param is our Inner.
     let inner = unsafe { &mut *(param as *mut Inner) };
@@ -482,6 +515,8 @@ unsafe extern "C" fn stop_timer(_avr: *mut ffi::avr_t, _when: ffi::avr_cycle_cou
 }
 
 /// Timer2 or PB4 changed: recompute the spindle duty.
+// SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
+// with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
 unsafe extern "C" fn spindle_notify(_irq: *mut ffi::avr_irq_t, _value: u32, param: *mut c_void) {
     // SAFETY: param is our Inner.
     let inner = unsafe { &mut *(param as *mut Inner) };
@@ -544,7 +579,7 @@ fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
             }
         }
     }
-    let mut ext: ffi::avr_ioport_external_t = unsafe_zeroed();
+    let mut ext: ffi::avr_ioport_external_t = zeroed_pod();
     ext.set_name(pin.port as _);
     ext.set_mask(mask as _);
     ext.set_value(value as _);
@@ -574,7 +609,7 @@ fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
     }
 }
 
-fn unsafe_zeroed<T: Copy>() -> T {
+fn zeroed_pod<T: Copy>() -> T {
     // SAFETY: only used for plain-old-data simavr structs, for which all-zero is valid.
     unsafe { std::mem::zeroed() }
 }
@@ -603,7 +638,7 @@ impl Vm {
         }
         // SAFETY: avr was just made; avr_init allocates flash/data and resets.
         unsafe { ffi::avr_init(avr) };
-        let mut fw: Box<ffi::elf_firmware_t> = Box::new(unsafe_zeroed());
+        let mut fw: Box<ffi::elf_firmware_t> = Box::new(zeroed_pod());
         // SAFETY: fw is zero-initialised as elf_read_firmware requires.
         let rc = unsafe { ffi::elf_read_firmware(cpath.as_ptr(), &mut *fw) };
         if rc != 0 {
@@ -1215,8 +1250,8 @@ impl Vm {
         }
         let mut r = s.into_report();
         r.start_s = start;
-        r.end_s = last_ok;
-        r.duration_s = last_ok - start;
+        r.end_s = if timed_out { self.seconds() } else { last_ok };
+        r.duration_s = r.end_s - start;
         r.timed_out = timed_out;
         Ok(r)
     }

@@ -275,3 +275,55 @@ fn simulation_speed() {
     println!("sim speed: idle UART loop {idle:.1} s/s, step trains {s:.1} s/s");
     assert!(idle > 1.0);
 }
+
+#[test]
+fn report_json_and_trace_csv_are_written() {
+    let vm = steps_vm(|_| {});
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("report-test");
+    let json = dir.join("report.json");
+    let csv = dir.join("trace.csv");
+    vm.write_json(&json, None).unwrap();
+    vm.write_trace_csv(&csv).unwrap();
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(r["violation_count"], 3);
+    assert_eq!(r["stepper_isr"]["vector"], 17);
+    assert_eq!(r["axes"][0]["steps_pos"], 1001);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("cycle,time_s,axis,position"));
+    assert_eq!(lines.count(), vm.recorder().trace().len());
+    assert!(text.contains(",X,2251\n") && text.contains(",Y,1750\n"));
+    let report = vm.report(None);
+    assert!(!report.clean());
+    assert!(report.human().contains("StepHighTooShort"));
+}
+
+#[test]
+fn cli_streams_a_job_and_exits_zero_when_clean() {
+    let elf = common::firmware("host");
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli-test");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sim"))
+        .arg("--elf")
+        .arg(&elf)
+        .arg("--json")
+        .arg(dir.join("r.json"))
+        .arg("--csv")
+        .arg(dir.join("t.csv"))
+        .args(["--checksums", "--flow", "count:64"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    // demo job: 5 lines + M110 preamble, all acknowledged.
+    assert!(stdout.contains("5 lines, 6 sent, 6 ok, 0 errors"), "{stdout}");
+    assert!(dir.join("r.json").exists() && dir.join("t.csv").exists());
+
+    // The step-train firmware never answers: timeout -> non-zero exit.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sim"))
+        .arg("--elf")
+        .arg(common::firmware("steps"))
+        .args(["--timeout", "0.2"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+}
