@@ -1,1 +1,653 @@
-//! Motion planner (SPEC §6).
+//! Motion planner (SPEC §6): the block ring and its look-ahead, grbl's
+//! `plan_buffer_line` / `planner_recalculate` in Rust.
+//!
+//! Where it sits: the G-code interpreter rounds each absolute target to integer
+//! steps and calls [`Planner::push_line`] (arcs are first cut into chords by
+//! [`arc`]). The planner queues a [`Block`] per move and re-plans the entry
+//! speeds of the whole ring; [`crate::stepper::prep`] takes the oldest block
+//! (the *executing* block, [`Planner::current_block`]) and turns it into step
+//! segments for the ISR.
+//!
+//! Units: lengths in mm (the E axis in pocket pitches), speeds in mm/s, speeds
+//! squared in (mm/s)², accelerations in mm/s². Integer steps are the truth:
+//! targets arrive in steps, so rounding never accumulates.
+//!
+//! **Look-ahead** (grbl 1.1 planner.c): each block gets a maximum entry speed from
+//! the junction deviation rule and the nominal speeds of both blocks; then a
+//! backward pass from the newest block (which always ends at zero speed) raises
+//! entry speeds as far as deceleration allows, and a forward pass lowers them to
+//! what acceleration allows. `planned` marks the newest block whose entry speed
+//! can no longer improve, so both passes stop there: with a stream of short
+//! collinear moves only the blocks in the final deceleration ramp are visited.
+//!
+//! **The executing block** is shared with prep: prep writes its remaining
+//! distance (`millimeters`) and current speed (`entry_speed_sqr`) into it after
+//! every segment, so the tail block always describes "the rest of the move from
+//! the speed we are at". When a re-plan may change its exit speed, the planner
+//! raises a flag ([`Planner::take_exec_replanned`], grbl's
+//! `st_update_plan_block_parameters`) and prep recomputes its profile.
+//!
+//! **Backlash** (SPEC §6, seed 003; default off): when X, Y or Z reverses and its
+//! `backlash_mm` is > 0, a separate *take-up block* is queued just before the
+//! reversing move. It moves only the reversing axes, by the backlash in steps, in
+//! the new direction, at their max rate, and carries [`Block::TAKE_UP`]. The
+//! commanded position ([`Planner::position`]) does not change; the motors run
+//! ahead of it by [`Planner::backlash_offset_steps`]. The planned path is not
+//! disturbed: the tool does not move while the slack is taken up, the take-up is
+//! planned like any block (it stops at the reversal, as the motor reverses there
+//! anyway) and the reversing move then starts from where the slack is gone. An
+//! axis' direction is unknown after power-up and [`Planner::clear`]; its first
+//! move sets it without compensation (homing does that).
+
+pub mod arc;
+
+#[cfg(test)]
+mod tests;
+
+use crate::config::{Settings, MAX_STEP_RATE_HZ};
+use crate::math::{fabsf, round_i32, sqrtf};
+use crate::stepper::MIN_STEP_RATE_HZ;
+use crate::N_AXES;
+use core::mem::size_of;
+
+/// Blocks in the ring. RAM: 32 × 48 B = 1536 B (host layout; 46 B per block on
+/// AVR, 1472 B). grbl-Mega keeps 36, Marlin and Repetier 16 (SPEC §11). 32 blocks
+/// of 0.1 mm hold 3.2 mm of look-ahead, more than the 1.25 mm needed to stop from
+/// 50 mm/s at 1000 mm/s², so a stream of short moves runs at full feed.
+pub const BLOCK_BUFFER_LEN: usize = 32;
+
+/// RAM budget of the whole planner (ring + state), bytes.
+pub const PLANNER_RAM_BUDGET: usize = 1700;
+
+const _: () = assert!(size_of::<Block>() * BLOCK_BUFFER_LEN <= 1536);
+const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
+const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
+
+/// Cosine beyond which a junction counts as a full reversal / a straight line.
+const JUNCTION_COS_LIMIT: f32 = 0.999_999;
+/// Entry speed² used for a straight junction (then limited by the nominal speeds).
+const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
+/// s per step at the ISR's max rate.
+const INV_MAX_STEP_RATE: f32 = 1.0 / MAX_STEP_RATE_HZ;
+/// s per step at the timer's min rate.
+const INV_MIN_STEP_RATE: f32 = 1.0 / MIN_STEP_RATE_HZ;
+
+/// One linear move in the ring.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Block {
+    /// Steps per axis, absolute counts, X Y Z E.
+    pub steps: [u32; N_AXES],
+    /// Step events: max of `steps`.
+    pub step_event_count: u32,
+    /// Path length, mm (E-only moves: pitches). While the block executes, prep
+    /// keeps this at the distance still to go.
+    pub millimeters: f32,
+    /// Acceleration along the path, mm/s², limited so no axis exceeds its own.
+    pub acceleration: f32,
+    /// Planned entry speed², (mm/s)². While the block executes, prep keeps this at
+    /// the current speed².
+    pub entry_speed_sqr: f32,
+    /// Upper bound of the entry speed² from the junction and nominal speeds, (mm/s)².
+    pub max_entry_speed_sqr: f32,
+    /// Cruise speed², (mm/s)², after feed, per-axis and step-rate limits.
+    pub nominal_speed_sqr: f32,
+    /// Twice the acceleration times the path length: the speed² this block can
+    /// gain or lose, (mm/s)². Cached for the look-ahead passes; prep keeps it in
+    /// step with `millimeters` while the block executes.
+    pub max_delta_speed_sqr: f32,
+    /// Bit i set: axis i moves in the negative direction.
+    pub direction_bits: u8,
+    /// [`Block::TAKE_UP`] and future flags.
+    pub flags: u8,
+}
+
+impl Block {
+    /// Flag: a backlash take-up block (see the module doc).
+    pub const TAKE_UP: u8 = 1 << 0;
+
+    const EMPTY: Block = Block {
+        steps: [0; N_AXES],
+        step_event_count: 0,
+        millimeters: 0.0,
+        acceleration: 0.0,
+        entry_speed_sqr: 0.0,
+        max_entry_speed_sqr: 0.0,
+        nominal_speed_sqr: 0.0,
+        max_delta_speed_sqr: 0.0,
+        direction_bits: 0,
+        flags: 0,
+    };
+}
+
+/// What [`Planner::push_line`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Push {
+    /// Blocks queued: 0 for a zero-length move, 2 with a backlash take-up.
+    pub queued: u8,
+    /// The nominal rate was lowered so the dominant axis stays within
+    /// `config::MAX_STEP_RATE_HZ` (SPEC §11 overload row: warn the operator).
+    pub rate_capped: bool,
+    /// The nominal rate was raised to [`crate::stepper::MIN_STEP_RATE_HZ`] on the
+    /// dominant axis: the feed was slower than the step timer can go.
+    pub rate_floored: bool,
+}
+
+/// Why a move was not queued.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlanError {
+    /// No room in the ring (2 slots are needed with a backlash take-up): run prep
+    /// and try again.
+    Full,
+    /// Feed ≤ 0 or not finite.
+    BadFeed,
+}
+
+/// Per-axis values derived from the settings, recomputed only when the settings
+/// change (saves 2–3 divisions per axis and block on the AVR).
+#[derive(Clone, Copy, Debug)]
+struct AxisCache {
+    /// Bits of steps_per_mm, accel_mm_per_s2, max_feed_mm_per_min they were made from.
+    src: [[u32; N_AXES]; 3],
+    /// mm per step.
+    mm_per_step: [f32; N_AXES],
+    /// 1 / max acceleration, s²/mm.
+    inv_accel: [f32; N_AXES],
+    /// 1 / max speed, s/mm.
+    inv_max_speed: [f32; N_AXES],
+}
+
+impl AxisCache {
+    const EMPTY: AxisCache = AxisCache {
+        src: [[0; N_AXES]; 3],
+        mm_per_step: [0.0; N_AXES],
+        inv_accel: [0.0; N_AXES],
+        inv_max_speed: [0.0; N_AXES],
+    };
+
+    /// Recompute the derived values if `s` differs from what they came from.
+    fn refresh(&mut self, s: &Settings) {
+        let mut same = true;
+        for i in 0..N_AXES {
+            same &= self.src[0][i] == s.steps_per_mm[i].to_bits()
+                && self.src[1][i] == s.accel_mm_per_s2[i].to_bits()
+                && self.src[2][i] == s.max_feed_mm_per_min[i].to_bits();
+        }
+        if same {
+            return;
+        }
+        for i in 0..N_AXES {
+            self.src[0][i] = s.steps_per_mm[i].to_bits();
+            self.src[1][i] = s.accel_mm_per_s2[i].to_bits();
+            self.src[2][i] = s.max_feed_mm_per_min[i].to_bits();
+            self.mm_per_step[i] = 1.0 / s.steps_per_mm[i];
+            self.inv_accel[i] = 1.0 / s.accel_mm_per_s2[i];
+            self.inv_max_speed[i] = 60.0 / s.max_feed_mm_per_min[i];
+        }
+    }
+}
+
+/// The block ring and the look-ahead state.
+pub struct Planner {
+    /// The ring; valid blocks are `tail`, tail+1, … (`len` of them).
+    blocks: [Block; BLOCK_BUFFER_LEN],
+    /// Index of the executing (oldest) block.
+    tail: u8,
+    /// Index where the next block goes.
+    head: u8,
+    /// Blocks queued.
+    len: u8,
+    /// Newest block whose entry speed is optimal (grbl `block_buffer_planned`).
+    planned: u8,
+    /// A re-plan may have changed the executing block's exit speed.
+    exec_replanned: bool,
+    /// Axes (bits) whose last direction is known, for backlash.
+    dir_known: u8,
+    /// Last direction of each axis (bit set = negative), for backlash.
+    last_dir: u8,
+    /// Commanded position after the last queued block, steps.
+    position: [i32; N_AXES],
+    /// Motor position minus commanded position after the last queued block
+    /// (backlash take-ups), steps, X Y Z.
+    backlash_offset: [i32; 3],
+    /// Unit vector of the last queued block.
+    previous_unit_vec: [f32; N_AXES],
+    /// Nominal speed² of the last queued block, (mm/s)².
+    previous_nominal_speed_sqr: f32,
+    /// Acceleration of the last queued block, mm/s².
+    previous_acceleration: f32,
+    /// Bits of the last feed seen and 1/feed, s/mm (the feed is modal, so it
+    /// rarely changes between blocks).
+    feed_cache: (u32, f32),
+    /// Settings-derived per-axis values.
+    axis: AxisCache,
+}
+
+#[inline]
+const fn next_index(i: u8) -> u8 {
+    if i as usize + 1 == BLOCK_BUFFER_LEN {
+        0
+    } else {
+        i + 1
+    }
+}
+
+#[inline]
+const fn prev_index(i: u8) -> u8 {
+    if i == 0 {
+        BLOCK_BUFFER_LEN as u8 - 1
+    } else {
+        i - 1
+    }
+}
+
+#[inline]
+fn min_f32(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+impl Planner {
+    /// An empty planner at position 0.
+    pub const fn new() -> Self {
+        Planner {
+            blocks: [Block::EMPTY; BLOCK_BUFFER_LEN],
+            tail: 0,
+            head: 0,
+            len: 0,
+            planned: 0,
+            exec_replanned: false,
+            dir_known: 0,
+            last_dir: 0,
+            position: [0; N_AXES],
+            backlash_offset: [0; 3],
+            previous_unit_vec: [0.0; N_AXES],
+            previous_nominal_speed_sqr: 0.0,
+            previous_acceleration: 0.0,
+            feed_cache: (0, 0.0),
+            axis: AxisCache::EMPTY,
+        }
+    }
+
+    /// Queue a straight move to `target` (absolute steps, X Y Z E) at
+    /// `feed_mm_per_min` (mm/min along the path, ignored when `rapid`: then each
+    /// axis may run at its max feed). Zero-length moves queue nothing.
+    pub fn push_line(
+        &mut self,
+        target: [i32; N_AXES],
+        feed_mm_per_min: f32,
+        rapid: bool,
+        s: &Settings,
+    ) -> Result<Push, PlanError> {
+        let inv_feed = if rapid {
+            0.0
+        } else {
+            if !(feed_mm_per_min > 0.0 && feed_mm_per_min.is_finite()) {
+                return Err(PlanError::BadFeed);
+            }
+            let bits = feed_mm_per_min.to_bits();
+            if self.feed_cache.0 != bits {
+                self.feed_cache = (bits, 60.0 / feed_mm_per_min);
+            }
+            self.feed_cache.1
+        };
+
+        let mut delta = [0i32; N_AXES];
+        let mut moving = 0u8;
+        let mut dir = 0u8;
+        for i in 0..N_AXES {
+            let d = target[i].wrapping_sub(self.position[i]);
+            delta[i] = d;
+            if d != 0 {
+                moving |= 1 << i;
+            }
+            if d < 0 {
+                dir |= 1 << i;
+            }
+        }
+        if moving == 0 {
+            return Ok(Push::default());
+        }
+
+        // Backlash: axes that reverse with a known previous direction.
+        let mut take_up = [0i32; N_AXES];
+        let mut take_up_any = false;
+        let reversing = moving & self.dir_known & (dir ^ self.last_dir);
+        if reversing != 0 {
+            for i in 0..3 {
+                if reversing & (1 << i) != 0 && s.backlash_mm[i] > 0.0 {
+                    let n = round_i32(s.backlash_mm[i] * s.steps_per_mm[i]);
+                    if n > 0 {
+                        take_up[i] = if dir & (1 << i) != 0 { -n } else { n };
+                        take_up_any = true;
+                    }
+                }
+            }
+        }
+        let need = 1 + take_up_any as usize;
+        if BLOCK_BUFFER_LEN - (self.len as usize) < need {
+            return Err(PlanError::Full);
+        }
+
+        self.axis.refresh(s);
+        let mut push = Push::default();
+        if take_up_any {
+            let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
+            for i in 0..3 {
+                self.backlash_offset[i] += take_up[i];
+            }
+            push.queued += 1;
+            push.rate_capped |= capped;
+            push.rate_floored |= floored;
+        }
+        let (capped, floored) = self.queue_block(&delta, inv_feed, 0, s);
+        push.queued += 1;
+        push.rate_capped |= capped;
+        push.rate_floored |= floored;
+        self.position = target;
+        self.last_dir = (self.last_dir & !moving) | (dir & moving);
+        self.dir_known |= moving;
+        Ok(push)
+    }
+
+    /// Build a block for `delta` (steps, not all zero) at `inv_feed` s/mm (0 =
+    /// rapid), link it to the previous one and re-plan. Returns (rate capped,
+    /// rate floored). The caller has checked there is room.
+    fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, s: &Settings) -> (bool, bool) {
+        let ax = &self.axis;
+        let mut b = Block::EMPTY;
+        b.flags = flags;
+        let mut unit = [0f32; N_AXES];
+        for i in 0..N_AXES {
+            let d = delta[i];
+            let n = d.unsigned_abs();
+            b.steps[i] = n;
+            if n > b.step_event_count {
+                b.step_event_count = n;
+            }
+            if d != 0 {
+                unit[i] = d as f32 * ax.mm_per_step[i];
+                if d < 0 {
+                    b.direction_bits |= 1 << i;
+                }
+            }
+        }
+        // Path length: XYZ distance, or the E distance for an E-only move.
+        let xyz_sqr = unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2];
+        let mm = if xyz_sqr > 0.0 { sqrtf(xyz_sqr) } else { fabsf(unit[3]) };
+        let inv_mm = 1.0 / mm;
+
+        // Per-axis limits: the path may go at most as fast (and accelerate at most
+        // as hard) as the slowest axis allows, scaled by its share of the motion.
+        let mut inv_accel = 0.0f32; // s²/mm along the path
+        let mut t_axes = 0.0f32; // s/mm along the path
+        for i in 0..N_AXES {
+            if delta[i] != 0 {
+                unit[i] *= inv_mm;
+                let u = fabsf(unit[i]);
+                let a = u * ax.inv_accel[i];
+                if a > inv_accel {
+                    inv_accel = a;
+                }
+                let t = u * ax.inv_max_speed[i];
+                if t > t_axes {
+                    t_axes = t;
+                }
+            }
+        }
+        let acceleration = 1.0 / inv_accel;
+        let mut t = if inv_feed > t_axes { inv_feed } else { t_axes };
+        // Step-rate cap: the dominant axis makes step_event_count steps over mm.
+        let steps_per_mm = b.step_event_count as f32 * inv_mm;
+        let t_cap = steps_per_mm * INV_MAX_STEP_RATE;
+        let mut capped = false;
+        if t_cap > t {
+            t = t_cap;
+            capped = true;
+        }
+        let t_floor = steps_per_mm * INV_MIN_STEP_RATE;
+        let mut floored = false;
+        if t > t_floor {
+            t = t_floor;
+            floored = true;
+        }
+        let nominal_speed = 1.0 / t;
+        let nominal_speed_sqr = nominal_speed * nominal_speed;
+
+        // Junction with the previous block (grbl): max entry speed from the
+        // junction deviation, never above either block's nominal speed.
+        if self.len == 0 {
+            b.max_entry_speed_sqr = 0.0;
+        } else {
+            let mut cos_theta = 0.0f32;
+            for i in 0..N_AXES {
+                cos_theta -= self.previous_unit_vec[i] * unit[i];
+            }
+            let junction_sqr = if cos_theta > JUNCTION_COS_LIMIT {
+                0.0 // full reversal
+            } else if cos_theta < -JUNCTION_COS_LIMIT {
+                JUNCTION_SPEED_SQR_STRAIGHT
+            } else {
+                let sin_theta_d2 = sqrtf(0.5 * (1.0 - cos_theta));
+                let a = min_f32(acceleration, self.previous_acceleration);
+                a * s.junction_deviation_mm * sin_theta_d2 / (1.0 - sin_theta_d2)
+            };
+            b.max_entry_speed_sqr =
+                min_f32(junction_sqr, min_f32(nominal_speed_sqr, self.previous_nominal_speed_sqr));
+        }
+        b.millimeters = mm;
+        b.acceleration = acceleration;
+        b.nominal_speed_sqr = nominal_speed_sqr;
+        b.max_delta_speed_sqr = 2.0 * acceleration * mm;
+        b.entry_speed_sqr = 0.0;
+
+        self.previous_unit_vec = unit;
+        self.previous_nominal_speed_sqr = nominal_speed_sqr;
+        self.previous_acceleration = acceleration;
+
+        self.blocks[self.head as usize] = b;
+        self.head = next_index(self.head);
+        self.len += 1;
+        self.recalculate();
+        (capped, floored)
+    }
+
+    /// grbl's `planner_recalculate`: backward pass from the newest block to
+    /// `planned`, then forward pass from `planned` to the newest block.
+    fn recalculate(&mut self) {
+        let mut idx = prev_index(self.head);
+        if idx == self.planned {
+            return;
+        }
+        // The newest block always ends at zero speed.
+        let mut cur = idx;
+        {
+            let b = &mut self.blocks[cur as usize];
+            b.entry_speed_sqr = min_f32(b.max_entry_speed_sqr, b.max_delta_speed_sqr);
+        }
+        idx = prev_index(idx);
+        if idx == self.planned {
+            if idx == self.tail {
+                self.exec_replanned = true;
+            }
+        } else {
+            while idx != self.planned {
+                let next_entry = self.blocks[cur as usize].entry_speed_sqr;
+                cur = idx;
+                idx = prev_index(idx);
+                if idx == self.tail {
+                    // The block after the executing one is about to change.
+                    self.exec_replanned = true;
+                }
+                let b = &mut self.blocks[cur as usize];
+                if b.entry_speed_sqr != b.max_entry_speed_sqr {
+                    b.entry_speed_sqr = min_f32(b.max_entry_speed_sqr, next_entry + b.max_delta_speed_sqr);
+                }
+            }
+        }
+        // Forward pass.
+        let mut cur = self.planned;
+        let mut idx = next_index(cur);
+        while idx != self.head {
+            let (cur_entry, cur_delta) = {
+                let c = &self.blocks[cur as usize];
+                (c.entry_speed_sqr, c.max_delta_speed_sqr)
+            };
+            let n = &mut self.blocks[idx as usize];
+            if cur_entry < n.entry_speed_sqr {
+                let e = cur_entry + cur_delta;
+                if e < n.entry_speed_sqr {
+                    // Acceleration-limited: optimal, nothing before it can change.
+                    n.entry_speed_sqr = e;
+                    self.planned = idx;
+                }
+            }
+            if n.entry_speed_sqr == n.max_entry_speed_sqr {
+                self.planned = idx;
+            }
+            cur = idx;
+            idx = next_index(idx);
+        }
+    }
+
+    /// The executing (oldest) block, if any.
+    pub fn current_block(&self) -> Option<&Block> {
+        if self.len == 0 {
+            None
+        } else {
+            Some(&self.blocks[self.tail as usize])
+        }
+    }
+
+    /// The executing block, for prep to record progress in.
+    pub fn current_block_mut(&mut self) -> Option<&mut Block> {
+        if self.len == 0 {
+            None
+        } else {
+            Some(&mut self.blocks[self.tail as usize])
+        }
+    }
+
+    /// The i-th queued block, 0 = executing.
+    pub fn block(&self, i: usize) -> Option<&Block> {
+        if i >= self.len as usize {
+            None
+        } else {
+            Some(&self.blocks[(self.tail as usize + i) % BLOCK_BUFFER_LEN])
+        }
+    }
+
+    /// Drop the executing block (prep has prepared all its steps).
+    pub fn discard_current_block(&mut self) {
+        if self.len == 0 {
+            return;
+        }
+        if self.planned == self.tail {
+            self.planned = next_index(self.tail);
+        }
+        self.tail = next_index(self.tail);
+        self.len -= 1;
+    }
+
+    /// Exit speed² of the executing block, (mm/s)²: the next block's entry speed,
+    /// or 0 when it is the last one.
+    pub fn exec_exit_speed_sqr(&self) -> f32 {
+        if self.len <= 1 {
+            0.0
+        } else {
+            self.blocks[next_index(self.tail) as usize].entry_speed_sqr
+        }
+    }
+
+    /// True once (then cleared) when a re-plan may have changed the executing
+    /// block's exit speed, so prep must recompute its profile.
+    pub fn take_exec_replanned(&mut self) -> bool {
+        core::mem::replace(&mut self.exec_replanned, false)
+    }
+
+    /// grbl's `plan_cycle_reinitialize`, for the end of a feed hold: the machine
+    /// is stopped, so the executing block restarts from zero speed with the
+    /// distance it has left, and the whole ring is re-planned from it.
+    pub fn cycle_reinitialize(&mut self) {
+        if self.len == 0 {
+            return;
+        }
+        self.blocks[self.tail as usize].entry_speed_sqr = 0.0;
+        self.replan();
+    }
+
+    /// Re-plan the whole ring from the executing block's current state.
+    pub fn replan(&mut self) {
+        if self.len == 0 {
+            return;
+        }
+        self.planned = self.tail;
+        self.exec_replanned = true;
+        self.recalculate();
+    }
+
+    /// Commanded position after the last queued block, steps (X Y Z E). Backlash
+    /// take-ups are not included.
+    pub fn position(&self) -> [i32; N_AXES] {
+        self.position
+    }
+
+    /// Set the commanded position (after homing, G92-free resync after an
+    /// abort). Call with the queue empty. Resets the backlash offset to 0: the
+    /// motors are where the new position says; the slack state (last direction)
+    /// is kept.
+    pub fn set_position(&mut self, p: [i32; N_AXES]) {
+        self.position = p;
+        self.backlash_offset = [0; 3];
+    }
+
+    /// Motor steps minus commanded steps after the last queued block, X Y Z: the
+    /// sum of the queued backlash take-ups since the last `set_position`. When the
+    /// queue is idle, reported position = motor step count − this.
+    pub fn backlash_offset_steps(&self) -> [i32; 3] {
+        self.backlash_offset
+    }
+
+    /// Blocks queued (including the executing one).
+    pub fn len(&self) -> usize {
+        self.len as usize
+    }
+
+    /// No block queued.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// No free slot (a move with a backlash take-up needs 2).
+    pub fn is_full(&self) -> bool {
+        self.len as usize == BLOCK_BUFFER_LEN
+    }
+
+    /// Free slots.
+    pub fn free(&self) -> usize {
+        BLOCK_BUFFER_LEN - self.len as usize
+    }
+
+    /// Drop every block (e-stop, limit, abort). The position is kept as the end
+    /// of the dropped moves: the caller must `set_position` to the true motor
+    /// position. Backlash directions become unknown.
+    pub fn clear(&mut self) {
+        self.tail = 0;
+        self.head = 0;
+        self.len = 0;
+        self.planned = 0;
+        self.exec_replanned = false;
+        self.dir_known = 0;
+        self.previous_unit_vec = [0.0; N_AXES];
+        self.previous_nominal_speed_sqr = 0.0;
+        self.previous_acceleration = 0.0;
+    }
+}
+
+impl Default for Planner {
+    fn default() -> Self {
+        Self::new()
+    }
+}

@@ -1,0 +1,338 @@
+use super::*;
+
+fn s() -> Settings {
+    Settings::DEFAULT
+}
+
+fn blocks(p: &Planner) -> Vec<Block> {
+    (0..p.len()).map(|i| *p.block(i).unwrap()).collect()
+}
+
+/// The optimal plan computed the slow way: a full backward then forward pass
+/// over every block, from the executing block's current entry speed.
+fn brute_force_entries(p: &Planner) -> Vec<f32> {
+    let b = blocks(p);
+    let n = b.len();
+    let mut e: Vec<f32> = b.iter().map(|x| x.max_entry_speed_sqr).collect();
+    e[0] = b[0].entry_speed_sqr;
+    let mut exit = 0.0f32;
+    for i in (1..n).rev() {
+        e[i] = e[i].min(exit + 2.0 * b[i].acceleration * b[i].millimeters);
+        exit = e[i];
+    }
+    for i in 1..n {
+        e[i] = e[i].min(e[i - 1] + 2.0 * b[i - 1].acceleration * b[i - 1].millimeters);
+    }
+    e
+}
+
+fn assert_close(a: f32, b: f32, rel: f32) {
+    assert!((a - b).abs() <= rel * b.abs().max(1e-6), "{a} vs {b}");
+}
+
+#[test]
+fn block_ring_fits_its_ram_budget() {
+    assert!(BLOCK_BUFFER_LEN >= 24);
+    assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
+}
+
+#[test]
+fn a_straight_continuation_keeps_its_speed_through_the_junction() {
+    let mut p = Planner::new();
+    p.push_line([1000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    p.push_line([2000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    let b = blocks(&p);
+    assert_eq!(b[0].entry_speed_sqr, 0.0, "the first block starts from rest");
+    assert_close(b[1].max_entry_speed_sqr, 2500.0, 1e-5);
+    assert_close(b[1].entry_speed_sqr, 2500.0, 1e-5);
+    assert_eq!(p.exec_exit_speed_sqr(), b[1].entry_speed_sqr);
+}
+
+#[test]
+fn a_right_angle_corner_enters_at_the_junction_deviation_speed() {
+    let mut p = Planner::new();
+    p.push_line([1000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    p.push_line([1000, 1000, 0, 0], 3000.0, false, &s()).unwrap();
+    // grbl: v² = a·δ·sin(θ/2)/(1 − sin(θ/2)), θ = 90° between the directions.
+    let sin = (0.5f32).sqrt();
+    let expect = 1000.0 * 0.01 * sin / (1.0 - sin);
+    let b = blocks(&p);
+    assert_close(b[1].max_entry_speed_sqr, expect, 1e-4);
+    assert_close(b[1].entry_speed_sqr, expect, 1e-4);
+    assert!((b[1].entry_speed_sqr.sqrt() - 4.91).abs() < 0.01);
+}
+
+#[test]
+fn a_reversal_stops_at_the_junction() {
+    let mut p = Planner::new();
+    p.push_line([1000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    p.push_line([0, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    assert_eq!(blocks(&p)[1].max_entry_speed_sqr, 0.0);
+    assert_eq!(blocks(&p)[1].entry_speed_sqr, 0.0);
+}
+
+#[test]
+fn the_newest_block_always_ends_at_rest() {
+    let mut p = Planner::new();
+    for i in 1..=5 {
+        p.push_line([i * 100, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    }
+    // Each 1 mm block can shed 2·a·d = 2000 (mm/s)²: entries 2500 capped, …
+    let e: Vec<f32> = blocks(&p).iter().map(|b| b.entry_speed_sqr).collect();
+    assert_eq!(e[0], 0.0);
+    assert_close(e[4], 2000.0, 1e-5);
+    assert_close(e[3], 2500.0, 1e-5);
+    assert_close(e[1], 2000.0, 1e-5); // limited by accelerating from rest
+}
+
+#[test]
+fn look_ahead_matches_a_full_replan_after_every_block() {
+    let st = s();
+    let mut p = Planner::new();
+    let mut seed = 7u32;
+    let mut pos = [0i32; N_AXES];
+    for i in 0..400 {
+        seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        let dx = ((seed >> 16) % 60) as i32 - 10;
+        let dy = ((seed >> 8) % 40) as i32 - 20;
+        pos[0] += dx;
+        pos[1] += dy;
+        let feed = [3000.0, 600.0, 1800.0][i % 3];
+        if p.is_full() {
+            p.discard_current_block();
+            // As prep would: the new executing block starts at its entry speed.
+        }
+        p.push_line(pos, feed, false, &st).unwrap();
+        let got: Vec<f32> = blocks(&p).iter().map(|b| b.entry_speed_sqr).collect();
+        let want = brute_force_entries(&p);
+        for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert!((g - w).abs() <= 1e-3 * w.max(1.0), "push {i} block {k}: {g} vs {w}");
+        }
+    }
+}
+
+#[test]
+fn a_diagonal_is_limited_by_the_slower_axis() {
+    let mut st = s();
+    st.max_feed_mm_per_min[1] = 1500.0;
+    st.accel_mm_per_s2[1] = 250.0;
+    let mut p = Planner::new();
+    p.push_line([1000, 1000, 0, 0], 6000.0, false, &st).unwrap();
+    let b = p.current_block().unwrap();
+    let k = core::f32::consts::SQRT_2;
+    assert_close(b.millimeters, 10.0 * k, 1e-6);
+    // Y may do 25 mm/s and 250 mm/s²; it is 1/√2 of the path.
+    assert_close(b.nominal_speed_sqr.sqrt(), 25.0 * k, 1e-5);
+    assert_close(b.acceleration, 250.0 * k, 1e-5);
+    assert_eq!(b.steps, [1000, 1000, 0, 0]);
+    assert_eq!(b.step_event_count, 1000);
+    assert_eq!(b.direction_bits, 0);
+}
+
+#[test]
+fn a_rapid_uses_each_axis_max_feed() {
+    let mut st = s();
+    st.max_feed_mm_per_min[0] = 2400.0;
+    let mut p = Planner::new();
+    p.push_line([-500, 0, 0, 0], 1.0, true, &st).unwrap();
+    let b = p.current_block().unwrap();
+    assert_close(b.nominal_speed_sqr.sqrt(), 40.0, 1e-5);
+    assert_eq!(b.direction_bits, 0b0001);
+}
+
+#[test]
+fn an_e_only_move_is_planned_in_pitches_with_the_e_limits() {
+    let st = s();
+    let mut p = Planner::new();
+    let spp = st.steps_per_mm[3];
+    let target = crate::math::round_i32(3.0 * spp);
+    p.push_line([0, 0, 0, target], 6000.0, false, &st).unwrap();
+    let b = p.current_block().unwrap();
+    assert_close(b.millimeters, target as f32 / spp, 1e-6);
+    assert_close(b.nominal_speed_sqr.sqrt(), 600.0 / 60.0, 1e-5);
+    assert_close(b.acceleration, 50.0, 1e-5);
+}
+
+#[test]
+fn a_feed_beyond_the_step_rate_cap_is_capped_and_reported() {
+    let mut st = s();
+    st.steps_per_mm[0] = 1000.0;
+    st.max_feed_mm_per_min[0] = 10_000.0;
+    let mut p = Planner::new();
+    // 100 mm/s × 1000 steps/mm = 100 kHz > 60 kHz.
+    let r = p.push_line([10_000, 0, 0, 0], 6000.0, false, &st).unwrap();
+    assert!(r.rate_capped);
+    let v = p.current_block().unwrap().nominal_speed_sqr.sqrt();
+    assert_close(v * 1000.0, crate::config::MAX_STEP_RATE_HZ, 1e-5);
+    // 50 mm/s = 50 kHz is fine.
+    let r = p.push_line([20_000, 0, 0, 0], 3000.0, false, &st).unwrap();
+    assert!(!r.rate_capped);
+    assert_eq!(r.queued, 1);
+}
+
+#[test]
+fn a_feed_below_the_slowest_timer_rate_is_raised_and_reported() {
+    let st = s();
+    let mut p = Planner::new();
+    // F1 = 1/60 mm/s = 1.7 steps/s < 30.5 Hz.
+    let r = p.push_line([100, 0, 0, 0], 1.0, false, &st).unwrap();
+    assert!(r.rate_floored);
+    let v = p.current_block().unwrap().nominal_speed_sqr.sqrt();
+    assert_close(v * 100.0, crate::stepper::MIN_STEP_RATE_HZ, 1e-4);
+}
+
+#[test]
+fn zero_length_moves_queue_nothing_and_bad_feeds_are_refused() {
+    let mut p = Planner::new();
+    assert_eq!(p.push_line([0; 4], 100.0, false, &s()), Ok(Push::default()));
+    assert!(p.is_empty());
+    assert_eq!(p.push_line([10, 0, 0, 0], 0.0, false, &s()), Err(PlanError::BadFeed));
+    assert_eq!(p.push_line([10, 0, 0, 0], -5.0, false, &s()), Err(PlanError::BadFeed));
+    assert_eq!(p.push_line([10, 0, 0, 0], f32::NAN, false, &s()), Err(PlanError::BadFeed));
+    assert_eq!(p.push_line([10, 0, 0, 0], f32::INFINITY, false, &s()), Err(PlanError::BadFeed));
+    assert!(p.is_empty());
+    assert_eq!(p.position(), [0; 4]);
+}
+
+#[test]
+fn a_full_ring_refuses_until_a_block_is_discarded() {
+    let mut p = Planner::new();
+    for i in 1..=BLOCK_BUFFER_LEN as i32 {
+        p.push_line([i * 10, 0, 0, 0], 600.0, false, &s()).unwrap();
+    }
+    assert!(p.is_full());
+    assert_eq!(p.free(), 0);
+    let before = p.position();
+    assert_eq!(p.push_line([9999, 0, 0, 0], 600.0, false, &s()), Err(PlanError::Full));
+    assert_eq!(p.position(), before);
+    p.discard_current_block();
+    assert_eq!(p.len(), BLOCK_BUFFER_LEN - 1);
+    p.push_line([9999, 0, 0, 0], 600.0, false, &s()).unwrap();
+    assert_eq!(p.block(BLOCK_BUFFER_LEN - 1).unwrap().steps[0], 9999 - 320);
+}
+
+#[test]
+fn targets_are_absolute_steps_so_tiny_moves_do_not_drift() {
+    let mut st = s();
+    st.steps_per_mm = [80.0, 80.0, 400.0, 177.777_78];
+    let mut p = Planner::new();
+    let mut total = [0u32; N_AXES];
+    for i in 1..=1000 {
+        let mm = i as f32 * 0.001;
+        let t = [
+            crate::math::round_i32(mm * st.steps_per_mm[0]),
+            crate::math::round_i32(-mm * st.steps_per_mm[1]),
+            crate::math::round_i32(mm * st.steps_per_mm[2]),
+            0,
+        ];
+        p.push_line(t, 300.0, false, &st).unwrap();
+        while let Some(b) = p.current_block() {
+            for a in 0..N_AXES {
+                total[a] += b.steps[a];
+            }
+            p.discard_current_block();
+        }
+    }
+    assert_eq!(p.position(), [80, -80, 400, 0]);
+    assert_eq!(total, [80, 80, 400, 0]);
+}
+
+#[test]
+fn cycle_reinitialize_restarts_the_executing_block_from_rest() {
+    let mut p = Planner::new();
+    for i in 1..=4 {
+        p.push_line([i * 1000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    }
+    // Prep has run half of the first block and is at full speed; it stops.
+    {
+        let b = p.current_block_mut().unwrap();
+        b.millimeters = 5.0;
+        b.max_delta_speed_sqr = 2.0 * b.acceleration * 5.0;
+        b.entry_speed_sqr = 2500.0;
+    }
+    p.take_exec_replanned();
+    p.cycle_reinitialize();
+    assert!(p.take_exec_replanned());
+    assert_eq!(p.current_block().unwrap().entry_speed_sqr, 0.0);
+    // The next block can only be entered as fast as 5 mm from rest allows.
+    assert_close(p.exec_exit_speed_sqr(), 2500.0f32.min(2.0 * 1000.0 * 5.0), 1e-5);
+    let want = brute_force_entries(&p);
+    for (b, w) in blocks(&p).iter().zip(&want) {
+        assert_close(b.entry_speed_sqr.max(1e-3), w.max(1e-3), 1e-4);
+    }
+}
+
+#[test]
+fn a_new_block_behind_the_executing_one_flags_a_replan() {
+    let mut p = Planner::new();
+    p.push_line([1000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    p.take_exec_replanned();
+    p.push_line([2000, 0, 0, 0], 3000.0, false, &s()).unwrap();
+    assert!(p.take_exec_replanned(), "the executing block's exit speed changed");
+    assert!(!p.take_exec_replanned());
+}
+
+#[test]
+fn backlash_inserts_a_take_up_block_on_reversal_only() {
+    let mut st = s();
+    st.backlash_mm = [0.05, 0.02, 0.0];
+    let mut p = Planner::new();
+    // First moves: directions unknown, no take-up.
+    assert_eq!(p.push_line([100, 100, 100, 0], 600.0, false, &st).unwrap().queued, 1);
+    // Same direction: none.
+    assert_eq!(p.push_line([200, 200, 200, 0], 600.0, false, &st).unwrap().queued, 1);
+    // X and Y and Z reverse: one take-up block for X (5 steps) and Y (2 steps);
+    // Z has no backlash setting.
+    let r = p.push_line([150, 100, 0, 0], 600.0, false, &st).unwrap();
+    assert_eq!(r.queued, 2);
+    let b = blocks(&p);
+    let tu = b[2];
+    assert_eq!(tu.flags & Block::TAKE_UP, Block::TAKE_UP);
+    assert_eq!(tu.steps, [5, 2, 0, 0]);
+    assert_eq!(tu.direction_bits, 0b011);
+    // Planned like any block: a sharp corner, entered at a crawl.
+    assert!(tu.max_entry_speed_sqr < 25.0);
+    assert_close(tu.nominal_speed_sqr.sqrt(), 50.0 * 0.05f32.hypot(0.02) / 0.05, 1e-5);
+    assert_eq!(b[3].flags, 0);
+    assert_eq!(b[3].steps, [50, 100, 200, 0]);
+    assert_eq!(p.position(), [150, 100, 0, 0]);
+    assert_eq!(p.backlash_offset_steps(), [-5, -2, 0]);
+    // Y continues negative, X reverses back: +5 on X only.
+    p.push_line([250, 50, 0, 0], 600.0, false, &st).unwrap();
+    assert_eq!(p.backlash_offset_steps(), [0, -2, 0]);
+    // set_position (after homing) makes motors and position agree again.
+    while !p.is_empty() {
+        p.discard_current_block();
+    }
+    p.set_position([0; 4]);
+    assert_eq!(p.backlash_offset_steps(), [0, 0, 0]);
+}
+
+#[test]
+fn a_reversal_needing_a_take_up_waits_for_two_free_slots() {
+    let mut st = s();
+    st.backlash_mm = [0.05, 0.0, 0.0];
+    let mut p = Planner::new();
+    for i in 1..BLOCK_BUFFER_LEN as i32 {
+        p.push_line([i * 10, 0, 0, 0], 600.0, false, &st).unwrap();
+    }
+    assert_eq!(p.free(), 1);
+    assert_eq!(p.push_line([0, 0, 0, 0], 600.0, false, &st), Err(PlanError::Full));
+    assert_eq!(p.backlash_offset_steps(), [0, 0, 0]);
+    p.discard_current_block();
+    assert_eq!(p.push_line([0, 0, 0, 0], 600.0, false, &st).unwrap().queued, 2);
+}
+
+#[test]
+fn clear_forgets_blocks_and_backlash_directions() {
+    let mut st = s();
+    st.backlash_mm = [0.05, 0.0, 0.0];
+    let mut p = Planner::new();
+    p.push_line([100, 0, 0, 0], 600.0, false, &st).unwrap();
+    p.clear();
+    assert!(p.is_empty() && p.current_block().is_none());
+    p.set_position([100, 0, 0, 0]);
+    // Direction unknown after clear: no take-up on the next reversal.
+    assert_eq!(p.push_line([0, 0, 0, 0], 600.0, false, &st).unwrap().queued, 1);
+    assert_eq!(p.current_block().unwrap().entry_speed_sqr, 0.0);
+}
