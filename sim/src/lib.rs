@@ -18,14 +18,20 @@
 //! - [`pins`]: the RAMPS pin map, the only place `sim/` knows pins.
 //!
 //! ```no_run
-//! use sim::{Vm, VmConfig, Axis, Input, Flow};
-//! let mut vm = Vm::new(VmConfig::default())?;          // $MILL_ELF or target/.../mill.elf
-//! vm.wait_for_start(2.0)?;
-//! let reply = vm.command("G1 X10 F1200")?;            // lines up to and including "ok"
+//! use sim::{Axis, Flow, Input, StreamOptions, Vm, VmConfig};
+//! let mut config = VmConfig::default();                // $MILL_ELF or target/avr-atmega2560/release/mill.elf
+//! config.machine.initial_position = [1000, 1000, 500, 0]; // physical steps from each home switch
+//! let mut vm = Vm::new(config)?;
+//! vm.wait_for_start(2.0)?;                              // boot banner
+//! vm.command("G28")?;                                   // lines up to and including "ok"
+//! vm.command("G1 X10 F1200")?;
 //! vm.command("M400")?;
-//! assert_eq!(vm.position(Axis::X), 1000);
-//! vm.set_input(Input::HomeX, Some(true));              // force the X switch closed
-//! let job = vm.stream(&["G0 X1", "G0 X2"], Flow::CharCount(127))?;
+//! assert_eq!(vm.position(Axis::X), 1000);               // physical position, steps
+//! assert!(vm.violations().is_empty());
+//! vm.set_input(Input::HomeX, Some(true));               // force the X switch closed
+//! vm.set_input(Input::HomeX, None);                     // back to the model
+//! let job = vm.stream(&["G0 X1", "G0 X2"], StreamOptions::new(Flow::CharCount(127)).with_checksums(true))?;
+//! let isr = vm.stepper_isr_stats();                     // TIMER1_COMPA cycles
 //! println!("{}", vm.report(Some(&job)).human());
 //! # Ok::<(), sim::VmError>(())
 //! ```

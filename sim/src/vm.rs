@@ -48,9 +48,18 @@
 //! - **Interrupt entry is free in simavr** (the 5-cycle response is not
 //!   charged), so simulated firmware has 5 cycles per interrupt to spare; ISR
 //!   statistics add them back ([`crate::isr::HW_OVERHEAD_CYCLES`]).
-//! - Not worked around: a TCNTn written while the timer is stopped is lost on
-//!   clock start, and an enable bit set while its flag is up does not fire at
-//!   once. The firmware is written not to depend on either.
+//! - **TCNTn is lost while a timer is stopped.** simavr restarts a timer from
+//!   0 when its clock is switched on, so "preload TCNT, then start the clock"
+//!   (grbl's step-pulse timer) comes out far too long. With
+//!   `fix_tcnt_on_clock_start` (default on) the VM wraps every TCCRnB write
+//!   handler: when the clock stops it freezes the current count into TCNTn (as
+//!   the hardware keeps it), and when the clock starts it writes TCNTn back
+//!   through simavr's own TCNT handler, so counting resumes from the frozen or
+//!   preloaded value.
+//! - Not worked around (the firmware must not depend on them): setting an
+//!   interrupt-enable bit while its flag is already set does not fire at once
+//!   (simavr waits for the next event); a low level on an INTn pin sets its
+//!   flag even while that interrupt is disabled (clear EIFR before enabling).
 
 use crate::elf::ElfSymbols;
 use crate::host::{is_ok_line, StreamOptions, StreamReport, Streamer};
@@ -176,6 +185,8 @@ pub struct VmConfig {
     pub stop_on_bad_opcode: bool,
     /// Default timeout of [`Vm::command`], simulated seconds. Default 60.
     pub command_timeout_s: f64,
+    /// Keep TCNTn across clock stop/start like the hardware (module docs). Default true.
+    pub fix_tcnt_on_clock_start: bool,
 }
 
 impl VmConfig {
@@ -206,6 +217,7 @@ impl Default for VmConfig {
             max_interrupt_nesting: 60,
             stop_on_bad_opcode: true,
             command_timeout_s: 60.0,
+            fix_tcnt_on_clock_start: true,
         }
     }
 }
@@ -294,6 +306,18 @@ struct PinHook {
     kind: SignalKind,
 }
 
+/// Param of a wrapped TCCRnB write handler.
+struct TimerWrap {
+    /// Data-space address of TCCRnB and of TCNTn (low byte).
+    tccrb: u16,
+    tcnt: u16,
+    orig: ffi::avr_io_write_t,
+    orig_param: *mut c_void,
+}
+
+/// The 6 timers of the ATmega2560: (TCCRnB, TCNTn or TCNTnL).
+const TIMERS: [(u16, u16); 6] = [(0x45, 0x46), (0x81, 0x84), (0xB1, 0xB2), (0x91, 0x94), (0xA1, 0xA4), (0x121, 0x124)];
+
 static LOGGER: Once = Once::new();
 static LOAD_LOCK: Mutex<()> = Mutex::new(());
 
@@ -302,6 +326,7 @@ pub struct Vm {
     avr: *mut ffi::avr_t,
     inner: *mut Inner,
     hooks: Box<[PinHook]>,
+    timer_wraps: Box<[TimerWrap]>,
     config: VmConfig,
     symbols: ElfSymbols,
     wall_start: std::time::Instant,
@@ -502,6 +527,35 @@ unsafe extern "C" fn uart_feed_timer(_avr: *mut ffi::avr_t, when: ffi::avr_cycle
     // SAFETY: reading a field of the live UART struct.
     let per_byte = unsafe { (*inner.uart).cycles_per_byte };
     when + per_byte.max(16)
+}
+
+/// Wraps simavr's TCCRnB write: freeze TCNTn when the clock stops, write it
+/// back through simavr's TCNT handler when the clock starts.
+// SAFETY (contract): installed as `avr->io[TCCRnB].w` with a TimerWrap param
+// that lives in Vm::timer_wraps; simavr calls it for CPU writes to TCCRnB.
+unsafe extern "C" fn tccrb_write(avr: *mut ffi::avr_t, addr: ffi::avr_io_addr_t, v: u8, param: *mut c_void) {
+    // SAFETY: param is a TimerWrap alive as long as the instance; avr is live;
+    // the I/O table entries belong to simavr's timer module.
+    unsafe {
+        let w = &*(param as *const TimerWrap);
+        let data = (*avr).data;
+        let tcnt_io = &(*avr).io[(w.tcnt - 32) as usize];
+        let was_running = *data.add(w.tccrb as usize) & 7 != 0;
+        let will_run = v & 7 != 0;
+        if was_running && !will_run {
+            if let Some(read) = tcnt_io.r.c {
+                read(avr, w.tcnt, tcnt_io.r.param); // updates TCNTn (and TCNTnH) in data
+            }
+        }
+        if let Some(orig) = w.orig {
+            orig(avr, addr, v, w.orig_param);
+        }
+        if !was_running && will_run {
+            if let Some(write) = tcnt_io.w.c {
+                write(avr, w.tcnt, *data.add(w.tcnt as usize), tcnt_io.w.param);
+            }
+        }
+    }
 }
 
 /// Bounds an `avr_run` batch at a VM-chosen cycle.
@@ -772,7 +826,28 @@ impl Vm {
             hooks
         };
 
-        Ok(Vm { avr, inner, hooks, config, symbols, wall_start: std::time::Instant::now() })
+        let mut timer_wraps: Box<[TimerWrap]> = if config.fix_tcnt_on_clock_start {
+            TIMERS
+                .iter()
+                .map(|&(tccrb, tcnt)| {
+                    // SAFETY: avr is live; reading the I/O table entry of TCCRnB.
+                    let w = unsafe { (*avr).io[(tccrb - 32) as usize].w };
+                    TimerWrap { tccrb, tcnt, orig: w.c, orig_param: w.param }
+                })
+                .collect()
+        } else {
+            Box::new([])
+        };
+        for w in timer_wraps.iter_mut() {
+            // SAFETY: avr is live and not running; the wrap outlives the instance (dropped after it in Vm::drop).
+            unsafe {
+                let slot = &mut (*avr).io[(w.tccrb - 32) as usize].w;
+                slot.c = Some(tccrb_write);
+                slot.param = w as *mut TimerWrap as *mut c_void;
+            }
+        }
+
+        Ok(Vm { avr, inner, hooks, timer_wraps, config, symbols, wall_start: std::time::Instant::now() })
     }
 
     /// A VM for `elf` with the default machine.
@@ -1507,6 +1582,6 @@ impl Drop for Vm {
             free(self.avr as *mut c_void);
             drop(Box::from_raw(self.inner));
         }
-        let _ = &self.hooks;
+        let _ = (&self.hooks, &self.timer_wraps);
     }
 }

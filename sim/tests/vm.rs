@@ -263,17 +263,45 @@ fn stack_high_water_and_symbols() {
 }
 
 #[test]
+fn four_axes_stepping_at_40_khz_are_all_counted() {
+    let mut vm = host_vm();
+    vm.command("steps4 2000").unwrap();
+    vm.run_for(0.06).unwrap();
+    for axis in Axis::ALL {
+        let s = vm.recorder().axis_stats(axis);
+        assert_eq!((s.steps_pos, s.steps_neg), (2000, 0), "{axis}");
+        assert!(s.min_step_interval_cycles.unwrap().abs_diff(400) <= 2, "{s:?}");
+        assert!((s.peak_rate_windowed_hz - 40_000.0).abs() <= 1000.0, "{s:?}");
+    }
+    assert_eq!(vm.positions(), [4250, 4250, 4250, 2000]);
+    assert!(vm.violations().is_empty(), "{:?}", &vm.violations()[..1]);
+    // 2000 stepping services + the one that stops the timer.
+    assert_eq!(vm.stepper_isr_stats().unwrap().count, 2001);
+    // Every intermediate point of the diagonal is on the line x = y = z.
+    vm.recorder().for_each_step(|p| {
+        let [x, y, z, _] = p.position;
+        assert!(x.abs_diff(y) <= 1 && y.abs_diff(z) <= 1, "{p:?}");
+    });
+}
+
+#[test]
 fn simulation_speed() {
     let mut vm = host_vm();
     let t = std::time::Instant::now();
-    vm.run_for(3.0).unwrap();
-    let idle = 3.0 / t.elapsed().as_secs_f64();
+    vm.run_for(2.0).unwrap();
+    let idle = 2.0 / t.elapsed().as_secs_f64();
+
+    let mut c = VmConfig::new(common::firmware("host"));
+    c.machine.travel_steps = [None; 4];
+    let mut vm = Vm::new(c).unwrap();
+    vm.wait_for_start(1.0).unwrap();
+    vm.command("steps4 40000").unwrap();
     let t = std::time::Instant::now();
-    let mut vm = steps_vm(|_| {});
-    let s = vm.seconds() / t.elapsed().as_secs_f64();
-    vm.run_for(0.0).unwrap();
-    println!("sim speed: idle UART loop {idle:.1} s/s, step trains {s:.1} s/s");
-    assert!(idle > 1.0);
+    vm.run_for(1.0).unwrap();
+    let stepping = 1.0 / t.elapsed().as_secs_f64();
+    assert_eq!(vm.position(Axis::E), 40_000);
+    println!("sim speed: idle UART loop {idle:.1} s/s; 4 axes at 40 kHz {stepping:.1} s/s");
+    assert!(idle > 1.0 && stepping > 0.5);
 }
 
 #[test]
@@ -326,4 +354,22 @@ fn cli_streams_a_job_and_exits_zero_when_clean() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
+}
+
+#[test]
+fn timer_preloaded_while_stopped_counts_from_the_preload() {
+    // Hardware: 56 ticks from TCNT0 = 200 to overflow, plus ISR entry.
+    let mut vm = Vm::with_elf(common::firmware("tcnt")).unwrap();
+    vm.wait_line(|l| l == "done", 0.1).unwrap();
+    let x = vm.recorder().axis_stats(Axis::X);
+    assert_eq!(x.steps_pos, 3);
+    let (lo, hi) = (x.min_step_high_cycles.unwrap(), x.max_step_high_cycles.unwrap());
+    assert!(lo >= 56 && hi < 100, "pulse {lo}..{hi} cycles");
+
+    // Without the fix simavr restarts the count from 0: 256 ticks.
+    let mut c = VmConfig::new(common::firmware("tcnt"));
+    c.fix_tcnt_on_clock_start = false;
+    let mut vm = Vm::new(c).unwrap();
+    vm.wait_line(|l| l == "done", 0.1).unwrap();
+    assert!(vm.recorder().axis_stats(Axis::X).min_step_high_cycles.unwrap() > 256);
 }

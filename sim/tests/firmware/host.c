@@ -15,6 +15,8 @@
  *                    edge reads PINE5; prints "trip=K" (K = first step after
  *                    which the switch read closed, 0 = never)
  *   stats         -> "rx=<bytes received> lost=<ring overflows> dor=<DOR seen>"
+ *   steps4 N      -> background: N steps on all four axes (+), 25 us apart
+ *                    (Timer1 compare ISR, 40 kHz), "ok" at once
  *   busy N        -> interrupts off for N ms (the UART is not read meanwhile)
  *   sleep         -> cli; sleep (halts the core for good)
  */
@@ -45,6 +47,24 @@ ISR(USART0_RX_vect)
     }
     ring[head] = b;
     head = next;
+}
+
+static volatile uint16_t steps_left;
+
+ISR(TIMER1_COMPA_vect)
+{
+    if (!steps_left) {
+        TCCR1B = 0;
+        return;
+    }
+    PORTF |= _BV(0) | _BV(6);
+    PORTL |= _BV(3);
+    PORTA |= _BV(4);
+    __builtin_avr_delay_cycles(40);
+    PORTF &= ~(_BV(0) | _BV(6));
+    PORTL &= ~_BV(3);
+    PORTA &= ~_BV(4);
+    steps_left--;
 }
 
 ISR(TIMER3_COMPA_vect)
@@ -153,6 +173,27 @@ static void handle(void)
         puts0(" dor=");
         putdec(dor_seen);
         putc0('\n');
+    } else if (!strncmp(line, "steps4 ", 7)) {
+        /* step/dir/enable of X, Y, Z, E as outputs, enabled, dir + */
+        DDRF |= _BV(0) | _BV(1) | _BV(6) | _BV(7) | _BV(2);
+        DDRD |= _BV(7);
+        DDRL |= _BV(3) | _BV(1);
+        DDRK |= _BV(0);
+        DDRA |= _BV(4) | _BV(6) | _BV(2);
+        PORTD &= ~_BV(7);
+        PORTF &= ~_BV(2);
+        PORTK &= ~_BV(0);
+        PORTA &= ~_BV(2);
+        PORTF |= _BV(1) | _BV(7);
+        PORTL |= _BV(1);
+        PORTA |= _BV(6);
+        cli();
+        steps_left = strtoul(line + 7, 0, 10);
+        sei();
+        OCR1A = 399;
+        TCNT1 = 0;
+        TIMSK1 = _BV(OCIE1A);
+        TCCR1B = _BV(WGM12) | _BV(CS10);
     } else if (!strncmp(line, "busy ", 5)) {
         uint16_t ms = strtoul(line + 5, 0, 10);
         cli();
