@@ -15,9 +15,9 @@
 //! (Marlin's format, which Pronterface/printcore, Repetier-Host and OctoPrint
 //! understand); see [`ProtoError::message`] and [`LineChecker::resend_line`].
 
-/// Longest accepted line, in characters, not counting the line terminator nor
-/// leading blanks. A longer line is rejected whole ([`Assembled::TooLong`]),
-/// never truncated and run.
+/// Longest accepted line, in characters from its first to its last non-blank
+/// (blanks at either end and the terminator do not count). A longer line is
+/// rejected whole ([`Assembled::TooLong`]), never truncated and run.
 pub const MAX_LINE_LEN: usize = 96;
 
 /// True for the realtime bytes that the RX ISR takes out of the stream before
@@ -124,7 +124,11 @@ impl Default for LineAssembler {
 impl LineAssembler {
     /// An empty assembler.
     pub const fn new() -> Self {
-        LineAssembler { buf: [0; MAX_LINE_LEN], len: 0, flags: 0 }
+        LineAssembler {
+            buf: [0; MAX_LINE_LEN],
+            len: 0,
+            flags: 0,
+        }
     }
 
     /// Feed one byte from the RX ring. Returns `Some` when a line ends; after
@@ -137,7 +141,10 @@ impl LineAssembler {
         }
         match b {
             b'\n' | b'\r' => self.finish(),
-            b' ' | b'\t' if self.len == 0 => None,
+            // Blanks before the text are not stored; blanks that arrive with
+            // the buffer full are dropped, since only a later non-blank can
+            // make the line too long.
+            b' ' | b'\t' if self.len == 0 || self.len as usize == MAX_LINE_LEN => None,
             _ => {
                 if !(0x20..0x7f).contains(&b) && b != b'\t' {
                     self.flags |= F_BAD_BYTE;
@@ -393,8 +400,16 @@ impl EstopScanner {
             (1, b'1') | (2, b'1') | (3, b'2') => matched + 1,
             _ => 0,
         };
-        let next = if next == 0 && up == b'M' && !prev_letter { 1 } else { next };
-        let letter = if up.is_ascii_uppercase() { PREV_LETTER } else { 0 };
+        let next = if next == 0 && up == b'M' && !prev_letter {
+            1
+        } else {
+            next
+        };
+        let letter = if up.is_ascii_uppercase() {
+            PREV_LETTER
+        } else {
+            0
+        };
         self.state = next | letter;
         fire
     }
@@ -437,7 +452,10 @@ mod tests {
         let out = assemble(&mut a, b"  G1 X10 \t\r\nM114\n");
         assert_eq!(
             out,
-            vec![(Assembled::Line, b"G1 X10".to_vec()), (Assembled::Line, b"M114".to_vec())]
+            vec![
+                (Assembled::Line, b"G1 X10".to_vec()),
+                (Assembled::Line, b"M114".to_vec())
+            ]
         );
     }
 
@@ -475,16 +493,31 @@ mod tests {
         let mut bytes = vec![b'Y'; MAX_LINE_LEN + 1];
         bytes.extend_from_slice(b"\nG0 X1\n");
         let out = assemble(&mut a, &bytes);
-        assert_eq!(out, vec![(Assembled::TooLong, vec![]), (Assembled::Line, b"G0 X1".to_vec())]);
+        assert_eq!(
+            out,
+            vec![
+                (Assembled::TooLong, vec![]),
+                (Assembled::Line, b"G0 X1".to_vec())
+            ]
+        );
         assert_eq!(Assembled::TooLong.error(), Some(ProtoError::TooLong));
     }
 
     #[test]
-    fn an_over_long_line_of_blanks_after_text_is_still_too_long() {
+    fn trailing_blanks_do_not_count_toward_the_limit() {
         let mut a = LineAssembler::new();
-        let mut bytes = b"G1".to_vec();
-        bytes.extend(std::iter::repeat(b' ').take(200));
+        let mut bytes = vec![b'X'; MAX_LINE_LEN];
+        bytes.extend([b' '; 200]);
         bytes.push(b'\n');
+        let out = assemble(&mut a, &bytes);
+        assert_eq!(out, vec![(Assembled::Line, vec![b'X'; MAX_LINE_LEN])]);
+    }
+
+    #[test]
+    fn text_after_blanks_past_the_limit_is_too_long() {
+        let mut a = LineAssembler::new();
+        let mut bytes = vec![b'X'; MAX_LINE_LEN];
+        bytes.extend_from_slice(b"   Y\n");
         assert_eq!(assemble(&mut a, &bytes), vec![(Assembled::TooLong, vec![])]);
     }
 
@@ -504,7 +537,13 @@ mod tests {
         let mut out = assemble(&mut a, b"G1 X");
         a.mark_overrun();
         out.extend(assemble(&mut a, b"10\nG1 X2\n"));
-        assert_eq!(out, vec![(Assembled::Overrun, vec![]), (Assembled::Line, b"G1 X2".to_vec())]);
+        assert_eq!(
+            out,
+            vec![
+                (Assembled::Overrun, vec![]),
+                (Assembled::Line, b"G1 X2".to_vec())
+            ]
+        );
     }
 
     #[test]
@@ -513,7 +552,10 @@ mod tests {
         assert_eq!(a.push(b'\r'), None);
         a.mark_overrun();
         assert_eq!(a.push(b'\n'), Some(Assembled::Overrun));
-        assert_eq!(assemble(&mut a, b"M5\n"), vec![(Assembled::Line, b"M5".to_vec())]);
+        assert_eq!(
+            assemble(&mut a, b"M5\n"),
+            vec![(Assembled::Line, b"M5".to_vec())]
+        );
     }
 
     #[test]
@@ -537,7 +579,10 @@ mod tests {
         assemble(&mut a, b"G1 X1");
         a.mark_overrun();
         a.reset();
-        assert_eq!(assemble(&mut a, b"M5\n"), vec![(Assembled::Line, b"M5".to_vec())]);
+        assert_eq!(
+            assemble(&mut a, b"M5\n"),
+            vec![(Assembled::Line, b"M5".to_vec())]
+        );
     }
 
     /// Tiny xorshift32 PRNG for the random-bytes tests.
@@ -573,7 +618,9 @@ mod tests {
             if let Some(Assembled::Line) = a.push(b) {
                 let line = a.line();
                 assert!(!line.is_empty() && line.len() <= MAX_LINE_LEN);
-                assert!(line.iter().all(|&c| (0x20..0x7f).contains(&c) || c == b'\t'));
+                assert!(line
+                    .iter()
+                    .all(|&c| (0x20..0x7f).contains(&c) || c == b'\t'));
                 let _ = checker.check(line);
                 lines += 1;
             }
@@ -664,7 +711,10 @@ mod tests {
     #[test]
     fn m1100_is_not_m110() {
         let mut c = LineChecker::new();
-        assert_eq!(c.check(&numbered(7, "M1100 N3")), Err(ProtoError::LineNumber));
+        assert_eq!(
+            c.check(&numbered(7, "M1100 N3")),
+            Err(ProtoError::LineNumber)
+        );
     }
 
     #[test]
@@ -685,7 +735,10 @@ mod tests {
         c.check(&numbered(1, "M110 N2147483647")).unwrap();
         assert_eq!(c.resend_line(), i32::MIN);
         assert!(c.check(&numbered(-2147483648, "G0")).is_ok());
-        assert_eq!(c.check(&numbered(1, "M110 N2147483648")), Ok(&b"M110 N2147483648"[..]));
+        assert_eq!(
+            c.check(&numbered(1, "M110 N2147483648")),
+            Ok(&b"M110 N2147483648"[..])
+        );
         // An unparsable M110 N falls back to the line's own number.
         assert_eq!(c.last_line(), 1);
         let body = "N99999999999 G0";

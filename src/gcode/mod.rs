@@ -14,6 +14,6 @@
 pub mod parse;
 
 pub use parse::{
-    parse, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, Plane,
-    Spindle, Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
+    parse, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, Plane, Spindle,
+    Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
 };

@@ -135,7 +135,10 @@ pub struct Words {
 impl Words {
     /// No words.
     pub const fn new() -> Self {
-        Words { present: 0, values: [0.0; Word::COUNT] }
+        Words {
+            present: 0,
+            values: [0.0; Word::COUNT],
+        }
     }
 
     /// The value of word `w`, if present.
@@ -191,7 +194,9 @@ impl Words {
 
     /// The present words and their values, in bit order.
     pub fn iter(&self) -> impl Iterator<Item = (Word, f32)> + '_ {
-        Word::ALL.iter().filter_map(move |&w| self.get(w).map(|v| (w, v)))
+        Word::ALL
+            .iter()
+            .filter_map(move |&w| self.get(w).map(|v| (w, v)))
     }
 }
 
@@ -475,9 +480,6 @@ struct Number {
     scale: u16,
 }
 
-/// Powers of ten exactly representable in f32 (5^10 < 2^24).
-const POW10: [f32; 11] = [1.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10];
-
 impl Number {
     /// The nearest f32 (exact rounding while the mantissa is below 2^24, i.e.
     /// up to 7 significant digits; within about one ulp above).
@@ -491,7 +493,14 @@ impl Number {
             v /= 1e10;
             scale -= 10;
         }
-        v /= POW10.get(scale as usize).copied().unwrap_or(1.0);
+        // 10^scale by repeated ×10: exact up to 1e10 (5^10 < 2^24), so the
+        // one division below rounds once. A loop, not a table: on AVR a
+        // const table would be copied into RAM.
+        let mut pow10 = 1.0f32;
+        for _ in 0..scale {
+            pow10 *= 10.0;
+        }
+        v /= pow10;
         if self.negative {
             -v
         } else {
@@ -601,7 +610,14 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
     if too_long {
         return err(ParseErrorKind::NumberOutOfRange, col);
     }
-    Ok((Number { negative, mantissa, scale }, pos))
+    Ok((
+        Number {
+            negative,
+            mantissa,
+            scale,
+        },
+        pos,
+    ))
 }
 
 /// Skip a leading `N<n>` line number (any length, optional sign, integer).
@@ -741,7 +757,10 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                         let (n, next) = lex_number(s, pos, col)?;
                         pos = next;
                         let code = n.code_x10();
-                        let code = code.ok_or(ParseError { kind: ParseErrorKind::UnsupportedCode, col })?;
+                        let code = code.ok_or(ParseError {
+                            kind: ParseErrorKind::UnsupportedCode,
+                            col,
+                        })?;
                         apply_g(&mut line, code, col)?;
                     }
                     b'M' => {
@@ -764,7 +783,9 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                         };
                         let (n, next) = lex_number(s, pos, col)?;
                         pos = next;
-                        if w == Word::T && (n.scale != 0 || (n.negative && n.mantissa != 0) || n.mantissa > 255) {
+                        if w == Word::T
+                            && (n.scale != 0 || (n.negative && n.mantissa != 0) || n.mantissa > 255)
+                        {
                             return err(ParseErrorKind::BadToolNumber, col);
                         }
                         if !line.words.insert(w, n.to_f32()) {
@@ -826,7 +847,10 @@ mod tests {
         assert_eq!(ok("G90").distance, Some(Distance::Absolute));
         assert_eq!(ok("G91").distance, Some(Distance::Incremental));
         assert_eq!(ok("G94").feed_mode, Some(FeedMode::UnitsPerMinute));
-        for (i, g) in ["G54", "G55", "G56", "G57", "G58", "G59"].iter().enumerate() {
+        for (i, g) in ["G54", "G55", "G56", "G57", "G58", "G59"]
+            .iter()
+            .enumerate()
+        {
             assert_eq!(ok(g).wcs, Some(i as u8));
         }
         assert_eq!(ok("G43 H3").tool_length, Some(ToolLength::Apply));
@@ -871,7 +895,11 @@ mod tests {
         assert!(ok("M6").tool_change);
         assert!(!ok("G0").tool_change);
         for &m in OTHER_M_CODES {
-            let text = if TEXT_ARG_M_CODES.contains(&m) { format!("M{m} A.GCO") } else { format!("M{m}") };
+            let text = if TEXT_ARG_M_CODES.contains(&m) {
+                format!("M{m} A.GCO")
+            } else {
+                format!("M{m}")
+            };
             assert_eq!(ok(&text).other_m, Some(m), "{text}");
         }
     }
@@ -1027,8 +1055,16 @@ mod tests {
         assert_eq!(x("X-.25"), -0.25);
         assert_eq!(x("X0"), 0.0);
         assert_eq!(x("X-0").to_bits(), 0.0f32.to_bits(), "no negative zero");
-        assert_eq!(x("X000000000000.5"), 0.5, "leading zeros are not significant");
-        assert_eq!(x("X1.50000000000"), 1.5, "trailing zeros are not significant");
+        assert_eq!(
+            x("X000000000000.5"),
+            0.5,
+            "leading zeros are not significant"
+        );
+        assert_eq!(
+            x("X1.50000000000"),
+            1.5,
+            "trailing zeros are not significant"
+        );
         assert_eq!(x("X0.000000001"), 1e-9);
     }
 
@@ -1052,7 +1088,9 @@ mod tests {
 
     #[test]
     fn malformed_numbers_are_bad_numbers_at_the_word() {
-        for s in ["X", "X-", "X.", "X+.", "X-.", "X+", "X1.2.3", "X1-2", "X1+", "X--1", "X+-1"] {
+        for s in [
+            "X", "X-", "X.", "X+.", "X-.", "X+", "X1.2.3", "X1-2", "X1+", "X--1", "X+-1",
+        ] {
             assert_eq!(fails(s), (ParseErrorKind::BadNumber, 1), "{s}");
         }
         assert_eq!(fails("G1 Y2 X"), (ParseErrorKind::BadNumber, 7));
@@ -1075,13 +1113,24 @@ mod tests {
     fn numbers_too_big_or_too_precise_are_out_of_range() {
         assert_eq!(fails("X1000000"), (ParseErrorKind::NumberOutOfRange, 1));
         assert_eq!(fails("X-1000000.0"), (ParseErrorKind::NumberOutOfRange, 1));
-        assert_eq!(fails("G1 F99999999999999999999999"), (ParseErrorKind::NumberOutOfRange, 4));
+        assert_eq!(
+            fails("G1 F99999999999999999999999"),
+            (ParseErrorKind::NumberOutOfRange, 4)
+        );
         assert_eq!(fails("X1.234567891"), (ParseErrorKind::NumberOutOfRange, 1));
-        assert_eq!(fails("X0.0000000001234567891"), (ParseErrorKind::NumberOutOfRange, 1));
-        assert_eq!(x("X999999.999"), 1_000_000.0, "9 digits round to the nearest f32");
+        assert_eq!(
+            fails("X0.0000000001234567891"),
+            (ParseErrorKind::NumberOutOfRange, 1)
+        );
+        assert_eq!(
+            x("X999999.999"),
+            1_000_000.0,
+            "9 digits round to the nearest f32"
+        );
         // Beyond 7 digits the mantissa itself rounds: within one ulp.
         let v = x("X-123.456789");
-        assert!((v - -123.456789f32).abs() <= 8e-6, "{v}");
+        let nearest: f32 = "-123.456789".parse().unwrap();
+        assert!((v - nearest).abs() <= 8e-6, "{v} vs {nearest}");
         assert_eq!(fails("G1234567"), (ParseErrorKind::NumberOutOfRange, 1));
     }
 
@@ -1116,7 +1165,10 @@ mod tests {
         assert_eq!(l.text(src), Some(&b"job.nc"[..]));
         assert_eq!(ok("M30").text_arg, None);
         assert_eq!(fails("M23"), (ParseErrorKind::MissingFileName, 1));
-        assert_eq!(fails("G4 P1 M28   ; nothing"), (ParseErrorKind::MissingFileName, 7));
+        assert_eq!(
+            fails("G4 P1 M28   ; nothing"),
+            (ParseErrorKind::MissingFileName, 7)
+        );
     }
 
     #[test]
@@ -1210,11 +1262,17 @@ mod tests {
         let mut rng = XorShift(0xdead_beef);
         for _ in 0..50_000 {
             let len = (rng.next() % 40) as usize;
-            let s: Vec<u8> = (0..len).map(|_| alphabet[rng.next() as usize % alphabet.len()]).collect();
+            let s: Vec<u8> = (0..len)
+                .map(|_| alphabet[rng.next() as usize % alphabet.len()])
+                .collect();
             match parse(&s) {
                 Ok(l) => {
                     for (_, v) in l.words.iter() {
-                        assert!(v.is_finite() && v.abs() <= 1e6, "{:?}", String::from_utf8_lossy(&s));
+                        assert!(
+                            v.is_finite() && v.abs() <= 1e6,
+                            "{:?}",
+                            String::from_utf8_lossy(&s)
+                        );
                     }
                 }
                 Err(e) => assert!(e.col >= 1 && e.col as usize <= s.len().max(1)),
