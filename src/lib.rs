@@ -17,6 +17,7 @@ pub mod atc;
 pub mod config;
 pub mod fixed;
 pub mod gcode;
+pub mod machine;
 pub mod math;
 pub mod planner;
 pub mod protocol;

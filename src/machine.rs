@@ -171,6 +171,10 @@ pub struct Machine {
     holding: bool,
     /// Milliseconds of the last `busy:processing`.
     last_busy_ms: u32,
+    /// Realtime events of the last poll (trip flags persist until cleared).
+    last_rt: Realtime,
+    /// The host numbers its lines (so dropped lines get `Resend:`).
+    numbered: bool,
 }
 
 impl Machine {
@@ -188,10 +192,22 @@ impl Machine {
             homed: 0,
             holding: false,
             last_busy_ms: 0,
+            last_rt: Realtime {
+                status: false,
+                hold: false,
+                resume: false,
+                estop: false,
+                limit: false,
+                home_tripped: false,
+                probe_tripped: false,
+                rx_overrun: false,
+            },
+            numbered: false,
         }
     }
 
     /// Start-up: load settings, print the banner and the reset reason.
+    #[inline(never)]
     pub fn boot(&mut self, io: &mut impl Io, reset_cause: &str) {
         let mut img = [0u8; Settings::IMAGE_LEN];
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
@@ -224,6 +240,7 @@ impl Machine {
     }
 
     /// Feed one received byte; runs complete lines.
+    #[inline(never)]
     pub fn push_byte(&mut self, b: u8, io: &mut impl Io) {
         match self.asm.push(b) {
             None => {}
@@ -248,13 +265,15 @@ impl Machine {
     }
 
     fn resend(&self, io: &mut impl Io) {
-        if self.chk.numbered() {
+        if self.numbered {
             uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
         }
     }
 
     /// Check N/* and run one line; always ends with exactly one `ok`.
+    #[inline(never)]
     fn run_raw_line(&mut self, raw: &[u8], io: &mut impl Io) {
+        self.numbered = matches!(raw.first(), Some(b'N' | b'n'));
         match self.chk.check(raw) {
             Err(e) => {
                 uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.resend_line() - 1).ok();
@@ -288,6 +307,7 @@ impl Machine {
     }
 
     /// Parse and run one command line (without N and checksum).
+    #[inline(never)]
     pub fn execute(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
         let line = crate::gcode::parse(text).map_err(interp::Error::Parse)?;
         interp::execute(self, &line, text, io)
@@ -297,6 +317,7 @@ impl Machine {
 
     /// Queue a straight move to `target` (absolute steps). Waits for planner
     /// space while serving realtime requests.
+    #[inline(never)]
     pub fn queue_line(&mut self, io: &mut impl Io, target: [i32; N_AXES], feed_mm_per_min: f32, rapid: bool) -> CmdResult {
         if self.alarm.is_some() {
             return Err(interp::Error::Alarm);
@@ -363,9 +384,11 @@ impl Machine {
     }
 
     /// Main-loop housekeeping: segments, realtime requests, state.
+    #[inline(never)]
     pub fn idle(&mut self, io: &mut impl Io) {
         self.fill_segments(io);
         let rt = io.poll();
+        self.last_rt = rt;
         if rt.estop && self.alarm != Some(Alarm::EmergencyStop) {
             self.raise(io, Alarm::EmergencyStop);
         }
@@ -402,6 +425,7 @@ impl Machine {
     }
 
     /// Enter the alarm state: stop steps, spindle off, forget the queue.
+    #[inline(never)]
     pub fn raise(&mut self, io: &mut impl Io, alarm: Alarm) {
         io.stop_motion();
         io.spindle(0);
@@ -439,6 +463,7 @@ impl Machine {
     }
 
     /// `?`: one grbl 1.1 status line.
+    #[inline(never)]
     pub fn status_report(&mut self, io: &mut impl Io) {
         let st = io.stepper();
         uwrite!(io, "<{}|MPos:", self.state.name()).ok();
@@ -490,4 +515,138 @@ impl Machine {
             None => false,
         }
     }
+
+    /// Wait until the queued motion ends or the ISR latched a trip
+    /// (homing switch or probe). Returns true if it tripped.
+    pub fn wait_motion_or_trip(&mut self, io: &mut impl Io) -> Result<bool, interp::Error> {
+        loop {
+            self.keepalive(io);
+            self.wait_step(io)?;
+            if self.last_rt.home_tripped || self.last_rt.probe_tripped {
+                return Ok(true);
+            }
+            if self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy {
+                return Ok(false);
+            }
+        }
+    }
+
+    /// After the ISR stopped on a trip (or a finished move): drop whatever is
+    /// left of the queue and take the stepper's position as the truth.
+    pub fn resync_after_stop(&mut self, io: &mut impl Io) {
+        io.stop_motion();
+        self.planner.clear();
+        self.prep.reset();
+        io.clear_stop();
+        self.last_rt.home_tripped = false;
+        self.last_rt.probe_tripped = false;
+        let p = io.stepper().position;
+        self.planner.set_position(p);
+        self.interp.sync_position(&self.settings, p);
+    }
+
+    /// M0/M1: wait for `~` (resume).
+    pub fn pause_until_resume(&mut self, io: &mut impl Io) -> CmdResult {
+        let prev = self.state;
+        self.state = State::Hold;
+        loop {
+            self.keepalive(io);
+            self.fill_segments(io);
+            let rt = io.poll();
+            self.last_rt = rt;
+            if rt.estop {
+                self.raise(io, Alarm::EmergencyStop);
+                return Err(interp::Error::Alarm);
+            }
+            if rt.status {
+                self.status_report(io);
+            }
+            if rt.resume {
+                self.state = prev;
+                return Ok(());
+            }
+        }
+    }
+
+    /// One homing seek on `axis` toward its switch by up to `dist_mm`.
+    /// Returns true when the switch tripped; the axis position is then 0 at
+    /// the trip step (SPEC §6: Marlin's convention).
+    fn home_seek(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> Result<bool, interp::Error> {
+        self.apply_watch(io, 1 << axis, false);
+        let mut target = io.stepper().position;
+        target[axis] -= crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
+        let r = self.queue_line(io, target, feed, false).and_then(|_| self.wait_motion_or_trip(io));
+        self.apply_watch(io, 0, false);
+        let tripped = r?;
+        if tripped {
+            let trip = io.stepper().trip_position;
+            let mut now = io.stepper().position;
+            now[axis] -= trip[axis];
+            io.set_stepper_position(now);
+        }
+        self.resync_after_stop(io);
+        Ok(tripped)
+    }
+
+    /// Move `axis` away from its switch by `dist_mm` (no switch watching).
+    fn home_pulloff(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> CmdResult {
+        let mut target = io.stepper().position;
+        target[axis] += crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
+        self.queue_line(io, target, feed, false)?;
+        self.wait_idle(io)
+    }
+
+    fn home_fail(&mut self, io: &mut impl Io) -> CmdResult {
+        self.raise(io, Alarm::HomingFailed);
+        Err(interp::Error::HomingFailed)
+    }
+}
+
+/// G28: home the axes in `mask` in the order Z, Y, X: fast seek, back off,
+/// slow seek, back off. Position 0 is where the switch trips on the slow
+/// approach; the final back-off is counted (position = pull-off distance).
+#[inline(never)]
+pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
+    m.wait_idle(io)?;
+    if m.alarm.is_some() {
+        // Homing is the way out of an alarm (except M112, checked by the caller).
+        m.clear_alarm(io);
+    }
+    io.drivers(true);
+    let prev = m.state;
+    m.state = State::Home;
+    let s = m.settings;
+    for axis in [2usize, 1, 0] {
+        if mask & (1 << axis) == 0 {
+            continue;
+        }
+        m.homed &= !(1 << axis);
+        let pulloff = s.homing_pulloff_mm.max(0.1);
+        if io.switches().home & (1 << axis) != 0 {
+            // Starting on the switch: move off it first.
+            m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
+            if io.switches().home & (1 << axis) != 0 {
+                return m.home_fail(io);
+            }
+        }
+        let travel = s.travel_mm[axis] * 1.1;
+        if !m.home_seek(io, axis, travel, s.homing_seek_mm_per_min)? {
+            return m.home_fail(io);
+        }
+        m.home_pulloff(io, axis, pulloff, s.homing_seek_mm_per_min)?;
+        if !m.home_seek(io, axis, pulloff * 2.0, s.homing_feed_mm_per_min)? {
+            return m.home_fail(io);
+        }
+        m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
+        m.homed |= 1 << axis;
+    }
+    m.state = if prev == State::Alarm { State::Idle } else { prev };
+    if m.state == State::Home {
+        m.state = State::Idle;
+    }
+    m.apply_watch(io, 0, false);
+    let p = io.stepper().position;
+    m.planner.set_position(p);
+    m.interp.sync_position(&m.settings, p);
+    Ok(())
 }

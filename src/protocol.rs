@@ -313,20 +313,23 @@ fn parse_i32(s: &[u8]) -> Option<(i32, usize)> {
         _ => false,
     };
     let start = i;
-    // Accumulate negatively so that i32::MIN parses too.
+    // At most 9 digits, so the value fits an i32 without overflow checks
+    // (i32::checked_mul hung on AVR through compiler-builtins' __mulosi4).
     let mut v: i32 = 0;
     while let Some(&d) = s.get(i) {
         if !d.is_ascii_digit() {
             break;
         }
-        v = v.checked_mul(10)?.checked_sub((d - b'0') as i32)?;
+        if i - start >= 9 {
+            return None;
+        }
+        v = v * 10 + (d - b'0') as i32;
         i += 1;
     }
     if i == start {
         return None;
     }
-    let v = if negative { v } else { v.checked_neg()? };
-    Some((v, i))
+    Some((if negative { -v } else { v }, i))
 }
 
 /// The checksum after `*`: decimal 0..=255, blanks around it allowed.

@@ -96,7 +96,7 @@ pub fn millis() -> u32 {
     avr_device::interrupt::free(|cs| MILLIS.borrow(cs).get())
 }
 
-/// 1 kHz tick: the millisecond clock. About 40 cycles.
+// 1 kHz tick: the millisecond clock. About 40 cycles.
 #[avr_device::interrupt(atmega2560)]
 fn TIMER0_COMPA() {
     avr_device::interrupt::free(|cs| {

@@ -137,7 +137,7 @@ impl ufmt::uWrite for Writer {
     }
 }
 
-/// RX complete. Measured with the realtime scan: see README "ISR budgets".
+// RX complete. Measured with the realtime scan: see README "ISR budgets".
 #[avr_device::interrupt(atmega2560)]
 fn USART0_RX() {
     // SAFETY: the ISR is the only user of USART0's data register for reading.
@@ -167,7 +167,7 @@ fn USART0_RX() {
     };
 }
 
-/// TX data register empty: send the next byte or switch the interrupt off.
+// TX data register empty: send the next byte or switch the interrupt off.
 #[avr_device::interrupt(atmega2560)]
 fn USART0_UDRE() {
     // SAFETY: the TX consumer is only used by this ISR; UCSR0B is modified
@@ -175,8 +175,12 @@ fn USART0_UDRE() {
     unsafe {
         let u = &*USART0::ptr();
         match (*addr_of_mut!(TX_CONS)).as_mut().and_then(|c| c.dequeue()) {
-            Some(b) => u.udr0().write(|w| w.bits(b)),
-            None => u.ucsr0b().modify(|_, w| w.udrie0().clear_bit()),
+            Some(b) => {
+                u.udr0().write(|w| w.bits(b));
+            }
+            None => {
+                u.ucsr0b().modify(|_, w| w.udrie0().clear_bit());
+            }
         }
     }
 }

@@ -78,6 +78,8 @@ struct State {
     pending: u8,
     /// Direction bits of the running block (bit i = axis i negative).
     block_dir: u8,
+    /// Count steps into `position` (false for backlash take-up blocks).
+    counting: bool,
     /// Direction pin levels currently driven (bit i = axis i pin high).
     dir_pins: u8,
     /// Machine position in steps.
@@ -96,6 +98,7 @@ static mut ST: State = State {
     ticks_left: 0,
     pending: 0,
     block_dir: 0,
+    counting: true,
     dir_pins: 0,
     position: [0; 4],
     trip_position: [0; 4],
@@ -201,8 +204,12 @@ fn set_period(period: u16, prescale: Prescale, st: &mut State) {
     if prescale != st.prescale {
         st.prescale = prescale;
         match prescale {
-            Prescale::Div1 => tc1.tccr1b().write(|w| w.wgm1().set(0b01).cs1().direct()),
-            Prescale::Div8 => tc1.tccr1b().write(|w| w.wgm1().set(0b01).cs1().prescale_8()),
+            Prescale::Div1 => {
+                tc1.tccr1b().write(|w| w.wgm1().set(0b01).cs1().direct());
+            }
+            Prescale::Div8 => {
+                tc1.tccr1b().write(|w| w.wgm1().set(0b01).cs1().prescale_8());
+            }
         }
     }
 }
@@ -251,21 +258,22 @@ fn check_switches(st: &mut State, bits: u8) -> bool {
     false
 }
 
-/// One step event. See the module doc for the order of operations.
+// One step event. See the module doc for the order of operations.
 #[avr_device::interrupt(atmega2560)]
 fn TIMER1_COMPA() {
     // SAFETY: the ISR has exclusive use of ST while it runs (no nesting);
     // the main loop only touches ST inside critical sections.
     let st = unsafe { &mut *addr_of_mut!(ST) };
 
-    // 1. Rising edges of the event computed last time.
-    let out = st.pending;
+    // 1. Rising edges of the event computed last time (none once stopped:
+    //    an e-stop may have disabled the drivers since it was computed).
+    let mut stop = MOTION.load(Ordering::Acquire) & motion::STOP != 0;
+    let out = if stop { 0 } else { st.pending };
     let (f, l, a) = pins::port_bits(out);
     toggle(f, l, a);
 
     // 2. Count the steps, then check switches.
-    let mut stop = MOTION.load(Ordering::Acquire) & motion::STOP != 0;
-    if out != 0 {
+    if out != 0 && st.counting {
         let dir = st.block_dir;
         for i in 0..4 {
             if out & (1 << i) != 0 {
@@ -297,6 +305,7 @@ fn TIMER1_COMPA() {
                     Some(StepperCmd::Block(b)) => {
                         st.bres.load(&b);
                         st.block_dir = b.direction_bits;
+                        st.counting = !b.take_up;
                     }
                     Some(StepperCmd::Run(s)) => {
                         st.ticks_left = s.ticks;

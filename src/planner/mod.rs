@@ -50,11 +50,13 @@ use crate::stepper::MIN_STEP_RATE_HZ;
 use crate::N_AXES;
 use core::mem::size_of;
 
-/// Blocks in the ring. RAM: 32 × 48 B = 1536 B (host layout; 46 B per block on
-/// AVR, 1472 B). grbl-Mega keeps 36, Marlin and Repetier 16 (SPEC §11). 32 blocks
-/// of 0.1 mm hold 3.2 mm of look-ahead, more than the 1.25 mm needed to stop from
-/// 50 mm/s at 1000 mm/s², so a stream of short moves runs at full feed.
-pub const BLOCK_BUFFER_LEN: usize = 32;
+/// Blocks in the ring. RAM: 16 × 48 B = 768 B (host layout; 46 B per block on
+/// AVR, 736 B). grbl-Mega keeps 36, Marlin and Repetier 16 (SPEC §11). 16 blocks
+/// of 0.1 mm hold 1.6 mm of look-ahead, more than the 1.25 mm needed to stop from
+/// 50 mm/s at 1000 mm/s², so a stream of short moves can still run at full feed.
+/// 32 blocks overflowed the stack: every string literal is copied to RAM on AVR
+/// (about 3.5 KB here), which leaves too little room; see README "RAM".
+pub const BLOCK_BUFFER_LEN: usize = 16;
 
 /// RAM budget of the whole planner (ring + state), bytes.
 pub const PLANNER_RAM_BUDGET: usize = 1700;

@@ -1,0 +1,827 @@
+//! G-code interpreter (SPEC §5): modal state and the meaning of each code.
+//!
+//! Sits between [`super::parse`] and the planner. It owns the modal state
+//! (units, distance mode, plane, work offsets, tool length offset, feed) and
+//! the commanded position in machine millimetres, turns each parsed [`Line`]
+//! into planner moves (absolute integer step targets, rounded from absolute
+//! mm so rounding never accumulates) and runs the M-codes.
+//!
+//! A line is validated completely before anything on it runs: a bad word,
+//! a missing feed or a target outside travel returns an [`Error`] and leaves
+//! the machine exactly as it was.
+
+use super::{Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
+use crate::config::{Settings, N_WCS};
+use crate::fixed::Micros;
+use crate::machine::{Alarm, Io, Machine, State};
+use crate::math::round_i32;
+use crate::planner::arc::{self, ArcError};
+use crate::N_AXES;
+use ufmt::{uwrite, uwriteln};
+
+/// Millimetres per inch.
+const MM_PER_INCH: f32 = 25.4;
+/// Number of tool table entries, T0..T12.
+pub const N_TOOLS: usize = 13;
+
+/// Interpreter errors, printed as `Error:<message>`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Error {
+    /// The line did not parse.
+    Parse(super::ParseError),
+    /// The machine is in alarm; motion refused.
+    Alarm,
+    /// Feed rate missing, zero or negative.
+    BadFeed,
+    /// A target outside the travel (soft limits).
+    SoftLimit,
+    /// M4: the DC spindle turns one way only.
+    SpindleCcw,
+    /// Arc with no solution or inconsistent centre.
+    Arc(ArcError),
+    /// A word needed by the code is missing or out of range.
+    BadWord(&'static str),
+    /// A code this build does not provide yet.
+    NotAvailable(&'static str),
+    /// Homing failed (alarm raised).
+    HomingFailed,
+    /// G38.2 did not trip.
+    ProbeFailed,
+    /// The probe input was already triggered at the start.
+    ProbeAlreadyTriggered,
+}
+
+impl Error {
+    /// Text printed after `Error:`.
+    pub fn message(&self) -> &'static str {
+        match self {
+            Error::Parse(p) => p.kind.message(),
+            Error::Alarm => "alarm",
+            Error::BadFeed => "feed rate missing or not positive (F)",
+            Error::SoftLimit => "target outside travel (soft limit), nothing moved",
+            Error::SpindleCcw => "M4 not supported: the spindle turns one way only",
+            Error::Arc(e) => e.message(),
+            Error::BadWord(m) => m,
+            Error::NotAvailable(m) => m,
+            Error::HomingFailed => "homing failed: switch not found",
+            Error::ProbeFailed => "probe failed: input did not trip",
+            Error::ProbeAlreadyTriggered => "probe input already triggered, nothing moved",
+        }
+    }
+}
+
+/// Tool table entry (G10 L1).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ToolEntry {
+    /// Tool length, mm.
+    pub length_mm: f32,
+    /// Tool radius, mm.
+    pub radius_mm: f32,
+}
+
+/// Modal state and commanded position.
+pub struct Interp {
+    /// G20 active.
+    pub inches: bool,
+    /// G91 active.
+    pub incremental: bool,
+    /// Arc plane.
+    pub plane: Plane,
+    /// Modal motion (G0/G1/G2/G3/G80).
+    pub motion: Motion,
+    /// Programmed feed, mm/min (0 = none yet).
+    pub feed_mm_per_min: f32,
+    /// Feed override, percent (M220).
+    pub feed_override_pct: u16,
+    /// Spindle speed, rpm (S), and whether it is on.
+    pub spindle_rpm: f32,
+    pub spindle_on: bool,
+    /// Active work coordinate system, 0 = G54.
+    pub wcs: u8,
+    /// Work offsets G54..G59, machine mm.
+    pub wcs_mm: [[f32; 3]; N_WCS],
+    /// G92 offset, mm.
+    pub g92_mm: [f32; 3],
+    /// Tool length offset applied to Z, mm.
+    pub tlo_mm: f32,
+    /// Tool in the spindle (0 = none).
+    pub tool: u8,
+    /// Tool table T0..T12.
+    pub tools: [ToolEntry; N_TOOLS],
+    /// Commanded position, machine mm (E in carousel units).
+    pub pos_mm: [f32; N_AXES],
+}
+
+impl Interp {
+    /// Power-up modal state: G21 G90 G17 G54 G49 G80, feed unset.
+    pub const fn new() -> Interp {
+        Interp {
+            inches: false,
+            incremental: false,
+            plane: Plane::Xy,
+            motion: Motion::Cancel,
+            feed_mm_per_min: 0.0,
+            feed_override_pct: 100,
+            spindle_rpm: 0.0,
+            spindle_on: false,
+            wcs: 0,
+            wcs_mm: [[0.0; 3]; N_WCS],
+            g92_mm: [0.0; 3],
+            tlo_mm: 0.0,
+            tool: 0,
+            tools: [ToolEntry { length_mm: 0.0, radius_mm: 0.0 }; N_TOOLS],
+            pos_mm: [0.0; N_AXES],
+        }
+    }
+
+    /// Take the persistent parts (work offsets) from the settings.
+    pub fn load_settings(&mut self, s: &Settings) {
+        self.wcs_mm = s.wcs_mm;
+    }
+
+    /// Put the persistent parts back into the settings (before M500).
+    pub fn store_settings(&self, s: &mut Settings) {
+        s.wcs_mm = self.wcs_mm;
+    }
+
+    /// Reset the commanded position to where the steppers are.
+    pub fn sync_position(&mut self, s: &Settings, steps: [i32; N_AXES]) {
+        for a in 0..N_AXES {
+            self.pos_mm[a] = steps[a] as f32 / s.steps_per_mm[a];
+        }
+    }
+
+    /// Sum of the offsets between machine and work coordinates, per axis.
+    fn offset(&self, axis: usize) -> f32 {
+        let tlo = if axis == 2 { self.tlo_mm } else { 0.0 };
+        self.wcs_mm[self.wcs as usize][axis] + self.g92_mm[axis] + tlo
+    }
+
+    /// Machine mm → work mm (X, Y, Z; E unchanged).
+    pub fn machine_to_work(&self, m: [f32; N_AXES]) -> [f32; N_AXES] {
+        let mut w = m;
+        for a in 0..3 {
+            w[a] = m[a] - self.offset(a);
+        }
+        w
+    }
+
+    /// Programmed feed with override, and spindle rpm (0 when off).
+    pub fn feed_and_speed(&self) -> (f32, f32) {
+        let rpm = if self.spindle_on { self.spindle_rpm } else { 0.0 };
+        (self.feed_mm_per_min * self.feed_override_pct as f32 / 100.0, rpm)
+    }
+}
+
+impl Default for Interp {
+    fn default() -> Self {
+        Interp::new()
+    }
+}
+
+const AXIS_WORDS: [Word; 3] = [Word::X, Word::Y, Word::Z];
+
+/// True when a line carries any of X, Y, Z.
+fn has_axis_words(l: &Line) -> bool {
+    AXIS_WORDS.iter().any(|&w| l.word(w).is_some())
+}
+
+/// Execute one parsed line (RS274/NGC order of execution).
+#[inline(never)]
+pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
+    // Commands that work in any state first.
+    if let Some(code) = l.other_m {
+        match code {
+            115 => {
+                m.firmware_line(io);
+                return Ok(());
+            }
+            114 => {
+                report_position(m, io);
+                return Ok(());
+            }
+            119 => {
+                report_switches(m, io);
+                return Ok(());
+            }
+            503 => {
+                report_settings(m, io);
+                return Ok(());
+            }
+            999 => {
+                m.clear_alarm(io);
+                uwriteln!(io, "echo:alarm cleared; position unknown until homed (G28)").ok();
+                return Ok(());
+            }
+            110 => return Ok(()), // handled by the line checker
+            112 => {
+                m.raise(io, Alarm::EmergencyStop);
+                return Ok(());
+            }
+            _ => {}
+        }
+    }
+    let moves = l.motion.is_some()
+        || has_axis_words(l)
+        || l.non_modal.is_some()
+        || l.spindle == Some(Spindle::Cw)
+        || l.tool_change
+        || l.words.contains(Word::T)
+        || l.other_m.is_some()
+        || l.stopping.is_some();
+    if m.alarm.is_some() && moves {
+        let homing_allowed = l.non_modal == Some(NonModal::Home) && m.alarm != Some(Alarm::EmergencyStop);
+        let harmless = matches!(l.other_m, Some(500..=502) | Some(17) | Some(18) | Some(84)) || l.spindle == Some(Spindle::Off);
+        if !homing_allowed && !harmless {
+            return Err(Error::Alarm);
+        }
+    }
+
+    // ---- Validate everything before changing anything -----------------
+    if l.spindle == Some(Spindle::Ccw) {
+        return Err(Error::SpindleCcw);
+    }
+    if l.tool_change || l.words.contains(Word::T) {
+        return Err(Error::NotAvailable("tool changer (T/M6) not available in this build"));
+    }
+    if let Some(nm) = l.non_modal {
+        match nm {
+            NonModal::MeasureTool => return Err(Error::NotAvailable("G37 tool setter not available in this build")),
+            NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxReport | NonModal::AuxEnable | NonModal::AuxHome => {
+                return Err(Error::NotAvailable("G201-G205 carousel commands not available in this build"))
+            }
+            _ => {}
+        }
+    }
+    if let Some(code) = l.other_m {
+        if (20..=29).contains(&code) {
+            return Err(Error::NotAvailable("SD card not available in this build"));
+        }
+    }
+    if let Some(f) = l.word(Word::F) {
+        if !(f > 0.0) {
+            return Err(Error::BadFeed);
+        }
+    }
+    if let Some(s) = l.word(Word::S) {
+        if s < 0.0 && l.non_modal != Some(NonModal::Dwell) {
+            return Err(Error::BadWord("S must not be negative"));
+        }
+    }
+
+    // Work on a copy of the modal state; commit only when the line is valid.
+    let mut g = ModalCopy::from(&m.interp);
+    if let Some(u) = l.units {
+        g.inches = u == Units::Inch;
+    }
+    if let Some(d) = l.distance {
+        g.incremental = d == Distance::Incremental;
+    }
+    if let Some(p) = l.plane {
+        g.plane = p;
+    }
+    if let Some(w) = l.wcs {
+        g.wcs = w;
+    }
+    if let Some(f) = l.word(Word::F) {
+        g.feed = if g.inches { f * MM_PER_INCH } else { f };
+    }
+    if let Some(mo) = l.motion {
+        g.motion = mo;
+    }
+    if let Some(tl) = l.tool_length {
+        g.tlo = match tl {
+            ToolLength::Cancel => 0.0,
+            ToolLength::Apply => {
+                let t = match l.word(Word::H) {
+                    Some(h) => tool_index(h).ok_or(Error::BadWord("H must be a tool number 0-12"))?,
+                    None => m.interp.tool as usize,
+                };
+                m.interp.tools[t].length_mm
+            }
+        };
+    }
+
+    // ---- Non-modal codes that do not move ------------------------------
+    match l.non_modal {
+        Some(NonModal::Dwell) => {
+            let ms = match (l.word(Word::P), l.word(Word::S)) {
+                (Some(p), None) if p >= 0.0 => p,
+                (None, Some(s)) if s >= 0.0 => s * 1000.0,
+                _ => return Err(Error::BadWord("G4 needs one of P<ms> or S<s>, not negative")),
+            };
+            g.commit(&mut m.interp);
+            m.wait_idle(io)?;
+            let start = io.millis();
+            while (io.millis().wrapping_sub(start) as f32) < ms {
+                m.keepalive(io);
+                m.wait_step(io)?;
+            }
+            return Ok(());
+        }
+        Some(NonModal::SetOffsets) => {
+            set_offsets(m, &g, l, io)?;
+            g.commit(&mut m.interp);
+            return Ok(());
+        }
+        Some(NonModal::SetPosition) => {
+            let mut off = m.interp.g92_mm;
+            for (a, &w) in AXIS_WORDS.iter().enumerate() {
+                if let Some(v) = l.word(w) {
+                    let v = if g.inches { v * MM_PER_INCH } else { v };
+                    // work = machine - wcs - g92 - tlo  =>  g92 = machine - wcs - tlo - v
+                    let tlo = if a == 2 { g.tlo } else { 0.0 };
+                    off[a] = m.interp.pos_mm[a] - m.interp.wcs_mm[g.wcs as usize][a] - tlo - v;
+                }
+            }
+            g.commit(&mut m.interp);
+            m.interp.g92_mm = off;
+            return Ok(());
+        }
+        Some(NonModal::Home) => {
+            g.commit(&mut m.interp);
+            let mut mask = 0u8;
+            for (a, &w) in AXIS_WORDS.iter().enumerate() {
+                if l.word(w).is_some() {
+                    mask |= 1 << a;
+                }
+            }
+            if mask == 0 {
+                mask = 0b111;
+            }
+            return crate::machine::home(m, io, mask);
+        }
+        _ => {}
+    }
+
+    // ---- Motion -------------------------------------------------------------
+    let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
+    let mut target = m.interp.pos_mm;
+    let any_axis = has_axis_words(l);
+    for (a, &w) in AXIS_WORDS.iter().enumerate() {
+        if let Some(v) = l.word(w) {
+            let v = if g.inches { v * MM_PER_INCH } else { v };
+            target[a] = if machine_coords {
+                v
+            } else if g.incremental {
+                m.interp.pos_mm[a] + v
+            } else {
+                let tlo = if a == 2 { g.tlo } else { 0.0 };
+                v + m.interp.wcs_mm[g.wcs as usize][a] + g.g92[a] + tlo
+            };
+        }
+    }
+    let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
+    let mut do_motion = None;
+    if any_axis || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
+        match motion {
+            Motion::Cancel => return Err(Error::BadWord("axis words without a motion mode (G80 active)")),
+            Motion::Rapid => {}
+            _ => {
+                if !(g.feed > 0.0) {
+                    return Err(Error::BadFeed);
+                }
+            }
+        }
+        check_soft_limits(m, &target)?;
+        do_motion = Some(motion);
+    }
+    // Arcs: compute the chord plan before committing anything.
+    let mut arc_plan = None;
+    if let Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) = do_motion {
+        let (a0, a1, a2) = match g.plane {
+            Plane::Xy => (0, 1, 2),
+            Plane::Zx => (2, 0, 1),
+            Plane::Yz => (1, 2, 0),
+        };
+        let off_words = [Word::I, Word::J, Word::K];
+        let r = l.word(Word::R).map(|r| if g.inches { r * MM_PER_INCH } else { r });
+        let mut centre_off = [0.0f32; 3];
+        let mut any_off = false;
+        for (a, &w) in off_words.iter().enumerate() {
+            if let Some(v) = l.word(w) {
+                centre_off[a] = if g.inches { v * MM_PER_INCH } else { v };
+                any_off = true;
+            }
+        }
+        let start = [m.interp.pos_mm[0], m.interp.pos_mm[1], m.interp.pos_mm[2]];
+        let end = [target[0], target[1], target[2]];
+        let spec = match (r, any_off) {
+            (Some(r), false) => arc::Centre::Radius(r),
+            (None, true) => arc::Centre::Offset(centre_off),
+            (Some(_), true) => return Err(Error::BadWord("arc: give R or I/J/K, not both")),
+            (None, false) => return Err(Error::BadWord("arc needs R or I/J/K")),
+        };
+        let plan = arc::Arc::new(start, end, spec, (a0, a1, a2), mo == Motion::ArcCw, m.settings.arc_tolerance_mm)
+            .map_err(Error::Arc)?;
+        // Every chord end stays inside the arc's bounding box; check it.
+        let (lo, hi) = plan.bounds();
+        let mut lo4 = m.interp.pos_mm;
+        let mut hi4 = m.interp.pos_mm;
+        lo4[..3].copy_from_slice(&lo);
+        hi4[..3].copy_from_slice(&hi);
+        check_soft_limits(m, &lo4)?;
+        check_soft_limits(m, &hi4)?;
+        arc_plan = Some(plan);
+    }
+
+    // ---- Commit modal state, then act -------------------------------------
+    g.commit(&mut m.interp);
+    if let Some(s) = l.word(Word::S) {
+        m.interp.spindle_rpm = s;
+    }
+    match l.spindle {
+        Some(Spindle::Cw) => {
+            m.wait_idle(io)?;
+            m.interp.spindle_on = true;
+            io.spindle(spindle_duty(&m.settings, m.interp.spindle_rpm));
+        }
+        Some(Spindle::Off) => {
+            m.wait_idle(io)?;
+            m.interp.spindle_on = false;
+            io.spindle(0);
+        }
+        _ => {
+            if l.word(Word::S).is_some() && m.interp.spindle_on {
+                m.wait_idle(io)?;
+                io.spindle(spindle_duty(&m.settings, m.interp.spindle_rpm));
+            }
+        }
+    }
+
+    if let Some(mo) = do_motion {
+        let rapid = mo == Motion::Rapid;
+        let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 / 100.0;
+        match mo {
+            Motion::ArcCw | Motion::ArcCcw => {
+                if let Some(mut plan) = arc_plan {
+                    while let Some(p) = plan.next() {
+                        let mut t = target;
+                        t[..3].copy_from_slice(&p);
+                        move_to(m, io, t, feed, false)?;
+                    }
+                }
+                move_to(m, io, target, feed, false)?;
+            }
+            Motion::ProbeToward | Motion::ProbeTowardNoError => {
+                probe(m, io, target, feed, mo == Motion::ProbeToward)?;
+            }
+            _ => move_to(m, io, target, feed, rapid)?,
+        }
+    }
+
+    // ---- Other M codes and program stops ----------------------------------
+    if let Some(code) = l.other_m {
+        other_m(m, l, code, text, io)?;
+    }
+    match l.stopping {
+        Some(Stopping::End | Stopping::EndRewind) => {
+            m.wait_idle(io)?;
+            m.interp.spindle_on = false;
+            io.spindle(0);
+            uwriteln!(io, "echo:program end").ok();
+        }
+        Some(Stopping::Pause | Stopping::OptionalPause) => {
+            m.wait_idle(io)?;
+            uwriteln!(io, "echo:paused, send ~ to resume").ok();
+            m.pause_until_resume(io)?;
+        }
+        None => {}
+    }
+    Ok(())
+}
+
+/// Queue a move to `target` machine mm; updates the commanded position.
+#[inline(never)]
+pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, rapid: bool) -> Result<(), Error> {
+    let steps = to_steps(&m.settings, &target);
+    m.queue_line(io, steps, feed, rapid)?;
+    m.interp.pos_mm = target;
+    Ok(())
+}
+
+/// Absolute mm → absolute steps, rounded per axis (no accumulated error).
+pub fn to_steps(s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+    let mut st = [0i32; N_AXES];
+    for a in 0..N_AXES {
+        st[a] = round_i32(mm[a] * s.steps_per_mm[a]);
+    }
+    st
+}
+
+fn check_soft_limits(m: &Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
+    if !m.settings.soft_limits {
+        return Ok(());
+    }
+    for a in 0..3 {
+        // Half a step of slack for rounding.
+        let eps = 0.5 / m.settings.steps_per_mm[a];
+        if !(t[a] >= -eps && t[a] <= m.settings.travel_mm[a] + eps) {
+            return Err(Error::SoftLimit);
+        }
+    }
+    Ok(())
+}
+
+fn spindle_duty(s: &Settings, rpm: f32) -> u8 {
+    let d = rpm / s.spindle_max_rpm * 255.0;
+    if d <= 0.0 {
+        0
+    } else if d >= 255.0 {
+        255
+    } else {
+        let v = round_i32(d) as u8;
+        v.max(1)
+    }
+}
+
+fn tool_index(v: f32) -> Option<usize> {
+    let t = round_i32(v);
+    if (t as f32 - v) != 0.0 || !(0..N_TOOLS as i32).contains(&t) {
+        None
+    } else {
+        Some(t as usize)
+    }
+}
+
+/// G10 L1 / L2 / L20.
+#[inline(never)]
+fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
+    let lv = l.word(Word::L).ok_or(Error::BadWord("G10 needs L1, L2 or L20"))?;
+    let p = l.word(Word::P).ok_or(Error::BadWord("G10 needs P"))?;
+    let conv = |v: f32| if g.inches { v * MM_PER_INCH } else { v };
+    match round_i32(lv) {
+        1 if lv == 1.0 => {
+            let t = tool_index(p).ok_or(Error::BadWord("G10 L1: P must be a tool number 0-12"))?;
+            if t == 0 {
+                return Err(Error::BadWord("G10 L1: P must be a tool number 1-12"));
+            }
+            if let Some(z) = l.word(Word::Z) {
+                m.interp.tools[t].length_mm = conv(z);
+            }
+            if let Some(r) = l.word(Word::R) {
+                if r < 0.0 {
+                    return Err(Error::BadWord("G10 L1: R must not be negative"));
+                }
+                m.interp.tools[t].radius_mm = conv(r);
+            }
+            Ok(())
+        }
+        n @ (2 | 20) if lv == n as f32 => {
+            let idx = round_i32(p);
+            if idx as f32 != p || !(0..=N_WCS as i32).contains(&idx) {
+                return Err(Error::BadWord("G10 L2/L20: P must be 0-6"));
+            }
+            let w = if idx == 0 { g.wcs as usize } else { (idx - 1) as usize };
+            let mut off = m.interp.wcs_mm[w];
+            for (a, &word) in AXIS_WORDS.iter().enumerate() {
+                if let Some(v) = l.word(word) {
+                    let v = conv(v);
+                    off[a] = if n == 2 {
+                        v
+                    } else {
+                        let tlo = if a == 2 { g.tlo } else { 0.0 };
+                        m.interp.pos_mm[a] - g.g92[a] - tlo - v
+                    };
+                }
+            }
+            m.interp.wcs_mm[w] = off;
+            // Work offsets are persistent (SPEC §5): write them now; the
+            // EEPROM layer programs only the bytes that changed.
+            m.save_settings(io);
+            Ok(())
+        }
+        _ => Err(Error::BadWord("G10: L must be 1, 2 or 20")),
+    }
+}
+
+/// M codes of the "other" group.
+#[inline(never)]
+fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io) -> Result<(), Error> {
+    match code {
+        17 => {
+            io.drivers(true);
+        }
+        18 | 84 => {
+            m.wait_idle(io)?;
+            io.drivers(false);
+            m.homed = 0;
+            m.apply_watch(io, 0, false);
+        }
+        92 | 201 | 203 => {
+            m.wait_idle(io)?;
+            let mut s = m.settings;
+            let words = [Word::X, Word::Y, Word::Z, Word::E];
+            for (a, &w) in words.iter().enumerate() {
+                if let Some(v) = l.word(w) {
+                    if !(v > 0.0) {
+                        return Err(Error::BadWord("value must be positive"));
+                    }
+                    match code {
+                        92 => s.steps_per_mm[a] = v,
+                        201 => s.accel_mm_per_s2[a] = v,
+                        _ => s.max_feed_mm_per_min[a] = v * 60.0, // M203 is mm/s (Marlin)
+                    }
+                }
+            }
+            if !s.is_sane() {
+                return Err(Error::BadWord("value out of range"));
+            }
+            let steps = io.stepper().position;
+            let mm = m.steps_to_mm(steps);
+            m.settings = s;
+            if code == 92 {
+                // Keep the physical position: rescale the step counters.
+                let new = to_steps(&m.settings, &mm);
+                io.set_stepper_position(new);
+                m.planner.set_position(new);
+            }
+        }
+        220 => {
+            let s = l.word(Word::S).ok_or(Error::BadWord("M220 needs S<percent>"))?;
+            if !(10.0..=500.0).contains(&s) {
+                return Err(Error::BadWord("M220 S must be 10-500"));
+            }
+            m.interp.feed_override_pct = round_i32(s) as u16;
+        }
+        400 => m.wait_idle(io)?,
+        500 => {
+            m.save_settings(io);
+            uwriteln!(io, "echo:settings stored").ok();
+        }
+        501 => {
+            m.wait_idle(io)?;
+            if m.load_settings(io) {
+                uwriteln!(io, "echo:settings loaded").ok();
+            } else {
+                return Err(Error::BadWord("EEPROM settings invalid; kept the current ones"));
+            }
+        }
+        502 => {
+            m.wait_idle(io)?;
+            m.settings = Settings::DEFAULT;
+            m.interp.load_settings(&m.settings);
+            uwriteln!(io, "echo:factory settings restored (M500 to store)").ok();
+        }
+        108 => {}
+        _ => return Err(Error::NotAvailable("M code not supported")),
+    }
+    Ok(())
+}
+
+/// G38.2/G38.3: move toward `target` until the tool-setter input trips.
+#[inline(never)]
+fn probe(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, must_trip: bool) -> Result<(), Error> {
+    m.wait_idle(io)?;
+    if io.switches().tool_setter {
+        return Err(Error::ProbeAlreadyTriggered);
+    }
+    let prev = m.state;
+    m.state = State::Probe;
+    m.apply_watch(io, 0, true);
+    let steps = to_steps(&m.settings, &target);
+    let r = m.queue_line(io, steps, feed, false).and_then(|_| m.wait_motion_or_trip(io));
+    m.apply_watch(io, 0, false);
+    m.state = prev;
+    let tripped = r?;
+    let pos = if tripped { io.stepper().trip_position } else { io.stepper().position };
+    m.resync_after_stop(io);
+    let mm = m.steps_to_mm(pos);
+    uwrite!(io, "[PRB:").ok();
+    m.write_xyz(io, m.interp.machine_to_work(mm));
+    uwriteln!(io, ":{}]", if tripped { 1u8 } else { 0u8 }).ok();
+    if !tripped && must_trip {
+        return Err(Error::ProbeFailed);
+    }
+    Ok(())
+}
+
+#[inline(never)]
+fn report_position(m: &Machine, io: &mut impl Io) {
+    let st = io.stepper().position;
+    let w = m.interp.machine_to_work(m.steps_to_mm(st));
+    uwriteln!(
+        io,
+        "X:{} Y:{} Z:{} E:{} Count X:{} Y:{} Z:{} E:{}",
+        Micros::from_mm(w[0]),
+        Micros::from_mm(w[1]),
+        Micros::from_mm(w[2]),
+        Micros::from_mm(w[3]),
+        st[0],
+        st[1],
+        st[2],
+        st[3]
+    )
+    .ok();
+}
+
+#[inline(never)]
+fn report_switches(_m: &Machine, io: &mut impl Io) {
+    let s = io.switches();
+    let word = |b: bool| if b { "TRIGGERED" } else { "open" };
+    uwriteln!(io, "Reporting endstop status").ok();
+    uwriteln!(io, "x_min: {}", word(s.home & 1 != 0)).ok();
+    uwriteln!(io, "y_min: {}", word(s.home & 2 != 0)).ok();
+    uwriteln!(io, "z_min: {}", word(s.home & 4 != 0)).ok();
+    uwriteln!(io, "carousel: {}", word(s.carousel_home)).ok();
+    uwriteln!(io, "tool_setter: {}", word(s.tool_setter)).ok();
+}
+
+#[inline(never)]
+fn report_settings(m: &Machine, io: &mut impl Io) {
+    let s = &m.settings;
+    let line = |io: &mut dyn DynOut, code: &str, v: &[f32; N_AXES], scale: f32| {
+        io.out(code);
+        for (a, &n) in [" X", " Y", " Z", " E"].iter().enumerate() {
+            io.out(n);
+            io.num(v[a] * scale);
+        }
+        io.out("\n");
+    };
+    let mut d = Dyn(io);
+    d.out("echo:Steps per unit:\n");
+    line(&mut d, "M92", &s.steps_per_mm, 1.0);
+    d.out("echo:Max feedrates (units/s):\n");
+    line(&mut d, "M203", &s.max_feed_mm_per_min, 1.0 / 60.0);
+    d.out("echo:Max acceleration (units/s2):\n");
+    line(&mut d, "M201", &s.accel_mm_per_s2, 1.0);
+    d.out("echo:Work offsets:\n");
+    for (i, o) in m.interp.wcs_mm.iter().enumerate() {
+        d.out("G10 L2 P");
+        d.int(i as i32 + 1);
+        for (a, &n) in [" X", " Y", " Z"].iter().enumerate() {
+            d.out(n);
+            d.num(o[a]);
+        }
+        d.out("\n");
+    }
+    d.out("echo:Travel (mm): X");
+    d.num(s.travel_mm[0]);
+    d.out(" Y");
+    d.num(s.travel_mm[1]);
+    d.out(" Z");
+    d.num(s.travel_mm[2]);
+    d.out(" soft limits ");
+    d.out(if s.soft_limits { "on" } else { "off" });
+    d.out(", hard limits ");
+    d.out(if s.hard_limits { "on" } else { "off" });
+    d.out("\n");
+}
+
+/// Small object-safe writer used by the settings report.
+trait DynOut {
+    fn out(&mut self, s: &str);
+    fn num(&mut self, v: f32);
+    fn int(&mut self, v: i32);
+}
+
+struct Dyn<'a, W: Io>(&'a mut W);
+
+impl<W: Io> DynOut for Dyn<'_, W> {
+    fn out(&mut self, s: &str) {
+        self.0.write_str(s).ok();
+    }
+    fn num(&mut self, v: f32) {
+        uwrite!(self.0, "{}", Micros::from_mm(v)).ok();
+    }
+    fn int(&mut self, v: i32) {
+        uwrite!(self.0, "{}", v).ok();
+    }
+}
+
+/// The modal fields a line may change, copied so an invalid line changes nothing.
+struct ModalCopy {
+    inches: bool,
+    incremental: bool,
+    plane: Plane,
+    motion: Motion,
+    feed: f32,
+    wcs: u8,
+    tlo: f32,
+    g92: [f32; 3],
+}
+
+impl ModalCopy {
+    fn from(i: &Interp) -> ModalCopy {
+        ModalCopy {
+            inches: i.inches,
+            incremental: i.incremental,
+            plane: i.plane,
+            motion: i.motion,
+            feed: i.feed_mm_per_min,
+            wcs: i.wcs,
+            tlo: i.tlo_mm,
+            g92: i.g92_mm,
+        }
+    }
+
+    fn commit(&self, i: &mut Interp) {
+        i.inches = self.inches;
+        i.incremental = self.incremental;
+        i.plane = self.plane;
+        i.motion = self.motion;
+        i.feed_mm_per_min = self.feed;
+        i.wcs = self.wcs;
+        i.tlo_mm = self.tlo;
+    }
+}

@@ -1,0 +1,73 @@
+//! Shared set-up for the simavr regression tests: boot the real firmware ELF
+//! in the virtual machine and talk to it like a host.
+#![allow(dead_code)]
+
+use sim::{Axis, Vm, VmConfig};
+
+/// Boot the firmware (`$MILL_ELF`, built by `tools/test`) and wait for `start`.
+pub fn boot() -> Vm {
+    boot_with(VmConfig::default())
+}
+
+/// Boot with a custom virtual-machine configuration.
+pub fn boot_with(cfg: VmConfig) -> Vm {
+    let elf = cfg.elf.clone();
+    assert!(elf.exists(), "firmware ELF {} missing: run tools/build-firmware (tools/test does)", elf.display());
+    let mut vm = Vm::new(cfg).expect("load firmware");
+    vm.wait_for_start(3.0).expect("firmware prints start");
+    vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).expect("boot banner");
+    vm.run_for(0.02).expect("rest of the banner");
+    vm.take_lines();
+    vm
+}
+
+/// Send a command and return its reply lines, asserting it ends with `ok`
+/// and carries no error.
+pub fn ok(vm: &mut Vm, line: &str) -> Vec<String> {
+    let r = vm.command(line).unwrap_or_else(|e| panic!("{line}: {e}"));
+    assert_eq!(r.last().map(String::as_str), Some("ok"), "{line}: {r:?}");
+    assert!(!r.iter().any(|l| l.starts_with("Error")), "{line}: {r:?}");
+    r
+}
+
+/// Send a command that must be refused: returns the error line.
+pub fn refused(vm: &mut Vm, line: &str) -> String {
+    let r = vm.command(line).unwrap_or_else(|e| panic!("{line}: {e}"));
+    assert_eq!(r.last().map(String::as_str), Some("ok"), "{line}: {r:?}");
+    r.iter().find(|l| l.starts_with("Error")).cloned().unwrap_or_else(|| panic!("{line}: no error in {r:?}"))
+}
+
+/// Positions of X, Y, Z, E in steps, from the recorder.
+pub fn steps(vm: &Vm) -> [i64; 4] {
+    vm.positions()
+}
+
+/// Total steps emitted on every axis (both directions).
+pub fn total_steps(vm: &Vm) -> u64 {
+    [Axis::X, Axis::Y, Axis::Z, Axis::E]
+        .iter()
+        .map(|&a| {
+            let s = vm.recorder().axis_stats(a);
+            s.steps_pos + s.steps_neg + s.steps_while_disabled
+        })
+        .sum()
+}
+
+/// Tiny deterministic PRNG (xorshift32) for fuzz-like inputs.
+pub struct Rng(pub u32);
+
+impl Rng {
+    pub fn next(&mut self) -> u32 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.0 = x;
+        x
+    }
+}
+
+/// The XOR checksum of a host line (Marlin/Repetier).
+pub fn checksum(s: &str) -> u8 {
+    s.bytes().fold(0, |a, b| a ^ b)
+}
