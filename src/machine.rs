@@ -322,6 +322,9 @@ impl Machine {
         if self.alarm.is_some() {
             return Err(interp::Error::Alarm);
         }
+        // Drivers switch on with the first move (Marlin, grbl); M18/M84 turn
+        // them off again.
+        io.drivers(true);
         loop {
             match self.planner.push_line(target, feed_mm_per_min, rapid, &self.settings) {
                 Ok(p) => {
