@@ -313,23 +313,28 @@ fn parse_i32(s: &[u8]) -> Option<(i32, usize)> {
         _ => false,
     };
     let start = i;
-    // At most 9 digits, so the value fits an i32 without overflow checks
-    // (i32::checked_mul hung on AVR through compiler-builtins' __mulosi4).
-    let mut v: i32 = 0;
+    // At most 10 digits accumulated in an i64, then range-checked: no
+    // overflow-checked multiply (i32::checked_mul hung on AVR, through
+    // compiler-builtins' __mulosi4).
+    let mut v: i64 = 0;
     while let Some(&d) = s.get(i) {
         if !d.is_ascii_digit() {
             break;
         }
-        if i - start >= 9 {
+        if i - start >= 10 {
             return None;
         }
-        v = v * 10 + (d - b'0') as i32;
+        v = v * 10 + (d - b'0') as i64;
         i += 1;
     }
     if i == start {
         return None;
     }
-    Some((if negative { -v } else { v }, i))
+    let v = if negative { -v } else { v };
+    if v < i32::MIN as i64 || v > i32::MAX as i64 {
+        return None;
+    }
+    Some((v as i32, i))
 }
 
 /// The checksum after `*`: decimal 0..=255, blanks around it allowed.

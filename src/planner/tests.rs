@@ -32,7 +32,7 @@ fn assert_close(a: f32, b: f32, rel: f32) {
 
 #[test]
 fn block_ring_fits_its_ram_budget() {
-    assert!(BLOCK_BUFFER_LEN >= 24);
+    assert!(BLOCK_BUFFER_LEN >= 16, "SPEC §6: at least 16 blocks");
     assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
 }
 
@@ -208,7 +208,7 @@ fn a_full_ring_refuses_until_a_block_is_discarded() {
     p.discard_current_block();
     assert_eq!(p.len(), BLOCK_BUFFER_LEN - 1);
     p.push_line([9999, 0, 0, 0], 600.0, false, &s()).unwrap();
-    assert_eq!(p.block(BLOCK_BUFFER_LEN - 1).unwrap().steps[0], 9999 - 320);
+    assert_eq!(p.block(BLOCK_BUFFER_LEN - 1).unwrap().steps[0], 9999 - BLOCK_BUFFER_LEN as u32 * 10);
 }
 
 #[test]
