@@ -103,6 +103,10 @@ fn uart_round_trip_and_streaming() {
         assert!(r.duration_s > 0.0);
     }
     assert!(vm.output().contains("echo:G1 X39"));
+    assert!(matches!(vm.wait_line(|l| l == "never", 0.01), Err(VmError::Timeout { .. })));
+    assert!(matches!(vm.run_until(|_| false, 0.01), Err(VmError::Timeout { .. })));
+    let t = vm.run_until(|vm| vm.seconds() > 0.5, 1.0).unwrap();
+    assert!(t > 0.0 && vm.seconds() > 0.5);
     assert_eq!(vm.uart_rx_dropped(), 0);
 }
 
