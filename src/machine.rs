@@ -276,7 +276,7 @@ impl Machine {
         self.numbered = matches!(raw.first(), Some(b'N' | b'n'));
         match self.chk.check(raw) {
             Err(e) => {
-                uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.resend_line() - 1).ok();
+                uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.last_line()).ok();
                 uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
             }
             Ok(cmd) => {
