@@ -26,7 +26,7 @@
 use crate::math::{atan2f, fabsf, sincosf, sqrtf};
 
 /// Chords between exact sin/cos recomputations.
-pub const ARC_CORRECTION: u32 = 8;
+pub const ARC_CORRECTION: u32 = 16;
 /// Angular travel below which a same-direction arc counts as a full circle, rad
 /// (grbl's ARC_ANGULAR_TRAVEL_EPSILON).
 const ANGULAR_TRAVEL_EPSILON: f32 = 5e-7;
@@ -94,6 +94,8 @@ pub struct Arc {
     sin_t: f32,
     /// Start point, mm.
     start: [f32; 3],
+    /// Linear-axis travel per chord, mm.
+    linear_per_chord: f32,
     /// Programmed end point, mm (the last chord ends here exactly).
     end: [f32; 3],
     /// Unit radius vector of the last point (plane coordinates).
@@ -214,6 +216,7 @@ impl Arc {
             cos_t,
             sin_t,
             start,
+            linear_per_chord: (end[al] - start[al]) / chords as f32,
             end,
             dir: [r0x / radius, r0y / radius],
             chords,
@@ -308,12 +311,14 @@ impl Iterator for Arc {
             self.dir = [x * self.cos_t - y * self.sin_t, x * self.sin_t + y * self.cos_t];
         }
         let (a0, a1, al) = self.axes;
-        let r = self.radius + self.radius_per_chord * i as f32;
-        let f = i as f32 / self.chords as f32;
+        let fi = i as f32;
+        let r = if self.radius_per_chord.to_bits() == 0 { self.radius } else { self.radius + self.radius_per_chord * fi };
         let mut p = self.start;
         p[a0] = self.centre[0] + r * self.dir[0];
         p[a1] = self.centre[1] + r * self.dir[1];
-        p[al] = self.start[al] + (self.end[al] - self.start[al]) * f;
+        if self.linear_per_chord.to_bits() != 0 {
+            p[al] = self.start[al] + self.linear_per_chord * fi;
+        }
         Some(p)
     }
 

@@ -45,7 +45,7 @@ pub mod arc;
 mod tests;
 
 use crate::config::{Settings, MAX_STEP_RATE_HZ};
-use crate::math::{fabsf, round_i32, sqrtf};
+use crate::math::{round_i32, sqrtf};
 use crate::stepper::MIN_STEP_RATE_HZ;
 use crate::N_AXES;
 use core::mem::size_of;
@@ -167,7 +167,8 @@ impl AxisCache {
     };
 
     /// Recompute the derived values if `s` differs from what they came from.
-    fn refresh(&mut self, s: &Settings) {
+    /// True if it did.
+    fn refresh(&mut self, s: &Settings) -> bool {
         let mut same = true;
         for i in 0..N_AXES {
             same &= self.src[0][i] == s.steps_per_mm[i].to_bits()
@@ -175,7 +176,7 @@ impl AxisCache {
                 && self.src[2][i] == s.max_feed_mm_per_min[i].to_bits();
         }
         if same {
-            return;
+            return false;
         }
         for i in 0..N_AXES {
             self.src[0][i] = s.steps_per_mm[i].to_bits();
@@ -185,6 +186,7 @@ impl AxisCache {
             self.inv_accel[i] = 1.0 / s.accel_mm_per_s2[i];
             self.inv_max_speed[i] = 60.0 / s.max_feed_mm_per_min[i];
         }
+        true
     }
 }
 
@@ -217,6 +219,10 @@ pub struct Planner {
     previous_nominal_speed_sqr: f32,
     /// Acceleration of the last queued block, mm/s².
     previous_acceleration: f32,
+    /// Per-axis speed limit of the last queued block as time per mm, s/mm.
+    previous_t_axes: f32,
+    /// `previous_acceleration` and `previous_t_axes` match the current settings.
+    previous_limits_valid: bool,
     /// Bits of the last feed seen and 1/feed, s/mm (the feed is modal, so it
     /// rarely changes between blocks).
     feed_cache: (u32, f32),
@@ -242,13 +248,31 @@ const fn prev_index(i: u8) -> u8 {
     }
 }
 
-#[inline]
-fn min_f32(a: f32, b: f32) -> f32 {
-    if a < b {
+/// `a < b` for finite `a`, `b` ≥ +0.0. Non-negative IEEE-754 floats order like
+/// their bit patterns, so this is a 10-cycle u32 compare on the AVR instead of
+/// a ~60-cycle soft-float call. Every speed², acceleration, distance and time
+/// the planner compares is ≥ +0.0 by construction (squares, sums of
+/// non-negative terms, clamped distances), never −0.0 or NaN.
+#[inline(always)]
+pub(crate) fn lt_nn(a: f32, b: f32) -> bool {
+    debug_assert!(a.is_sign_positive() && b.is_sign_positive() && !a.is_nan() && !b.is_nan());
+    a.to_bits() < b.to_bits()
+}
+
+/// The smaller of two finite floats ≥ +0.0 (see [`lt_nn`]).
+#[inline(always)]
+pub(crate) fn min_nn(a: f32, b: f32) -> f32 {
+    if lt_nn(a, b) {
         a
     } else {
         b
     }
+}
+
+/// |x| by clearing the sign bit (no soft-float compare).
+#[inline(always)]
+fn abs_f32(x: f32) -> f32 {
+    f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
 
 impl Planner {
@@ -268,6 +292,8 @@ impl Planner {
             previous_unit_vec: [0.0; N_AXES],
             previous_nominal_speed_sqr: 0.0,
             previous_acceleration: 0.0,
+            previous_t_axes: 0.0,
+            previous_limits_valid: false,
             feed_cache: (0, 0.0),
             axis: AxisCache::EMPTY,
         }
@@ -333,7 +359,10 @@ impl Planner {
             return Err(PlanError::Full);
         }
 
-        self.axis.refresh(s);
+        if self.axis.refresh(s) {
+            // Limits changed: the same direction no longer means the same limits.
+            self.previous_limits_valid = false;
+        }
         let mut push = Push::default();
         if take_up_any {
             let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
@@ -357,11 +386,25 @@ impl Planner {
     /// Build a block for `delta` (steps, not all zero) at `inv_feed` s/mm (0 =
     /// rapid), link it to the previous one and re-plan. Returns (rate capped,
     /// rate floored). The caller has checked there is room.
+    ///
+    /// AVR cost (simavr, 16 MHz, see the module doc): ~9–13 k cycles including
+    /// the re-plan; every f32 multiply is ~170 cycles, a divide or sqrt ~500.
     fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, s: &Settings) -> (bool, bool) {
+        let prev_unit = self.previous_unit_vec;
+        let prev_nominal_sqr = self.previous_nominal_speed_sqr;
+        let prev_accel = self.previous_acceleration;
+        let prev_t_axes = self.previous_t_axes;
+        let prev_valid = self.previous_limits_valid;
+        let first = self.len == 0;
         let ax = &self.axis;
-        let mut b = Block::EMPTY;
+        // Built in place in its slot.
+        let b = &mut self.blocks[self.head as usize];
         b.flags = flags;
+        b.step_event_count = 0;
+        b.direction_bits = 0;
+        b.entry_speed_sqr = 0.0;
         let mut unit = [0f32; N_AXES];
+        let mut moving = 0u8;
         for i in 0..N_AXES {
             let d = delta[i];
             let n = d.unsigned_abs();
@@ -370,6 +413,7 @@ impl Planner {
                 b.step_event_count = n;
             }
             if d != 0 {
+                moving |= 1 << i;
                 unit[i] = d as f32 * ax.mm_per_step[i];
                 if d < 0 {
                     b.direction_bits |= 1 << i;
@@ -377,41 +421,59 @@ impl Planner {
             }
         }
         // Path length: XYZ distance, or the E distance for an E-only move.
-        let xyz_sqr = unit[0] * unit[0] + unit[1] * unit[1] + unit[2] * unit[2];
-        let mm = if xyz_sqr > 0.0 { sqrtf(xyz_sqr) } else { fabsf(unit[3]) };
+        // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
+        let mut xyz_sqr = 0.0f32;
+        for i in 0..3 {
+            if moving & (1 << i) != 0 {
+                xyz_sqr += unit[i] * unit[i];
+            }
+        }
+        let mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
         let inv_mm = 1.0 / mm;
+        let mut same_dir = prev_valid;
+        for i in 0..N_AXES {
+            if moving & (1 << i) != 0 {
+                unit[i] *= inv_mm;
+            }
+            same_dir &= unit[i].to_bits() == prev_unit[i].to_bits();
+        }
 
         // Per-axis limits: the path may go at most as fast (and accelerate at most
         // as hard) as the slowest axis allows, scaled by its share of the motion.
-        let mut inv_accel = 0.0f32; // s²/mm along the path
-        let mut t_axes = 0.0f32; // s/mm along the path
-        for i in 0..N_AXES {
-            if delta[i] != 0 {
-                unit[i] *= inv_mm;
-                let u = fabsf(unit[i]);
-                let a = u * ax.inv_accel[i];
-                if a > inv_accel {
-                    inv_accel = a;
-                }
-                let t = u * ax.inv_max_speed[i];
-                if t > t_axes {
-                    t_axes = t;
+        // They depend on the direction only: a block in the same direction as the
+        // last one (a stream of collinear moves) reuses them.
+        let (acceleration, t_axes) = if same_dir {
+            (prev_accel, prev_t_axes)
+        } else {
+            let mut inv_accel = 0.0f32; // s²/mm along the path
+            let mut t_axes = 0.0f32; // s/mm along the path
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    let u = abs_f32(unit[i]);
+                    let ia = u * ax.inv_accel[i];
+                    if lt_nn(inv_accel, ia) {
+                        inv_accel = ia;
+                    }
+                    let t = u * ax.inv_max_speed[i];
+                    if lt_nn(t_axes, t) {
+                        t_axes = t;
+                    }
                 }
             }
-        }
-        let acceleration = 1.0 / inv_accel;
-        let mut t = if inv_feed > t_axes { inv_feed } else { t_axes };
+            (1.0 / inv_accel, t_axes)
+        };
+        let mut t = if lt_nn(t_axes, inv_feed) { inv_feed } else { t_axes };
         // Step-rate cap: the dominant axis makes step_event_count steps over mm.
         let steps_per_mm = b.step_event_count as f32 * inv_mm;
         let t_cap = steps_per_mm * INV_MAX_STEP_RATE;
         let mut capped = false;
-        if t_cap > t {
+        if lt_nn(t, t_cap) {
             t = t_cap;
             capped = true;
         }
         let t_floor = steps_per_mm * INV_MIN_STEP_RATE;
         let mut floored = false;
-        if t > t_floor {
+        if lt_nn(t_floor, t) {
             t = t_floor;
             floored = true;
         }
@@ -420,36 +482,41 @@ impl Planner {
 
         // Junction with the previous block (grbl): max entry speed from the
         // junction deviation, never above either block's nominal speed.
-        if self.len == 0 {
-            b.max_entry_speed_sqr = 0.0;
+        b.max_entry_speed_sqr = if first {
+            0.0
         } else {
-            let mut cos_theta = 0.0f32;
-            for i in 0..N_AXES {
-                cos_theta -= self.previous_unit_vec[i] * unit[i];
-            }
-            let junction_sqr = if cos_theta > JUNCTION_COS_LIMIT {
-                0.0 // full reversal
-            } else if cos_theta < -JUNCTION_COS_LIMIT {
+            let junction_sqr = if same_dir {
                 JUNCTION_SPEED_SQR_STRAIGHT
             } else {
-                let sin_theta_d2 = sqrtf(0.5 * (1.0 - cos_theta));
-                let a = min_f32(acceleration, self.previous_acceleration);
-                a * s.junction_deviation_mm * sin_theta_d2 / (1.0 - sin_theta_d2)
+                let mut cos_theta = 0.0f32;
+                for i in 0..N_AXES {
+                    if moving & (1 << i) != 0 && prev_unit[i].to_bits() != 0 {
+                        cos_theta -= prev_unit[i] * unit[i];
+                    }
+                }
+                if cos_theta > JUNCTION_COS_LIMIT {
+                    0.0 // full reversal
+                } else if cos_theta < -JUNCTION_COS_LIMIT {
+                    JUNCTION_SPEED_SQR_STRAIGHT
+                } else {
+                    let sin_theta_d2 = sqrtf(0.5 * (1.0 - cos_theta));
+                    let a = min_nn(acceleration, prev_accel);
+                    a * s.junction_deviation_mm * sin_theta_d2 / (1.0 - sin_theta_d2)
+                }
             };
-            b.max_entry_speed_sqr =
-                min_f32(junction_sqr, min_f32(nominal_speed_sqr, self.previous_nominal_speed_sqr));
-        }
+            min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
+        };
         b.millimeters = mm;
         b.acceleration = acceleration;
         b.nominal_speed_sqr = nominal_speed_sqr;
         b.max_delta_speed_sqr = 2.0 * acceleration * mm;
-        b.entry_speed_sqr = 0.0;
 
         self.previous_unit_vec = unit;
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
         self.previous_acceleration = acceleration;
+        self.previous_t_axes = t_axes;
+        self.previous_limits_valid = true;
 
-        self.blocks[self.head as usize] = b;
         self.head = next_index(self.head);
         self.len += 1;
         self.recalculate();
@@ -467,7 +534,7 @@ impl Planner {
         let mut cur = idx;
         {
             let b = &mut self.blocks[cur as usize];
-            b.entry_speed_sqr = min_f32(b.max_entry_speed_sqr, b.max_delta_speed_sqr);
+            b.entry_speed_sqr = min_nn(b.max_entry_speed_sqr, b.max_delta_speed_sqr);
         }
         idx = prev_index(idx);
         if idx == self.planned {
@@ -484,8 +551,8 @@ impl Planner {
                     self.exec_replanned = true;
                 }
                 let b = &mut self.blocks[cur as usize];
-                if b.entry_speed_sqr != b.max_entry_speed_sqr {
-                    b.entry_speed_sqr = min_f32(b.max_entry_speed_sqr, next_entry + b.max_delta_speed_sqr);
+                if b.entry_speed_sqr.to_bits() != b.max_entry_speed_sqr.to_bits() {
+                    b.entry_speed_sqr = min_nn(b.max_entry_speed_sqr, next_entry + b.max_delta_speed_sqr);
                 }
             }
         }
@@ -498,15 +565,15 @@ impl Planner {
                 (c.entry_speed_sqr, c.max_delta_speed_sqr)
             };
             let n = &mut self.blocks[idx as usize];
-            if cur_entry < n.entry_speed_sqr {
+            if lt_nn(cur_entry, n.entry_speed_sqr) {
                 let e = cur_entry + cur_delta;
-                if e < n.entry_speed_sqr {
+                if lt_nn(e, n.entry_speed_sqr) {
                     // Acceleration-limited: optimal, nothing before it can change.
                     n.entry_speed_sqr = e;
                     self.planned = idx;
                 }
             }
-            if n.entry_speed_sqr == n.max_entry_speed_sqr {
+            if n.entry_speed_sqr.to_bits() == n.max_entry_speed_sqr.to_bits() {
                 self.planned = idx;
             }
             cur = idx;
@@ -645,6 +712,7 @@ impl Planner {
         self.previous_unit_vec = [0.0; N_AXES];
         self.previous_nominal_speed_sqr = 0.0;
         self.previous_acceleration = 0.0;
+        self.previous_limits_valid = false;
     }
 }
 

@@ -42,22 +42,26 @@ use crate::F_CPU_HZ;
 
 pub use super::MIN_PERIOD_CYCLES;
 
-/// Target duration of one segment, s (grbl: 1 / ACCELERATION_TICKS_PER_SECOND
-/// = 1/100 s). The speed changes at most `acceleration · SEGMENT_TIME_S` between
-/// segments (10 mm/s at 1000 mm/s²).
-pub const SEGMENT_TIME_S: f32 = 0.01;
+/// Duration of a segment on a ramp, s. grbl uses 1/100 s; half that keeps every
+/// step within one step of the ideal trapezoid (a constant-rate segment of time
+/// T on a ramp of acceleration a deviates from the parabola by up to a·T²/8:
+/// 0.03 mm at 10 ms, 0.003 mm at 5 ms, both at 1000 mm/s²), and the speed
+/// changes by at most a·T between segments (5 mm/s at 1000 mm/s²).
+pub const SEGMENT_TIME_S: f32 = 0.005;
+
+/// Duration of a segment that starts at cruise speed, s. Constant speed needs
+/// no short segments; longer ones halve prep's CPU time on long moves (it
+/// matters at high step rates, where the ISR takes most of the CPU). A segment
+/// ends where the cruise ends, so deceleration gets `SEGMENT_TIME_S` segments.
+pub const CRUISE_SEGMENT_TIME_S: f32 = 0.02;
 
 /// A segment covers at least this many steps (stretched in time if needed).
 const REQ_STEPS_PER_SEGMENT: f32 = 1.25;
-/// A deceleration ends when less than this fraction of `REQ_STEPS_PER_SEGMENT`
-/// would be left after a full piece.
+/// A deceleration ends early when less than this many steps would be left
+/// after a full piece.
 const RAMP_END_EPSILON: f32 = 1e-3;
 
 const F_CPU: f32 = F_CPU_HZ as f32;
-/// Longest period at clk/1, CPU cycles.
-const MAX_DIV1_CYCLES: f32 = 65535.0;
-/// Longest period at clk/8, CPU cycles.
-const MAX_DIV8_CYCLES: f32 = 8.0 * 65535.0;
 
 const _: () = assert!(MIN_STEP_RATE_HZ > 0.0);
 
@@ -94,8 +98,6 @@ pub struct Prep {
     steps_remaining: u32,
     /// Steps (of the dominant axis) per mm of path.
     step_per_mm: f32,
-    /// Distance that makes REQ_STEPS_PER_SEGMENT steps, mm.
-    req_mm_increment: f32,
     /// Time of the step fraction carried into the next segment, s.
     dt_remainder: f32,
     /// Acceleration of the active block, mm/s².
@@ -112,6 +114,20 @@ pub struct Prep {
     decelerate_after: f32,
     /// Remaining distance where the profile ends (> 0 only for a hold stop), mm.
     mm_complete: f32,
+    /// Bits of the exit speed² `exit_speed` was computed from (u32::MAX: none).
+    /// The next block's entry speed² is usually the same value: no sqrt then.
+    exit_speed_sqr_bits: u32,
+    /// (bits of a nominal speed², its square root): consecutive blocks at the
+    /// same feed share it (saves a 500-cycle sqrt per block on the AVR).
+    nominal_cache: (u32, f32),
+    /// (bits of an acceleration a, 0.5 / a).
+    inv_2_accel_cache: (u32, f32),
+}
+
+/// |x| by clearing the sign bit (no soft-float compare).
+#[inline(always)]
+fn abs_f32(x: f32) -> f32 {
+    f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
 
 /// ⌈x⌉ for 0 ≤ x < 2³².
@@ -128,14 +144,16 @@ fn ceil_u32(x: f32) -> u32 {
     }
 }
 
-/// Timer setting for `cycles` CPU cycles per step event.
+/// Timer setting for `cycles` CPU cycles per step event. Rounds up (by up to
+/// one timer count), so a segment is never faster than planned.
 fn timer_for(cycles: f32) -> (u16, Prescale) {
-    if cycles <= MAX_DIV1_CYCLES {
-        let p = ceil_u32(cycles) as u16;
+    // `as` saturates: huge or NaN values end at the slowest setting.
+    let c = cycles as u32 + 1;
+    if c <= 65535 {
+        let p = c as u16;
         (if p < MIN_PERIOD_CYCLES { MIN_PERIOD_CYCLES } else { p }, Prescale::Div1)
-    } else if cycles <= MAX_DIV8_CYCLES {
-        let p = ceil_u32(cycles * 0.125);
-        (if p > 65535 { 65535 } else { p as u16 }, Prescale::Div8)
+    } else if c <= 8 * 65535 {
+        (((c + 7) >> 3) as u16, Prescale::Div8)
     } else {
         (65535, Prescale::Div8)
     }
@@ -155,7 +173,6 @@ impl Prep {
             ramp: Ramp::Accel,
             steps_remaining: 0,
             step_per_mm: 0.0,
-            req_mm_increment: 0.0,
             dt_remainder: 0.0,
             acceleration: 0.0,
             current_speed: 0.0,
@@ -164,6 +181,9 @@ impl Prep {
             accelerate_until: 0.0,
             decelerate_after: 0.0,
             mm_complete: 0.0,
+            exit_speed_sqr_bits: 0,
+            nominal_cache: (0, 0.0),
+            inv_2_accel_cache: (u32::MAX, 0.0),
         }
     }
 
@@ -213,6 +233,7 @@ impl Prep {
         if self.held {
             self.current_speed = 0.0;
             self.exit_speed = 0.0;
+            self.exit_speed_sqr_bits = u32::MAX;
             // The machine stood still: the next tick is timed from now.
             self.dt_remainder = 0.0;
         }
@@ -274,7 +295,6 @@ impl Prep {
                 };
                 self.steps_remaining = b.step_event_count;
                 self.step_per_mm = b.step_event_count as f32 / b.millimeters;
-                self.req_mm_increment = REQ_STEPS_PER_SEGMENT / self.step_per_mm;
                 self.dt_remainder = 0.0;
                 self.acceleration = b.acceleration;
                 if self.holding || self.decel_override {
@@ -282,6 +302,9 @@ impl Prep {
                     self.current_speed = self.exit_speed;
                     b.entry_speed_sqr = self.exit_speed * self.exit_speed;
                     self.decel_override = false;
+                } else if b.entry_speed_sqr.to_bits() == self.exit_speed_sqr_bits {
+                    // The planned entry is the exit we just reached.
+                    self.current_speed = self.exit_speed;
                 } else {
                     self.current_speed = sqrtf(b.entry_speed_sqr);
                 }
@@ -324,9 +347,14 @@ impl Prep {
         let entry_sqr = b.entry_speed_sqr;
         let mm = b.millimeters;
         let a = self.acceleration;
-        let inv_2_accel = 0.5 / a;
+        if self.inv_2_accel_cache.0 != a.to_bits() {
+            self.inv_2_accel_cache = (a.to_bits(), 0.5 / a);
+        }
+        let inv_2_accel = self.inv_2_accel_cache.1;
         self.mm_complete = 0.0;
         self.decelerate_after = 0.0;
+        // Any exit speed set below other than sqrt(planned exit²) clears this.
+        self.exit_speed_sqr_bits = u32::MAX;
         if self.holding {
             // Forced deceleration to zero speed.
             self.ramp = Ramp::Decel;
@@ -342,9 +370,19 @@ impl Prep {
         }
         self.ramp = Ramp::Accel;
         self.accelerate_until = mm;
-        self.exit_speed = sqrtf(exit_speed_sqr);
         let nominal_sqr = b.nominal_speed_sqr;
-        let nominal = sqrtf(nominal_sqr);
+        if self.nominal_cache.0 != nominal_sqr.to_bits() {
+            self.nominal_cache = (nominal_sqr.to_bits(), sqrtf(nominal_sqr));
+        }
+        let nominal = self.nominal_cache.1;
+        self.exit_speed = if exit_speed_sqr.to_bits() == nominal_sqr.to_bits() {
+            nominal
+        } else if exit_speed_sqr.to_bits() == 0 {
+            0.0
+        } else {
+            sqrtf(exit_speed_sqr)
+        };
+        self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
         let intersect = 0.5 * (mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
         if entry_sqr > nominal_sqr {
             self.accelerate_until = mm - inv_2_accel * (entry_sqr - nominal_sqr);
@@ -353,6 +391,7 @@ impl Prep {
                 self.ramp = Ramp::Decel;
                 let v2 = entry_sqr - 2.0 * a * mm;
                 self.exit_speed = if v2 > 0.0 { sqrtf(v2) } else { 0.0 };
+                self.exit_speed_sqr_bits = u32::MAX;
                 self.decel_override = true;
             } else {
                 self.decelerate_after = inv_2_accel * (nominal_sqr - exit_speed_sqr);
@@ -391,14 +430,11 @@ impl Prep {
     fn make_segment(&mut self, pl: &mut Planner) -> Option<Segment> {
         let a = self.acceleration;
         let b = pl.current_block_mut()?;
-        let mut dt_max = SEGMENT_TIME_S;
+        let mut dt_max = if self.ramp == Ramp::Cruise { CRUISE_SEGMENT_TIME_S } else { SEGMENT_TIME_S };
         let mut dt = 0.0f32;
         let mut time_var = dt_max;
         let mut mm_remaining = b.millimeters;
-        let mut minimum_mm = mm_remaining - self.req_mm_increment;
-        if minimum_mm < 0.0 {
-            minimum_mm = 0.0;
-        }
+        let mm_segment_start = mm_remaining;
         loop {
             let mm_start = mm_remaining;
             match self.ramp {
@@ -434,6 +470,9 @@ impl Prep {
                         time_var = (mm_remaining - self.decelerate_after) / self.maximum_speed;
                         mm_remaining = self.decelerate_after;
                         self.ramp = Ramp::Decel;
+                        // End the segment here (or one ramp segment later if it
+                        // has no step yet).
+                        dt_max = dt + time_var;
                     } else {
                         mm_remaining = mm_var;
                     }
@@ -445,7 +484,7 @@ impl Prep {
                         let mm_var = mm_remaining - time_var * (self.current_speed - 0.5 * speed_var);
                         // Float residue (a millionth of a step left at almost zero
                         // speed) would make the last piece take ages: end here.
-                        if mm_var > self.mm_complete + self.req_mm_increment * RAMP_END_EPSILON {
+                        if (mm_var - self.mm_complete) * self.step_per_mm > RAMP_END_EPSILON {
                             mm_remaining = mm_var;
                             self.current_speed -= speed_var;
                             in_ramp = true;
@@ -463,7 +502,9 @@ impl Prep {
             dt += time_var;
             if dt < dt_max {
                 time_var = dt_max - dt;
-            } else if mm_remaining > minimum_mm {
+            } else if mm_remaining > 0.0
+                && (mm_segment_start - mm_remaining) * self.step_per_mm < REQ_STEPS_PER_SEGMENT
+            {
                 // Too slow for a step yet: stretch the segment.
                 dt_max += SEGMENT_TIME_S;
                 time_var = dt_max - dt;
@@ -495,9 +536,7 @@ impl Prep {
             }
             // A piece with no whole step: carry its time, keep going.
             self.dt_remainder += dt;
-            b.millimeters = mm_remaining;
-            b.entry_speed_sqr = self.current_speed * self.current_speed;
-            b.max_delta_speed_sqr = 2.0 * a * mm_remaining;
+            self.write_back(b, mm_remaining);
             if profile_done && mm_remaining <= 0.0 {
                 self.finish_block(pl);
             }
@@ -509,17 +548,42 @@ impl Prep {
         // `tail` before its end: the time to cover the fraction of a step left.
         let window = dt + self.dt_remainder;
         let frac = n_steps_remaining as f32 - step_dist_remaining;
-        let tail = if frac > 0.0 && mm_remaining > 0.0 { self.fraction_time(frac, window) } else { 0.0 };
-        let inv_rate = (window - tail) / ticks as f32;
-        self.dt_remainder = tail;
+        let n = ticks as f32;
+        let inv_rate; // s per step event
+        if frac > 0.0 && mm_remaining > 0.0 {
+            // tail = time to cover `frac` steps ending at speed v with
+            // acceleration ±a: frac = v·t ∓ a·t²/2. To second order in a·frac/v²,
+            // t = 2·frac·v / (2v² ± a·frac) = N / D, and then
+            // inv_rate = (window − N/D) / n = (window·D − N) / (D·n): one division.
+            let v = self.current_speed * self.step_per_mm; // steps/s at the end
+            let v2 = v * v;
+            let x = match self.ramp {
+                Ramp::Accel => -(self.acceleration * self.step_per_mm * frac),
+                Ramp::Decel => self.acceleration * self.step_per_mm * frac,
+                _ => 0.0,
+            };
+            let num = 2.0 * frac * v;
+            let den = 2.0 * v2 + x;
+            // Well conditioned (|x| ≤ v²/4) and the last tick after mid-window.
+            if 4.0 * abs_f32(x) < v2 && num < 0.5 * window * den {
+                inv_rate = (window * den - num) / (den * n);
+                self.dt_remainder = window - inv_rate * n;
+            } else {
+                // Near a stop: exact, with a square root.
+                let tail = self.fraction_time(frac, window);
+                inv_rate = (window - tail) / n;
+                self.dt_remainder = tail;
+            }
+        } else {
+            inv_rate = window / n;
+            self.dt_remainder = 0.0;
+        }
         self.steps_remaining = n_steps_remaining;
         let (period, prescale) = timer_for(F_CPU * inv_rate);
         debug_assert!(ticks <= u16::MAX as u32);
         let seg = Segment { ticks: ticks as u16, period, prescale };
 
-        b.millimeters = mm_remaining;
-        b.entry_speed_sqr = self.current_speed * self.current_speed;
-        b.max_delta_speed_sqr = 2.0 * a * mm_remaining;
+        self.write_back(b, mm_remaining);
         if profile_done {
             if mm_remaining > 0.0 {
                 // A hold stopped inside the block.
@@ -529,6 +593,15 @@ impl Prep {
             }
         }
         Some(seg)
+    }
+
+    /// Record progress in the executing block: distance left, current speed².
+    /// Stored values stay ≥ +0.0 (the planner compares them as bit patterns).
+    fn write_back(&self, b: &mut crate::planner::Block, mm_remaining: f32) {
+        let mm = if mm_remaining > 0.0 { mm_remaining } else { 0.0 };
+        b.millimeters = mm;
+        b.entry_speed_sqr = self.current_speed * self.current_speed;
+        b.max_delta_speed_sqr = 2.0 * self.acceleration * mm;
     }
 
     /// Time to cover the last `frac` (< 1) step of a segment that ends at the

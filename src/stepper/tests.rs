@@ -33,6 +33,8 @@ struct Machine {
     block_start: [i64; N_AXES],
     /// Check every step against the block's ideal line (±1 step).
     check_line: bool,
+    /// Time of every X step, s.
+    x_step_times: Vec<f64>,
     s: Settings,
 }
 
@@ -50,6 +52,7 @@ impl Machine {
             mm_per_event: 0.0,
             block_start: [0; N_AXES],
             check_line: true,
+            x_step_times: Vec::new(),
             s: *s,
         }
     }
@@ -79,8 +82,12 @@ impl Machine {
                 if seg.prescale == Prescale::Div1 {
                     assert!(seg.period >= MIN_PERIOD_CYCLES, "period {} too short", seg.period);
                 }
-                for _ in 0..seg.ticks {
+                let tick_s = seg.period as f64 * seg.prescale.divisor() as f64 / crate::F_CPU_HZ as f64;
+                for k in 0..seg.ticks {
                     let bits = self.br.tick();
+                    if bits & 1 != 0 {
+                        self.x_step_times.push(self.time + (k as f64 + 1.0) * tick_s);
+                    }
                     self.events += 1;
                     assert!(self.events <= b.step_event_count, "more events than the block has");
                     for a in 0..N_AXES {
@@ -244,8 +251,12 @@ fn a_long_move_reaches_the_feed_and_cruises() {
     let (m, _) = run_moves(&s, &x_moves(&[20.0], 3000.0, &s));
     let peak = peak_speed(&m.ran);
     assert!((peak - 50.0).abs() < 0.5, "peak {peak}");
-    let cruising = m.ran.iter().filter(|r| (r.speed - 50.0).abs() < 0.5).count();
-    assert!(cruising > 20, "{cruising} segments at the feed");
+    // 350 ms of cruise in segments of CRUISE_SEGMENT_TIME_S.
+    let cruising: Vec<_> = m.ran.iter().filter(|r| (r.speed - 50.0).abs() < 0.5).collect();
+    assert!(cruising.len() >= 15, "{} segments at the feed", cruising.len());
+    assert!(cruising.iter().all(|r| r.dt <= prep::CRUISE_SEGMENT_TIME_S as f64 * 1.001));
+    let ramp = m.ran.iter().filter(|r| r.speed < 45.0).count();
+    assert!(ramp >= 18, "ramps use short segments: {ramp}");
     // Ideal time: 20/50 + 50/1000 (ramps) = 0.45 s.
     assert!((m.time - 0.45).abs() < 0.01, "time {}", m.time);
 }
@@ -521,4 +532,30 @@ fn the_segment_queue_can_be_filled_through_a_heapless_producer() {
     }
     assert_eq!(m.motor[0], 1000);
     assert!(pl.len() < BLOCK_BUFFER_LEN);
+}
+
+#[test]
+fn every_step_comes_within_one_step_of_the_ideal_trapezoid() {
+    // 20 mm at 50 mm/s, 1000 mm/s², 100 steps/mm: accelerate 50 ms (1.25 mm),
+    // cruise 350 ms, decelerate 50 ms.
+    let s = Settings::DEFAULT;
+    let (m, _) = run_moves(&s, &x_moves(&[20.0], 3000.0, &s));
+    let ideal_steps = |t: f64| -> f64 {
+        let (a, v, ta, tc) = (1000.0, 50.0, 0.05, 0.35);
+        let mm = if t < ta {
+            0.5 * a * t * t
+        } else if t < ta + tc {
+            1.25 + v * (t - ta)
+        } else {
+            let td = (t - ta - tc).min(ta);
+            18.75 + v * td - 0.5 * a * td * td
+        };
+        mm * 100.0
+    };
+    assert_eq!(m.x_step_times.len(), 2000);
+    for (k, &t) in m.x_step_times.iter().enumerate() {
+        let err = (k + 1) as f64 - ideal_steps(t);
+        assert!(err.abs() <= 1.0, "step {} at {t:.5} s: {err:+.3} steps from the ideal", k + 1);
+    }
+    assert!((m.x_step_times[1999] - 0.45).abs() < 0.002);
 }
