@@ -38,6 +38,17 @@
 //! anyway) and the reversing move then starts from where the slack is gone. An
 //! axis' direction is unknown after power-up and [`Planner::clear`]; its first
 //! move sets it without compensation (homing does that).
+//!
+//! **AVR cost** (measured in simavr at 16 MHz with avr-libc float, 0.1 mm
+//! moves at F3000 through `push_line` + [`crate::stepper::prep`]): push
+//! ≈ 9.8 k cycles for a collinear stream, ≈ 12.5 k on a curve (junction maths),
+//! of which the two look-ahead passes take ≈ 4 k; prep ≈ 5.7–6.2 k per block at
+//! cruise, ≈ 11 k when every block is a ramp (a sharp zigzag). An f32 multiply
+//! costs ≈ 170 cycles, a division or square root ≈ 500, so the code avoids
+//! them where it can: non-negative floats are compared as bit patterns
+//! (`lt_nn`), settings-derived inverses are cached, and a block in the same
+//! direction as the previous one reuses its limits and needs no junction maths.
+//! RAM on AVR: `Block` 46 B, `Planner` 904 B with 16 blocks.
 
 pub mod arc;
 
@@ -259,7 +270,7 @@ pub(crate) fn lt_nn(a: f32, b: f32) -> bool {
     a.to_bits() < b.to_bits()
 }
 
-/// The smaller of two finite floats ≥ +0.0 (see [`lt_nn`]).
+/// The smaller of two finite floats ≥ +0.0 (see `lt_nn`).
 #[inline(always)]
 pub(crate) fn min_nn(a: f32, b: f32) -> f32 {
     if lt_nn(a, b) {

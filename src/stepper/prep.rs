@@ -7,11 +7,19 @@
 //! block's trapezoid (accelerate, cruise, decelerate to the exit speed the
 //! planner gives). The main loop calls it while the queue has room.
 //!
+//! - **Segment length.** [`SEGMENT_TIME_S`] (5 ms) on ramps,
+//!   [`CRUISE_SEGMENT_TIME_S`] (20 ms) at cruise; a segment never spans two
+//!   planner blocks, so a stream of short moves gives one segment per block.
 //! - **Exact steps.** The remaining step count is an integer; each segment takes
 //!   `ticks = steps_remaining − ⌈remaining_mm · steps/mm⌉`, so a block's ticks add
-//!   up to its `step_event_count` exactly. The fraction of a step not yet made
-//!   is carried in time (`dt_remainder`) into the next segment's period, so the
-//!   mean rate follows the profile without rounding drift.
+//!   up to its `step_event_count` exactly.
+//! - **Step timing.** A segment's ticks are evenly spaced from the previous
+//!   segment's last tick to the instant the profile reaches this segment's last
+//!   whole step (the leftover fraction of a step is timed at the segment's end
+//!   speed and carried into the next one). Every step then comes within one
+//!   step of the ideal trapezoid, and the rate of consecutive segments changes by
+//!   the planned acceleration (grbl times the fraction at the segment's mean
+//!   speed, which puts ramp ticks early or late by up to a step).
 //! - **Minimum speed.** A segment is stretched in `SEGMENT_TIME_S` steps until
 //!   it covers at least 1.25 steps (grbl's REQ_MM_INCREMENT_SCALAR), so a ramp
 //!   from zero speed gives a first period of one segment or so, never an
@@ -28,6 +36,12 @@
 //!   [`Prep::resume`] the same block restarts from zero speed on the same path;
 //!   prep re-plans the ring itself on its next call.
 //! - **Abort** ([`Prep::reset`]): forget the block in progress (e-stop, limit).
+//!
+//! The ISR's queue holds `StepperCmd`s; each planner block costs one
+//! `Block` entry plus its `Run` entries. With 0.1 mm moves at 50 mm/s a block
+//! lasts 2 ms, so a 16-entry queue covers only ~16 ms of motion: the main loop
+//! must call [`Prep::fill`] / [`Prep::next_segment`] at least that often (or
+//! the queue must be longer) or the ISR starves.
 //!
 //! The planner's executing block is shared: after every segment prep writes its
 //! remaining distance and current speed² back into it, and it recomputes its
