@@ -121,6 +121,11 @@ fn m112_from_a_full_queue_stops_everything() {
     }
     assert!(!vm.spindle_on());
     assert!(vm.output().contains("ALARM:emergency stop"), "{}", vm.output());
+    // Let the rest of the queued job drain (each line is refused), end any
+    // partial line, then check the refusal on a clean line.
+    vm.run_until(|vm| vm.tx_pending() == 0, 5.0).unwrap();
+    vm.send(b"\n");
+    vm.run_for(0.2).unwrap();
     vm.take_lines();
     // Motion is refused until M999.
     let e = refused(&mut vm, "G1 X20");
