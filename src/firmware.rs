@@ -62,8 +62,6 @@ impl Io for Hw {
     }
 
     fn clear_stop(&mut self) {
-        let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
-        let _ = m;
         stepper::MOTION.fetch_and(
             !(stepper::motion::LIMIT | stepper::motion::HOME_TRIPPED | stepper::motion::PROBE_TRIPPED),
             portable_atomic::Ordering::AcqRel,
@@ -135,7 +133,7 @@ pub fn run() -> ! {
     }
 }
 
-/// While the TX ring is full: keep the segment ring topped up.
+/// While the TX ring is full: keep the watchdog fed.
 fn tx_wait() {
     wdt::feed();
 }

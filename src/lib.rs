@@ -25,6 +25,25 @@ pub mod stepper;
 pub mod toolsetter;
 pub mod ui;
 
+/// Helpers shared by the library's unit tests.
+#[cfg(test)]
+pub(crate) mod test_util {
+    /// Tiny xorshift32 PRNG for random-input tests (no `rand` crate).
+    pub struct XorShift(pub u32);
+
+    impl XorShift {
+        /// Next pseudo-random value.
+        pub fn next(&mut self) -> u32 {
+            let mut x = self.0;
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            self.0 = x;
+            x
+        }
+    }
+}
+
 /// Number of stepper axes: X, Y, Z and E0 (the tool carousel).
 pub const N_AXES: usize = 4;
 

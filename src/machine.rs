@@ -353,11 +353,16 @@ impl Machine {
         }
     }
 
+    /// True when nothing is planned, prepared or stepping.
+    fn motion_done(&self, io: &impl Io) -> bool {
+        self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy
+    }
+
     /// Wait until every queued move has been stepped out.
     pub fn wait_idle(&mut self, io: &mut impl Io) -> CmdResult {
         loop {
             self.wait_step(io)?;
-            if self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy {
+            if self.motion_done(io) {
                 return Ok(());
             }
         }
@@ -422,7 +427,7 @@ impl Machine {
         if rt.status {
             self.status_report(io);
         }
-        if self.state == State::Run && self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy {
+        if self.state == State::Run && self.motion_done(io) {
             self.state = State::Idle;
         }
     }
@@ -528,7 +533,7 @@ impl Machine {
             if self.last_rt.home_tripped || self.last_rt.probe_tripped {
                 return Ok(true);
             }
-            if self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy {
+            if self.motion_done(io) {
                 return Ok(false);
             }
         }

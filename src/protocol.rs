@@ -593,18 +593,7 @@ mod tests {
         );
     }
 
-    /// Tiny xorshift32 PRNG for the random-bytes tests.
-    struct XorShift(u32);
-    impl XorShift {
-        fn next(&mut self) -> u32 {
-            let mut x = self.0;
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            self.0 = x;
-            x
-        }
-    }
+    use crate::test_util::XorShift;
 
     #[test]
     fn random_bytes_never_panic_and_never_give_a_line_over_the_limit() {

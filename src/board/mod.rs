@@ -128,12 +128,8 @@ pub fn spindle_set(duty: u8) {
     });
 }
 
-/// Spindle off from an ISR (interrupts already disabled).
-pub(crate) fn spindle_off_from_isr() {
-    spindle_off_raw();
-}
-
-fn spindle_off_raw() {
+/// Spindle off; callers hold a critical section (or run in an ISR).
+pub(crate) fn spindle_off_raw() {
     // SAFETY: Timer2 is owned by the spindle; callers hold a critical section.
     let tc2 = unsafe { &*TC2::ptr() };
     tc2.tccr2a().modify(|_, w| w.com2a().disconnected());

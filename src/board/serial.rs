@@ -9,8 +9,9 @@
 //! away instead of running it: the ring itself can never overflow.
 //!
 //! TX: [`write`] queues bytes in a 128-byte ring drained by `USART0_UDRE`.
-//! While the ring is full the writer runs the idle hook (segment prep), so a
-//! long reply never starves the stepper.
+//! While the ring is full the writer runs a wait hook (the firmware's feeds
+//! the watchdog); the segment ring holds enough motion to cover a full TX
+//! ring draining (128 bytes = 5 ms at 250000 baud).
 
 use super::{realtime, REALTIME};
 use avr_device::atmega2560::USART0;
@@ -35,7 +36,7 @@ static mut TX_CONS: Option<Consumer<'static, u8, TX_LEN>> = None;
 static mut ESTOP_SCAN: EstopScanner = EstopScanner::new();
 /// Set by the RX ISR when a byte was lost (ring full or hardware overrun).
 static OVERRUN: portable_atomic::AtomicBool = portable_atomic::AtomicBool::new(false);
-/// Run while waiting for TX space (set by main: segment prep).
+/// Run while waiting for TX space (set by main).
 static mut TX_WAIT_HOOK: fn() = || {};
 
 /// Baud rates the firmware offers. 250000 is the default (Repetier's).
@@ -93,7 +94,7 @@ pub fn rx_overrun() -> bool {
     OVERRUN.swap(false, portable_atomic::Ordering::AcqRel)
 }
 
-/// Queue bytes for sending; waits (running the idle hook) while the ring is full.
+/// Queue bytes for sending; waits (running the wait hook) while the ring is full.
 pub fn write(bytes: &[u8]) {
     for &b in bytes {
         loop {

@@ -251,7 +251,7 @@ fn check_switches(st: &mut State, bits: u8) -> bool {
         }
         if fault {
             MOTION.fetch_or(motion::LIMIT | motion::STOP, Ordering::AcqRel);
-            super::spindle_off_from_isr();
+            super::spindle_off_raw();
             return true;
         }
     }

@@ -1243,18 +1243,7 @@ mod tests {
         assert_eq!(out, "Error:word repeated at col 7");
     }
 
-    /// Tiny xorshift32 PRNG for the random-text test.
-    struct XorShift(u32);
-    impl XorShift {
-        fn next(&mut self) -> u32 {
-            let mut x = self.0;
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            self.0 = x;
-            x
-        }
-    }
+    use crate::test_util::XorShift;
 
     #[test]
     fn random_g_code_like_text_never_panics_and_values_stay_in_range() {
