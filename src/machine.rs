@@ -34,7 +34,6 @@ pub struct Realtime {
     pub limit: bool,
     pub home_tripped: bool,
     pub probe_tripped: bool,
-    pub rx_overrun: bool,
 }
 
 /// What the stepper ISR reports.
@@ -200,7 +199,6 @@ impl Machine {
                 limit: false,
                 home_tripped: false,
                 probe_tripped: false,
-                rx_overrun: false,
             },
             numbered: false,
         }
@@ -402,9 +400,6 @@ impl Machine {
         }
         if rt.limit && self.alarm.is_none() {
             self.raise(io, Alarm::HardLimit);
-        }
-        if rt.rx_overrun {
-            self.asm.mark_overrun();
         }
         if rt.hold && self.alarm.is_none() && !self.holding {
             self.holding = true;
