@@ -15,6 +15,7 @@
 //! `?`, `!`, `~`, M112 and switch trips.
 
 use crate::config::Settings;
+use crate::flash::FStr;
 use crate::fixed::Micros;
 use crate::gcode::interp::{self, Interp};
 use crate::planner::{PlanError, Planner};
@@ -137,13 +138,13 @@ pub enum Alarm {
 
 impl Alarm {
     /// Text after `Error:alarm ` / `ALARM:`.
-    pub fn message(self) -> &'static str {
+    pub fn message(self) -> FStr {
         match self {
-            Alarm::EmergencyStop => "emergency stop",
-            Alarm::HardLimit => "hard limit",
-            Alarm::HomingFailed => "homing failed",
-            Alarm::ProbeFailed => "probe failed",
-            Alarm::WatchdogReset => "watchdog reset",
+            Alarm::EmergencyStop => F!("emergency stop"),
+            Alarm::HardLimit => F!("hard limit"),
+            Alarm::HomingFailed => F!("homing failed"),
+            Alarm::ProbeFailed => F!("probe failed"),
+            Alarm::WatchdogReset => F!("watchdog reset"),
         }
     }
 }
@@ -219,7 +220,7 @@ impl Machine {
         self.firmware_line(io);
         uwriteln!(io, "echo:reset cause: {}", reset_cause).ok();
         if loaded.is_none() {
-            uwriteln!(io, "echo:EEPROM settings invalid or blank, using defaults").ok();
+            uwriteln!(io, "{}", F!("echo:EEPROM settings invalid or blank, using defaults")).ok();
         }
         if reset_cause == "watchdog" {
             self.raise(io, Alarm::WatchdogReset);
@@ -230,9 +231,10 @@ impl Machine {
     pub fn firmware_line(&self, io: &mut impl Io) {
         uwriteln!(
             io,
-            "FIRMWARE_NAME:{} {} FIRMWARE_URL:none PROTOCOL_VERSION:1.0 MACHINE_TYPE:Mill EXTRUDER_COUNT:1 AXIS_COUNT:3 TOOLS:12",
+            "FIRMWARE_NAME:{} {}{}",
             crate::FIRMWARE_NAME,
-            crate::FIRMWARE_VERSION
+            crate::FIRMWARE_VERSION,
+            F!(" FIRMWARE_URL:none PROTOCOL_VERSION:1.0 MACHINE_TYPE:Mill EXTRUDER_COUNT:1 AXIS_COUNT:3 TOOLS:12")
         )
         .ok();
     }
@@ -251,9 +253,9 @@ impl Machine {
             }
             Some(other) => {
                 let msg = match other {
-                    Assembled::TooLong => "line too long (max 96 characters), ignored",
-                    Assembled::Overrun => "serial receive overrun, line dropped",
-                    _ => "binary data in line, ignored",
+                    Assembled::TooLong => F!("line too long (max 96 characters), ignored"),
+                    Assembled::Overrun => F!("serial receive overrun, line dropped"),
+                    _ => F!("binary data in line, ignored"),
                 };
                 uwriteln!(io, "Error:{}", msg).ok();
                 self.resend(io);
@@ -292,8 +294,8 @@ impl Machine {
     fn report_error(&mut self, io: &mut impl Io, e: interp::Error) {
         match e {
             interp::Error::Alarm => {
-                let why = self.alarm.map_or("unknown", |a| a.message());
-                uwriteln!(io, "Error:alarm {}; home or M999", why).ok();
+                let why = self.alarm.map_or(F!("unknown"), |a| a.message());
+                uwriteln!(io, "Error:alarm {}{}", why, F!("; home or M999")).ok();
             }
             interp::Error::Parse(p) => {
                 uwriteln!(io, "Error:{} at col {}", p.kind.message(), p.col).ok();
@@ -327,7 +329,7 @@ impl Machine {
             match self.planner.push_line(target, feed_mm_per_min, rapid, &self.settings) {
                 Ok(p) => {
                     if p.rate_capped {
-                        uwriteln!(io, "echo:warning: feed capped to the maximum step rate").ok();
+                        uwriteln!(io, "{}", F!("echo:warning: feed capped to the maximum step rate")).ok();
                     }
                     if self.state == State::Idle {
                         self.state = State::Run;
@@ -371,7 +373,7 @@ impl Machine {
         let now = io.millis();
         if now.wrapping_sub(self.last_busy_ms) >= 2000 {
             self.last_busy_ms = now;
-            uwriteln!(io, "busy:processing").ok();
+            uwriteln!(io, "{}", F!("busy:processing")).ok();
         }
     }
 
@@ -445,7 +447,7 @@ impl Machine {
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
         uwriteln!(io, "ALARM:{}", alarm.message()).ok();
-        uwriteln!(io, "echo:home (G28) or M999 to continue").ok();
+        uwriteln!(io, "{}", F!("echo:home (G28) or M999 to continue")).ok();
     }
 
     /// M999: leave the alarm state. Position stays unknown until homed.

@@ -55,16 +55,16 @@ pub enum ProtoError {
 
 impl ProtoError {
     /// Text printed after `Error:`.
-    pub fn message(&self) -> &'static str {
+    pub fn message(&self) -> FStr {
         match self {
-            ProtoError::Checksum => "checksum mismatch",
-            ProtoError::LineNumber => "line number is not last line number+1",
-            ProtoError::MissingChecksum => "no checksum with line number",
-            ProtoError::MissingLineNumber => "no line number with checksum",
-            ProtoError::BadLineNumber => "bad line number",
-            ProtoError::TooLong => "line too long",
-            ProtoError::Overrun => "serial receive overrun, line dropped",
-            ProtoError::BadByte => "binary or control byte in line",
+            ProtoError::Checksum => F!("checksum mismatch"),
+            ProtoError::LineNumber => F!("line number is not last line number+1"),
+            ProtoError::MissingChecksum => F!("no checksum with line number"),
+            ProtoError::MissingLineNumber => F!("no line number with checksum"),
+            ProtoError::BadLineNumber => F!("bad line number"),
+            ProtoError::TooLong => F!("line too long"),
+            ProtoError::Overrun => F!("serial receive overrun, line dropped"),
+            ProtoError::BadByte => F!("binary or control byte in line"),
         }
     }
 }
@@ -465,6 +465,7 @@ impl EstopScanner {
     }
 }
 
+use crate::flash::FStr;
 #[cfg(test)]
 mod tests {
     use super::*;
