@@ -201,6 +201,13 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
                 report_position(m, io);
                 return Ok(());
             }
+            105 => {
+                // Senders (printcore, Pronterface, OctoPrint) poll M105 for
+                // temperatures; a mill has no heaters, so it reports none
+                // rather than an error every few seconds.
+                uwriteln!(io, "T:0.0 /0.0").ok();
+                return Ok(());
+            }
             119 => {
                 report_switches(m, io);
                 return Ok(());

@@ -319,7 +319,7 @@ pub enum Spindle {
 /// M codes outside the stopping, tool-change and spindle groups: at most one
 /// of them per line, in [`Line::other_m`]. Add new ones here.
 pub const OTHER_M_CODES: &[u16] = &[
-    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 84, 92, 108, 110, 112, 114, 115, 119, 201, 203, 220,
+    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220,
     400, 500, 501, 502, 503, 999,
 ];
 
@@ -920,7 +920,7 @@ mod tests {
         assert_eq!(fails("G93"), (ParseErrorKind::UnsupportedCode, 1));
         assert_eq!(fails("G1 X1 G41"), (ParseErrorKind::UnsupportedCode, 7));
         assert_eq!(fails("M7"), (ParseErrorKind::UnsupportedCode, 1));
-        assert_eq!(fails("G0 M105"), (ParseErrorKind::UnsupportedCode, 4));
+        assert_eq!(fails("G0 M104"), (ParseErrorKind::UnsupportedCode, 4));
         assert_eq!(fails("M65535"), (ParseErrorKind::UnsupportedCode, 1));
         assert_eq!(fails("G7000"), (ParseErrorKind::UnsupportedCode, 1));
     }
