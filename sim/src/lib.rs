@@ -17,6 +17,7 @@
 //! - [`report`]: JSON report and CSV step trace.
 //! - [`pins`]: the RAMPS pin map, the only place `sim/` knows pins.
 //! - [`pty`]: UART0 as a pseudo-terminal for real G-code senders.
+//! - [`plot`]: the toolpath PNG, commanded against recorded.
 //!
 //! ```no_run
 //! use sim::{Axis, Flow, Input, StreamOptions, Vm, VmConfig};
@@ -42,6 +43,7 @@ pub mod host;
 pub mod isr;
 pub mod physics;
 pub mod pins;
+pub mod plot;
 pub mod pty;
 pub mod recorder;
 pub mod report;

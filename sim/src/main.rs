@@ -1,7 +1,7 @@
 //! `sim`: run a G-code job on the firmware in the virtual machine.
 //!
 //! ```text
-//! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv]
+//! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv] [--png out/toolpath.png]
 //!                               [--checksums] [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]
 //! cargo run -p sim --release -- --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]
 //! ```
@@ -26,6 +26,7 @@ struct Args {
     elf: Option<PathBuf>,
     json: Option<PathBuf>,
     csv: Option<PathBuf>,
+    png: Option<PathBuf>,
     checksums: bool,
     flow: Flow,
     timeout_s: f64,
@@ -35,7 +36,7 @@ struct Args {
     idle_exit_s: Option<f64>,
 }
 
-const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--checksums] \
+const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--png FILE] [--checksums] \
 [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]\n       \
 sim --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]";
 
@@ -44,6 +45,7 @@ fn parse_args() -> Result<Args, String> {
         elf: None,
         json: None,
         csv: None,
+        png: None,
         checksums: false,
         flow: Flow::PingPong,
         timeout_s: 600.0,
@@ -58,6 +60,7 @@ fn parse_args() -> Result<Args, String> {
             "--elf" => a.elf = Some(value("--elf")?.into()),
             "--json" => a.json = Some(value("--json")?.into()),
             "--csv" => a.csv = Some(value("--csv")?.into()),
+            "--png" => a.png = Some(value("--png")?.into()),
             "--checksums" => a.checksums = true,
             "--flow" => a.flow = value("--flow")?.parse()?,
             "--timeout" => {
@@ -164,6 +167,15 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
         println!("{:<22}{}", "csv", p.display());
+    }
+    if let Some(p) = &args.png {
+        let commanded = sim::plot::commanded_path(&lines);
+        let recorded = sim::plot::recorded_path(&vm);
+        if let Err(e) = sim::plot::write_toolpath_png(p, &commanded, &recorded) {
+            eprintln!("cannot write {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
+        println!("{:<22}{}", "toolpath", p.display());
     }
     if report.clean() {
         ExitCode::SUCCESS
