@@ -15,6 +15,8 @@
 //!   magnitude and with at most 9 significant digits. There is no exponent:
 //!   a number directly followed by `E` (`X1e99`) is an error, so write a
 //!   blank before an `E` word (`X1 E5`);
+//! - an axis word without a number (`G28 X Z`) names the axis, with the
+//!   value 0; only a G28 line may do that, elsewhere it is a bad number;
 //! - a leading `N<n>` is skipped; an `N` word later on the line is a value
 //!   word (M110 reads it);
 //! - a line that is only `%` (a program delimiter in files) is empty;
@@ -731,6 +733,8 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
     let mut seen_word = false;
     // Column of a `%` program delimiter, 0 if none.
     let mut percent_col = 0u8;
+    // Column of the first axis word without a number (`G28 X`), 0 if none.
+    let mut bare_axis_col = 0u8;
     while let Some(&c) = s.get(pos) {
         let col = col_of(pos);
         match c {
@@ -781,6 +785,18 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                         let Some(w) = Word::from_letter(up) else {
                             return err(ParseErrorKind::UnknownWord, col);
                         };
+                        if matches!(w, Word::X | Word::Y | Word::Z) && no_number_follows(s, pos) {
+                            // `G28 X`: an axis named without a value. Only G28
+                            // may do that; checked once the whole line is read.
+                            if !line.words.insert(w, 0.0) {
+                                return err(ParseErrorKind::RepeatedWord, col);
+                            }
+                            if bare_axis_col == 0 {
+                                bare_axis_col = col;
+                            }
+                            seen_word = true;
+                            continue;
+                        }
                         let (n, next) = lex_number(s, pos, col)?;
                         pos = next;
                         if w == Word::T
@@ -798,7 +814,20 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
             _ => return err(ParseErrorKind::Unexpected, col),
         }
     }
+    if bare_axis_col != 0 && line.non_modal != Some(NonModal::Home) {
+        return err(ParseErrorKind::BadNumber, bare_axis_col);
+    }
     Ok(line)
+}
+
+/// True when the word whose letter ends at `pos` has no number at all: the
+/// next non-blank is the end of the line, a comment, or the letter of another
+/// word (`G28 X Y`). `X-`, `X.` or `Xa` are not bare: they are bad numbers.
+fn no_number_follows(s: &[u8], pos: usize) -> bool {
+    match s.get(skip_blanks(s, pos)) {
+        None | Some(b';' | b'(') => true,
+        Some(&c) => matches!(c.to_ascii_uppercase(), b'G' | b'M') || Word::from_letter(c).is_some(),
+    }
 }
 
 #[cfg(test)]
@@ -1098,6 +1127,22 @@ mod tests {
         assert_eq!(fails("G"), (ParseErrorKind::BadNumber, 1));
         assert_eq!(fails("M"), (ParseErrorKind::BadNumber, 1));
         assert_eq!(fails("G1 X10 F"), (ParseErrorKind::BadNumber, 8));
+    }
+
+    #[test]
+    fn g28_may_name_axes_without_numbers_and_no_other_line_may() {
+        let l = ok("G28 X Z");
+        assert_eq!(l.non_modal, Some(NonModal::Home));
+        assert_eq!((l.word(Word::X), l.word(Word::Y), l.word(Word::Z)), (Some(0.0), None, Some(0.0)));
+        assert_eq!(ok("g28y"), ok("G28 Y0"));
+        assert_eq!(ok("Y G28 (home Y)").word(Word::Y), Some(0.0));
+        assert_eq!(ok("G28 X;all").word(Word::X), Some(0.0));
+        assert_eq!(fails("G28 X X"), (ParseErrorKind::RepeatedWord, 7));
+        assert_eq!(fails("G0 X"), (ParseErrorKind::BadNumber, 4));
+        assert_eq!(fails("X Y1 G1"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("G28 X-"), (ParseErrorKind::BadNumber, 5));
+        assert_eq!(fails("G28 X."), (ParseErrorKind::BadNumber, 5));
+        assert_eq!(fails("G28 F"), (ParseErrorKind::BadNumber, 5));
     }
 
     #[test]
