@@ -186,6 +186,12 @@ fn has_axis_words(l: &Line) -> bool {
     AXIS_WORDS.iter().any(|&w| l.word(w).is_some())
 }
 
+/// True when the line's X, Y, Z words are the arguments of its M code
+/// (M92, M201, M203: per-axis settings), not a move.
+fn axis_words_are_settings(l: &Line) -> bool {
+    matches!(l.other_m, Some(92 | 201 | 203))
+}
+
 /// Execute one parsed line (RS274/NGC order of execution).
 #[inline(never)]
 pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
@@ -357,7 +363,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     // ---- Motion -------------------------------------------------------------
     let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
     let mut target = m.interp.pos_mm;
-    let any_axis = has_axis_words(l);
+    let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
     for (a, &w) in AXIS_WORDS.iter().enumerate() {
         if let Some(v) = l.word(w) {
             let v = if g.inches { v * MM_PER_INCH } else { v };
