@@ -1288,6 +1288,46 @@ mod tests {
         assert_eq!(out, "Error:word repeated at col 7");
     }
 
+    #[test]
+    fn every_error_kind_comes_from_some_line_with_the_column_of_its_cause() {
+        let long = " ".repeat(MAX_PARSE_LEN + 1);
+        let cases: [(&str, ParseErrorKind, u8); 12] = [
+            ("G1 X1..2", ParseErrorKind::BadNumber, 4),
+            ("G1 Y1e5", ParseErrorKind::Exponent, 4),
+            ("G1 Z-1000000", ParseErrorKind::NumberOutOfRange, 4),
+            ("G1 U3", ParseErrorKind::UnknownWord, 4),
+            ("G1 X1 @", ParseErrorKind::Unexpected, 7),
+            ("G1 M9", ParseErrorKind::UnsupportedCode, 4),
+            ("G1 F1 F2", ParseErrorKind::RepeatedWord, 7),
+            ("G17 G18", ParseErrorKind::ModalGroupConflict, 5),
+            ("G1 (x", ParseErrorKind::UnclosedComment, 4),
+            ("T2.5", ParseErrorKind::BadToolNumber, 1),
+            ("M28 ;", ParseErrorKind::MissingFileName, 1),
+            (long.as_str(), ParseErrorKind::LineTooLong, 255),
+        ];
+        let mut seen = [false; 12];
+        for (text, kind, col) in cases {
+            assert_eq!(fails(text), (kind, col), "{text:?}");
+            // Exhaustive: a new kind must be added to the table above.
+            let i = match kind {
+                ParseErrorKind::BadNumber => 0,
+                ParseErrorKind::Exponent => 1,
+                ParseErrorKind::NumberOutOfRange => 2,
+                ParseErrorKind::UnknownWord => 3,
+                ParseErrorKind::Unexpected => 4,
+                ParseErrorKind::UnsupportedCode => 5,
+                ParseErrorKind::RepeatedWord => 6,
+                ParseErrorKind::ModalGroupConflict => 7,
+                ParseErrorKind::UnclosedComment => 8,
+                ParseErrorKind::BadToolNumber => 9,
+                ParseErrorKind::MissingFileName => 10,
+                ParseErrorKind::LineTooLong => 11,
+            };
+            seen[i] = true;
+        }
+        assert!(seen.iter().all(|&s| s), "{seen:?}");
+    }
+
     use crate::test_util::XorShift;
 
     #[test]
