@@ -9,7 +9,7 @@ mod motion_util;
 
 use common::*;
 use motion_util::*;
-use sim::{Axis, Input, VmConfig};
+use sim::{Axis, Flow, Input, StreamOptions, VmConfig};
 
 // ---------------------------------------------------------------- homing
 
@@ -120,6 +120,24 @@ fn g28_starting_on_a_switch_moves_off_it_first() {
     let min = vm.recorder().trace().iter().map(|t| t.position).min().unwrap();
     assert_eq!(min, 0, "never past the switch");
     assert_no_violations(&vm);
+}
+
+#[test]
+fn g28_raises_an_alarm_when_a_switch_is_not_found_within_travel_plus_10_percent() {
+    let mut cfg = VmConfig::default();
+    cfg.machine.initial_position = [300, 300, 300, 0];
+    // Z's switch is broken: it never closes.
+    cfg.machine.travel_margin_steps = [100, 100, 10_000, 0];
+    let mut vm = boot_with(cfg);
+    vm.set_input(Input::HomeZ, Some(false));
+    let r = vm.command("G28").unwrap();
+    assert!(r.iter().any(|l| l == "ALARM:homing failed"), "{r:?}");
+    assert!(r.iter().any(|l| l.starts_with("Error:homing failed")), "{r:?}");
+    // Z searched exactly 49.5 mm (45 mm + 10 %) and stopped; Y and X never moved.
+    assert_eq!(steps(&vm), [300, 300, 300 - 4950, 0]);
+    assert!(vm.recorder().trace().iter().all(|t| t.axis == Axis::Z));
+    let e = refused(&mut vm, "G0 Z10");
+    assert!(e.starts_with("Error:alarm homing failed"), "{e}");
 }
 
 // ---------------------------------------------------------------- lines
@@ -299,6 +317,23 @@ fn g91_moves_are_relative_to_the_last_position_and_g90_restores_absolute() {
     assert_eq!(steps_pos_neg(&vm, Axis::X), (700, 0));
     run(&mut vm, "G90 G1 X10");
     assert_eq!(xyz_now(&vm), [1000, 500, 1001]);
+    assert_no_violations(&vm);
+}
+
+#[test]
+fn a_thousand_g91_moves_of_a_micrometre_end_where_one_millimetre_ends() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G0 X40 Y10");
+    ok(&mut vm, "G91 G1 F600");
+    mark(&mut vm);
+    let lines = vec!["X0.001 Y-0.001"; 1000];
+    let job = vm.stream(&lines, StreamOptions::new(Flow::CharCount(200))).unwrap();
+    assert!(!job.timed_out && job.oks == 1000 && job.errors.is_empty(), "{:?}", job.errors);
+    ok(&mut vm, "M400");
+    assert_eq!(xyz_now(&vm), [4100, 900, 100]);
+    assert_eq!(steps_pos_neg(&vm, Axis::X), (100, 0));
+    assert_eq!(steps_pos_neg(&vm, Axis::Y), (0, 100));
+    check_polyline(&vm, &[[4000, 1000, 100], [4100, 900, 100]], 1.0);
     assert_no_violations(&vm);
 }
 

@@ -178,6 +178,9 @@ fn m112_mid_move_stops_everything_and_only_m999_then_g28_recover() {
     ok(&mut vm, "M3 S8000");
     mark(&mut vm);
     ok(&mut vm, "G1 X40 Y30 F1200");
+    // The host waits for the move with M400; the firmware sits in that wait
+    // when the M112 arrives.
+    vm.send(b"M400\n");
     vm.run_for(0.4).unwrap();
     assert!(steps_since_mark(&vm) > 100);
     let sent = vm.cycles();
@@ -193,7 +196,13 @@ fn m112_mid_move_stops_everything_and_only_m999_then_g28_recover() {
         assert!(!vm.driver_enabled(a), "{a} driver enabled after M112");
     }
     assert!(!vm.spindle_on());
-    vm.take_lines();
+    // One alarm, although both the RX scanner and the M112 line itself see it.
+    vm.run_for(0.05).unwrap();
+    let alarms = vm.line_log().iter().filter(|(_, l)| l.starts_with("ALARM:")).count();
+    assert_eq!(alarms, 1, "{}", vm.output());
+    let lines = vm.take_lines();
+    assert!(lines.iter().any(|l| l.starts_with("Error:alarm emergency stop")), "M400 fails: {lines:?}");
+    assert_eq!(lines.iter().filter(|l| *l == "ok").count(), 2, "one ok each for M400 and M112: {lines:?}");
     // Motion, and even homing, is refused until M999.
     for line in ["G1 X10", "G0 Y5", "G28", "G2 X10 Y10 I1 J1", "M3 S100"] {
         let e = refused(&mut vm, line);

@@ -221,7 +221,10 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             }
             110 => return Ok(()), // handled by the line checker
             112 => {
-                m.raise(io, Alarm::EmergencyStop);
+                // The RX interrupt's scanner has usually raised it already.
+                if m.alarm != Some(Alarm::EmergencyStop) {
+                    m.raise(io, Alarm::EmergencyStop);
+                }
                 return Ok(());
             }
             _ => {}
