@@ -371,6 +371,41 @@ fn g54_to_g59_offsets_from_g10_l2_and_l20_shift_moves_and_g53_ignores_them() {
 }
 
 #[test]
+fn g92_and_g43_shift_the_work_position_without_moving() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G0 X10 Y10 Z10");
+    mark(&mut vm);
+    // G92: here is work (0, 0, 0). Nothing moves.
+    ok(&mut vm, "G92 X0 Y0 Z0");
+    ok(&mut vm, "M400");
+    assert_eq!(steps_since_mark(&vm), 0);
+    assert_eq!(m114_work(&mut vm), [0.0, 0.0, 0.0]);
+    run(&mut vm, "G1 X5 Y5 Z5 F1200");
+    assert_eq!(xyz_now(&vm), [1500, 1500, 1500]);
+    assert_eq!(m114_work(&mut vm), [5.0, 5.0, 5.0]);
+    // G10 L20 on top of G92: the current point becomes work X0.
+    ok(&mut vm, "G10 L20 P1 X0");
+    run(&mut vm, "G0 X2");
+    assert_eq!(xyz_now(&vm), [1700, 1500, 1500]);
+    ok(&mut vm, "G10 L2 P1 X0");
+    // G43 H2 applies tool 2's length (3 mm) to Z; G49 cancels it.
+    ok(&mut vm, "G10 L1 P2 Z3");
+    mark(&mut vm);
+    ok(&mut vm, "G43 H2");
+    ok(&mut vm, "M400");
+    assert_eq!(steps_since_mark(&vm), 0, "G43 alone moves nothing");
+    assert_eq!(m114_work(&mut vm)[2], 2.0);
+    run(&mut vm, "G0 Z5");
+    assert_eq!(xyz_now(&vm)[2], 1800);
+    run(&mut vm, "G49 G0 Z5");
+    assert_eq!(xyz_now(&vm)[2], 1500);
+    // G53 ignores G92 too.
+    run(&mut vm, "G53 G0 X20 Y20 Z20");
+    assert_eq!(xyz_now(&vm), [2000, 2000, 2000]);
+    assert_no_violations(&vm);
+}
+
+#[test]
 fn an_arc_in_a_work_offset_is_centred_in_work_coordinates() {
     let mut vm = boot_homed();
     ok(&mut vm, "G10 L2 P1 X20 Y20 Z5");
