@@ -589,7 +589,7 @@ mod tests {
     #[test]
     fn full_circles_in_every_plane_by_ijk_and_by_two_r_halves_come_back_to_the_start() {
         for plane in [G17, G18, G19] {
-            let (a0, a1, al) = plane;
+            let (a0, _, al) = plane;
             // Start 7.5 mm from a centre at (22.5, 22.5) on axis_0.
             let mut start = [22.5f32; 3];
             start[a0] = 30.0;
