@@ -434,6 +434,8 @@ impl Machine {
     pub fn raise(&mut self, io: &mut impl Io, alarm: Alarm) {
         io.stop_motion();
         io.spindle(0);
+        // Off for the interpreter too: an S word alone must not restart it.
+        self.interp.spindle_on = false;
         if alarm == Alarm::EmergencyStop {
             io.drivers(false);
         }
@@ -612,11 +614,13 @@ impl Machine {
 /// approach; the final back-off is counted (position = pull-off distance).
 #[inline(never)]
 pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
-    m.wait_idle(io)?;
     if m.alarm.is_some() {
-        // Homing is the way out of an alarm (except M112, checked by the caller).
+        // Homing is the way out of an alarm (except M112, checked by the
+        // caller). Clear it first: waiting for the (already stopped) motion
+        // fails while an alarm is set.
         m.clear_alarm(io);
     }
+    m.wait_idle(io)?;
     io.drivers(true);
     let prev = m.state;
     m.state = State::Home;

@@ -187,6 +187,12 @@ fn has_axis_words(l: &Line) -> bool {
     AXIS_WORDS.iter().any(|&w| l.word(w).is_some())
 }
 
+/// True when the line's X, Y, Z words are the arguments of its M code
+/// (M92, M201, M203: per-axis settings), not a move.
+fn axis_words_are_settings(l: &Line) -> bool {
+    matches!(l.other_m, Some(92 | 201 | 203))
+}
+
 /// Execute one parsed line (RS274/NGC order of execution).
 #[inline(never)]
 pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
@@ -223,7 +229,10 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             }
             110 => return Ok(()), // handled by the line checker
             112 => {
-                m.raise(io, Alarm::EmergencyStop);
+                // The RX interrupt's scanner has usually raised it already.
+                if m.alarm != Some(Alarm::EmergencyStop) {
+                    m.raise(io, Alarm::EmergencyStop);
+                }
                 return Ok(());
             }
             _ => {}
@@ -365,7 +374,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     // ---- Motion -------------------------------------------------------------
     let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
     let mut target = m.interp.pos_mm;
-    let any_axis = has_axis_words(l);
+    let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
     for (a, &w) in AXIS_WORDS.iter().enumerate() {
         if let Some(v) = l.word(w) {
             let v = if g.inches { v * MM_PER_INCH } else { v };

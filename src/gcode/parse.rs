@@ -15,6 +15,8 @@
 //!   magnitude and with at most 9 significant digits. There is no exponent:
 //!   a number directly followed by `E` (`X1e99`) is an error, so write a
 //!   blank before an `E` word (`X1 E5`);
+//! - an axis word without a number (`G28 X Z`) names the axis, with the
+//!   value 0; only a G28 line may do that, elsewhere it is a bad number;
 //! - a leading `N<n>` is skipped; an `N` word later on the line is a value
 //!   word (M110 reads it);
 //! - a line that is only `%` (a program delimiter in files) is empty;
@@ -732,6 +734,8 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
     let mut seen_word = false;
     // Column of a `%` program delimiter, 0 if none.
     let mut percent_col = 0u8;
+    // Column of the first axis word without a number (`G28 X`), 0 if none.
+    let mut bare_axis_col = 0u8;
     while let Some(&c) = s.get(pos) {
         let col = col_of(pos);
         match c {
@@ -782,6 +786,18 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                         let Some(w) = Word::from_letter(up) else {
                             return err(ParseErrorKind::UnknownWord, col);
                         };
+                        if matches!(w, Word::X | Word::Y | Word::Z) && no_number_follows(s, pos) {
+                            // `G28 X`: an axis named without a value. Only G28
+                            // may do that; checked once the whole line is read.
+                            if !line.words.insert(w, 0.0) {
+                                return err(ParseErrorKind::RepeatedWord, col);
+                            }
+                            if bare_axis_col == 0 {
+                                bare_axis_col = col;
+                            }
+                            seen_word = true;
+                            continue;
+                        }
                         let (n, next) = lex_number(s, pos, col)?;
                         pos = next;
                         if w == Word::T
@@ -799,7 +815,20 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
             _ => return err(ParseErrorKind::Unexpected, col),
         }
     }
+    if bare_axis_col != 0 && line.non_modal != Some(NonModal::Home) {
+        return err(ParseErrorKind::BadNumber, bare_axis_col);
+    }
     Ok(line)
+}
+
+/// True when the word whose letter ends at `pos` has no number at all: the
+/// next non-blank is the end of the line, a comment, or the letter of another
+/// word (`G28 X Y`). `X-`, `X.` or `Xa` are not bare: they are bad numbers.
+fn no_number_follows(s: &[u8], pos: usize) -> bool {
+    match s.get(skip_blanks(s, pos)) {
+        None | Some(b';' | b'(') => true,
+        Some(&c) => matches!(c.to_ascii_uppercase(), b'G' | b'M') || Word::from_letter(c).is_some(),
+    }
 }
 
 #[cfg(test)]
@@ -1102,6 +1131,22 @@ mod tests {
     }
 
     #[test]
+    fn g28_may_name_axes_without_numbers_and_no_other_line_may() {
+        let l = ok("G28 X Z");
+        assert_eq!(l.non_modal, Some(NonModal::Home));
+        assert_eq!((l.word(Word::X), l.word(Word::Y), l.word(Word::Z)), (Some(0.0), None, Some(0.0)));
+        assert_eq!(ok("g28y"), ok("G28 Y0"));
+        assert_eq!(ok("Y G28 (home Y)").word(Word::Y), Some(0.0));
+        assert_eq!(ok("G28 X;all").word(Word::X), Some(0.0));
+        assert_eq!(fails("G28 X X"), (ParseErrorKind::RepeatedWord, 7));
+        assert_eq!(fails("G0 X"), (ParseErrorKind::BadNumber, 4));
+        assert_eq!(fails("X Y1 G1"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("G28 X-"), (ParseErrorKind::BadNumber, 5));
+        assert_eq!(fails("G28 X."), (ParseErrorKind::BadNumber, 5));
+        assert_eq!(fails("G28 F"), (ParseErrorKind::BadNumber, 5));
+    }
+
+    #[test]
     fn an_exponent_is_rejected_but_an_e_word_after_a_blank_is_fine() {
         assert_eq!(fails("X1e99"), (ParseErrorKind::Exponent, 1));
         assert_eq!(fails("G1 X1E5"), (ParseErrorKind::Exponent, 4));
@@ -1242,6 +1287,46 @@ mod tests {
         let mut out = String::new();
         ufmt::uwrite!(out, "Error:{}", e).unwrap();
         assert_eq!(out, "Error:word repeated at col 7");
+    }
+
+    #[test]
+    fn every_error_kind_comes_from_some_line_with_the_column_of_its_cause() {
+        let long = " ".repeat(MAX_PARSE_LEN + 1);
+        let cases: [(&str, ParseErrorKind, u8); 12] = [
+            ("G1 X1..2", ParseErrorKind::BadNumber, 4),
+            ("G1 Y1e5", ParseErrorKind::Exponent, 4),
+            ("G1 Z-1000000", ParseErrorKind::NumberOutOfRange, 4),
+            ("G1 U3", ParseErrorKind::UnknownWord, 4),
+            ("G1 X1 @", ParseErrorKind::Unexpected, 7),
+            ("G1 M9", ParseErrorKind::UnsupportedCode, 4),
+            ("G1 F1 F2", ParseErrorKind::RepeatedWord, 7),
+            ("G17 G18", ParseErrorKind::ModalGroupConflict, 5),
+            ("G1 (x", ParseErrorKind::UnclosedComment, 4),
+            ("T2.5", ParseErrorKind::BadToolNumber, 1),
+            ("M28 ;", ParseErrorKind::MissingFileName, 1),
+            (long.as_str(), ParseErrorKind::LineTooLong, 255),
+        ];
+        let mut seen = [false; 12];
+        for (text, kind, col) in cases {
+            assert_eq!(fails(text), (kind, col), "{text:?}");
+            // Exhaustive: a new kind must be added to the table above.
+            let i = match kind {
+                ParseErrorKind::BadNumber => 0,
+                ParseErrorKind::Exponent => 1,
+                ParseErrorKind::NumberOutOfRange => 2,
+                ParseErrorKind::UnknownWord => 3,
+                ParseErrorKind::Unexpected => 4,
+                ParseErrorKind::UnsupportedCode => 5,
+                ParseErrorKind::RepeatedWord => 6,
+                ParseErrorKind::ModalGroupConflict => 7,
+                ParseErrorKind::UnclosedComment => 8,
+                ParseErrorKind::BadToolNumber => 9,
+                ParseErrorKind::MissingFileName => 10,
+                ParseErrorKind::LineTooLong => 11,
+            };
+            seen[i] = true;
+        }
+        assert!(seen.iter().all(|&s| s), "{seen:?}");
     }
 
     use crate::test_util::XorShift;

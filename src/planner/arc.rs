@@ -588,6 +588,67 @@ mod tests {
     }
 
     #[test]
+    fn full_circles_in_every_plane_by_ijk_and_by_two_r_halves_come_back_to_the_start() {
+        for plane in [G17, G18, G19] {
+            let (a0, _, al) = plane;
+            // Start 7.5 mm from a centre at (22.5, 22.5) on axis_0.
+            let mut start = [22.5f32; 3];
+            start[a0] = 30.0;
+            start[al] = 10.0;
+            let mut off = [0.0f32; 3];
+            off[a0] = -7.5;
+            for clockwise in [true, false] {
+                let arc = Arc::new(start, start, Centre::Offset(off), plane, clockwise, TOL).unwrap();
+                assert_eq!(arc.centre(), [22.5, 22.5], "{plane:?}");
+                let turn = if clockwise { -2.0 } else { 2.0 } * core::f32::consts::PI;
+                assert!((arc.angular_travel() - turn).abs() < 1e-5, "{plane:?} cw={clockwise}");
+                assert!((swept(start, arc) - turn).abs() < 1e-3, "{plane:?} cw={clockwise}");
+                let n = check_chords(start, arc, TOL);
+                // φ = √(8·0.002/7.5) = 0.0462 rad → ⌈2π/0.0462⌉ = 137 chords.
+                assert_eq!(n, 137);
+                assert_eq!(arc.last(), Some(start));
+                assert!(points(start, arc).iter().all(|p| p[al] == 10.0), "{plane:?}: normal axis moved");
+            }
+            // The same circle as two half circles by R (a full circle by R alone
+            // is refused): R equal to half the chord has one centre.
+            let mut mid = start;
+            mid[a0] = 15.0;
+            let first = Arc::new(start, mid, Centre::Radius(7.5), plane, false, TOL).unwrap();
+            let second = Arc::new(mid, start, Centre::Radius(7.5), plane, false, TOL).unwrap();
+            for (h, from) in [(first, start), (second, mid)] {
+                assert!((h.centre()[0] - 22.5).abs() < 1e-4 && (h.centre()[1] - 22.5).abs() < 1e-4, "{plane:?}");
+                assert!((swept(from, h) - core::f32::consts::PI).abs() < 1e-3, "{plane:?}");
+                check_chords(from, h, TOL);
+            }
+            assert_eq!(first.last(), Some(mid));
+            assert_eq!(second.last(), Some(start));
+            assert_eq!(Arc::new(start, start, Centre::Radius(7.5), plane, false, TOL).unwrap_err(), ArcError::FullCircleWithRadius);
+        }
+    }
+
+    #[test]
+    fn a_full_turn_helix_in_every_plane_ends_on_the_programmed_normal_coordinate() {
+        for plane in [G17, G18, G19] {
+            let (a0, _, al) = plane;
+            let mut start = [20.0f32; 3];
+            start[a0] = 25.0;
+            let mut end = start;
+            end[al] = 26.0;
+            let mut off = [0.0f32; 3];
+            off[a0] = -5.0;
+            let arc = Arc::new(start, end, Centre::Offset(off), plane, true, TOL).unwrap();
+            assert!((arc.angular_travel() + 2.0 * core::f32::consts::PI).abs() < 1e-5, "{plane:?}");
+            let n = arc.chords() as f32;
+            for (i, p) in arc.enumerate() {
+                let want = 20.0 + 6.0 * (i as f32 + 1.0) / n;
+                assert!((p[al] - want).abs() < 1e-4, "{plane:?}: {p:?}");
+            }
+            check_chords(start, arc, TOL);
+            assert_eq!(arc.last(), Some(end));
+        }
+    }
+
+    #[test]
     fn bounds_cover_every_chord_end_and_the_quadrant_points_passed() {
         let start = [10.0, 5.0, 0.0];
         let end = [0.0, 5.0, 2.0];

@@ -336,3 +336,134 @@ fn clear_forgets_blocks_and_backlash_directions() {
     assert_eq!(p.push_line([0, 0, 0, 0], 600.0, false, &st).unwrap().queued, 1);
     assert_eq!(p.current_block().unwrap().entry_speed_sqr, 0.0);
 }
+
+/// grbl's junction rule for a turn of `turn_deg` away from straight on.
+fn junction_v2(turn_deg: f32, accel: f32, deviation: f32) -> f32 {
+    // θ between the reversed first direction and the second: 180° − turn.
+    let sin_half = ((180.0 - turn_deg).to_radians() / 2.0).sin();
+    accel * deviation * sin_half / (1.0 - sin_half)
+}
+
+#[test]
+fn the_junction_speed_follows_the_deviation_rule_at_every_angle_and_is_capped_by_the_feed() {
+    let st = s();
+    let mut last = f32::INFINITY;
+    for turn in [5.0f32, 10.0, 30.0, 45.0, 60.0, 90.0, 120.0, 135.0, 150.0, 175.0] {
+        let mut p = Planner::new();
+        p.push_line([1000, 0, 0, 0], 3000.0, false, &st).unwrap();
+        let (sin, cos) = turn.to_radians().sin_cos();
+        let t = [1000 + crate::math::round_i32(1000.0 * cos), crate::math::round_i32(1000.0 * sin), 0, 0];
+        p.push_line(t, 3000.0, false, &st).unwrap();
+        let b = blocks(&p);
+        // Both blocks accelerate at ≥ 1000 mm/s² along the path, so the
+        // junction uses X's 1000 (a diagonal allows more: 1000 / max |u_i|).
+        let want = junction_v2(turn, 1000.0, st.junction_deviation_mm).min(2500.0);
+        // The integer target bends the direction by up to 0.03°.
+        assert_close(b[1].max_entry_speed_sqr, want, 2e-3);
+        assert!(b[1].max_entry_speed_sqr <= last, "{turn}°: sharper turns are slower");
+        last = b[1].max_entry_speed_sqr;
+        if turn <= 10.0 {
+            assert_eq!(b[1].max_entry_speed_sqr, 2500.0, "{turn}°: capped at the feed (50 mm/s)");
+        }
+    }
+}
+
+#[test]
+fn a_junction_is_never_faster_than_the_slower_of_its_two_blocks() {
+    let st = s();
+    let mut p = Planner::new();
+    p.push_line([2000, 0, 0, 0], 3000.0, false, &st).unwrap();
+    p.push_line([4000, 0, 0, 0], 600.0, false, &st).unwrap();
+    p.push_line([6000, 0, 0, 0], 3000.0, false, &st).unwrap();
+    let b = blocks(&p);
+    // Straight on: only the nominal speeds limit the junctions, 10 mm/s each.
+    assert_close(b[1].max_entry_speed_sqr, 100.0, 1e-5);
+    assert_close(b[2].max_entry_speed_sqr, 100.0, 1e-5);
+    assert_close(b[1].entry_speed_sqr, 100.0, 1e-5);
+    assert_close(b[2].entry_speed_sqr, 100.0, 1e-5);
+}
+
+#[test]
+fn a_block_too_short_to_stop_in_lowers_the_entry_of_the_blocks_before_it() {
+    let st = s();
+    let mut p = Planner::new();
+    // 20 mm, then four 0.1 mm blocks to a stop: the last 0.4 mm can shed only
+    // 2·a·d = 800 (mm/s)², so the first junction is entered at √800 mm/s.
+    p.push_line([2000, 0, 0, 0], 3000.0, false, &st).unwrap();
+    for i in 1..=4 {
+        p.push_line([2000 + 10 * i, 0, 0, 0], 3000.0, false, &st).unwrap();
+    }
+    let e: Vec<f32> = blocks(&p).iter().map(|b| b.entry_speed_sqr).collect();
+    for (k, want) in [800.0f32, 600.0, 400.0, 200.0].iter().enumerate() {
+        assert_close(e[k + 1], *want, 1e-4);
+    }
+    // One more block makes room: every entry rises by 200 (mm/s)².
+    p.push_line([2050, 0, 0, 0], 3000.0, false, &st).unwrap();
+    let e: Vec<f32> = blocks(&p).iter().map(|b| b.entry_speed_sqr).collect();
+    assert_close(e[1], 1000.0, 1e-4);
+    assert_close(e[5], 200.0, 1e-4);
+}
+
+/// Speed profile of planner block `index` (0-based) of `moves`, as prep cuts
+/// it: (distance from the block start at the segment's middle, mm; speed, mm/s).
+fn block_profile(moves: &[([i32; N_AXES], f32)], index: usize, st: &Settings) -> Vec<(f32, f32)> {
+    use crate::stepper::{Prep, StepperCmd};
+    let mut p = Planner::new();
+    for &(t, f) in moves {
+        p.push_line(t, f, false, st).unwrap();
+    }
+    let mut prep = Prep::new();
+    let mut block = usize::MAX;
+    let mut ticks = 0u32;
+    let mut out = Vec::new();
+    while let Some(cmd) = prep.next_segment(&mut p, st) {
+        match cmd {
+            StepperCmd::Block(_) => {
+                block = block.wrapping_add(1);
+                ticks = 0;
+            }
+            StepperCmd::Run(seg) if block == index => {
+                let mid = (ticks as f32 + seg.ticks as f32 / 2.0) / st.steps_per_mm[0];
+                out.push((mid, seg.rate_hz() / st.steps_per_mm[0]));
+                ticks += seg.ticks as u32;
+            }
+            StepperCmd::Run(_) => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn a_block_between_slower_ones_is_a_trapezoid_from_entry_to_feed_to_exit() {
+    let st = s();
+    // 10 mm at 10 mm/s, 20 mm at 50 mm/s, 10 mm at 10 mm/s, all along X.
+    let moves = [([1000, 0, 0, 0], 600.0), ([3000, 0, 0, 0], 3000.0), ([4000, 0, 0, 0], 600.0)];
+    let prof = block_profile(&moves, 1, &st);
+    let a = 1000.0f32;
+    let (v_in, v_nom, v_out, len) = (10.0f32, 50.0f32, 10.0f32, 20.0f32);
+    // Ramps of (50² − 10²)/(2a) = 1.2 mm at each end, 17.6 mm of cruise.
+    let ramp = (v_nom * v_nom - v_in * v_in) / (2.0 * a);
+    let first = prof.first().unwrap().1;
+    let last = prof.last().unwrap().1;
+    assert!((first - v_in).abs() < 5.0 && first >= v_in, "starts at the entry speed: {first}");
+    assert!((last - v_out).abs() < 5.0 && last >= v_out * 0.9, "ends at the exit speed: {last}");
+    for &(d, v) in &prof {
+        // Never above the trapezoid (one 5 ms segment of a·T = 5 mm/s slack).
+        let up = (v_in * v_in + 2.0 * a * d).sqrt();
+        let down = (v_out * v_out + 2.0 * a * (len - d)).sqrt();
+        assert!(v <= up.min(down).min(v_nom) + 2.5, "{v} mm/s at {d} mm");
+    }
+    let cruise: f32 = {
+        let mut covered = 0.0;
+        for w in prof.windows(2) {
+            if (w[0].1 - v_nom).abs() < 0.05 * v_nom {
+                covered += w[1].0 - w[0].0;
+            }
+        }
+        covered
+    };
+    assert!((cruise - (len - 2.0 * ramp)).abs() < 0.6, "cruise {cruise} mm, want {}", len - 2.0 * ramp);
+    // The same block on its own is a symmetric trapezoid from and to rest.
+    let alone = block_profile(&[([2000, 0, 0, 0], 3000.0)], 0, &st);
+    assert!(alone.first().unwrap().1 < 10.0 && alone.last().unwrap().1 < 10.0);
+}
