@@ -339,7 +339,7 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G93 X20", "Error:unsupported code at col 1"),
         ("G1 X20 G41", "Error:unsupported code at col 8"),
         ("M7", "Error:unsupported code at col 1"),
-        ("M105", "Error:unsupported code at col 1"),
+        ("M104 S200", "Error:unsupported code at col 1"),
         ("G1.5 X20", "Error:unsupported code at col 1"),
         ("G1 X1000000", "Error:number out of range at col 4"),
         ("G1 X1.234567891", "Error:number out of range at col 4"),
