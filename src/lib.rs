@@ -17,6 +17,7 @@
 pub mod flash;
 pub mod atc;
 pub mod config;
+pub mod dollar;
 pub mod fixed;
 pub mod gcode;
 pub mod machine;

@@ -15,6 +15,7 @@
 //! `?`, `!`, `~`, M112 and switch trips.
 
 use crate::config::Settings;
+use crate::dollar;
 use crate::flash::FStr;
 use crate::fixed::Micros;
 use crate::gcode::interp::{self, Interp};
@@ -309,8 +310,47 @@ impl Machine {
     /// Parse and run one command line (without N and checksum).
     #[inline(never)]
     pub fn execute(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        if text.first() == Some(&b'$') {
+            return self.dollar(text, io);
+        }
         let line = crate::gcode::parse(text).map_err(interp::Error::Parse)?;
         interp::execute(self, &line, text, io)
+    }
+
+    /// A grbl-style `$` line (see `crate::dollar`).
+    #[inline(never)]
+    fn dollar(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
+        match dollar::parse(text).map_err(bad)? {
+            dollar::Command::List => dollar::list(&self.settings, io),
+            dollar::Command::Home => return self.execute(b"G28", io),
+            dollar::Command::Unlock => return self.execute(b"M999", io),
+            dollar::Command::Set(n, v) => {
+                let mut s = self.settings;
+                dollar::set(&mut s, n, v).map_err(bad)?;
+                if !s.is_sane() {
+                    return Err(bad(dollar::DollarError::BadValue));
+                }
+                self.replace_settings(s, io)?;
+                self.save_settings(io);
+            }
+        }
+        Ok(())
+    }
+
+    /// Put new settings in force once the machine is still (M92, M201, M203,
+    /// `$n=`): the step counters are rescaled so that a steps/mm change keeps
+    /// the physical position, and the ISR's watch list follows the limits and
+    /// direction settings.
+    pub fn replace_settings(&mut self, s: Settings, io: &mut impl Io) -> CmdResult {
+        self.wait_idle(io)?;
+        let mm = self.steps_to_mm(io.stepper().position);
+        self.settings = s;
+        let new = interp::to_steps(&self.settings, &mm);
+        io.set_stepper_position(new);
+        self.planner.set_position(new);
+        self.apply_watch(io, 0, false);
+        Ok(())
     }
 
     // ---- Motion plumbing --------------------------------------------------

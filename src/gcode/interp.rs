@@ -644,15 +644,7 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             if !s.is_sane() {
                 return Err(Error::BadWord(F!("value out of range")));
             }
-            let steps = io.stepper().position;
-            let mm = m.steps_to_mm(steps);
-            m.settings = s;
-            if code == 92 {
-                // Keep the physical position: rescale the step counters.
-                let new = to_steps(&m.settings, &mm);
-                io.set_stepper_position(new);
-                m.planner.set_position(new);
-            }
+            m.replace_settings(s, io)?;
         }
         220 => {
             let s = l.word(Word::S).ok_or(Error::BadWord(F!("M220 needs S<percent>")))?;

@@ -1,0 +1,244 @@
+//! grbl-style `$` commands: every machine setting by number, for builders and
+//! senders (cncjs, UGS) that know grbl.
+//!
+//! ```text
+//!  $$            list every setting as `$<n>=<value>` (grbl's format)
+//!  $<n>=<value>  set one, check it, and store all settings in EEPROM at once
+//!                (grbl's behaviour; M92/M201/M203 change RAM until M500)
+//!  $H            home all axes (G28)
+//!  $X            unlock an alarm (M999)
+//! ```
+//!
+//! The numbers follow grbl where grbl has the setting ($3, $11, $12, $20,
+//! $21, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
+//! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
+//! automatic tool offset). The table is a `match`, so it lives in flash.
+//!
+//! Called from `Machine::run_raw_line` for lines starting with `$`; pure
+//! parsing and formatting here, host-tested.
+
+use crate::config::Settings;
+use crate::fixed::Micros;
+use crate::flash::FStr;
+use ufmt::{uWrite, uwriteln};
+
+/// One setting, borrowed out of [`Settings`].
+pub enum Field<'a> {
+    Num(&'a mut f32),
+    Flag(&'a mut bool),
+    Mask(&'a mut u8),
+}
+
+/// The setting numbered `n`, and what it means.
+pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
+    use Field::*;
+    Some(match n {
+        3 => (Mask(&mut s.invert_dir_mask), F!("direction invert mask, bit 0 X .. bit 3 E")),
+        11 => (Num(&mut s.junction_deviation_mm), F!("junction deviation, mm")),
+        12 => (Num(&mut s.arc_tolerance_mm), F!("arc tolerance, mm")),
+        20 => (Flag(&mut s.soft_limits), F!("soft limits, 0/1")),
+        21 => (Flag(&mut s.hard_limits), F!("hard limits, 0/1")),
+        24 => (Num(&mut s.homing_feed_mm_per_min), F!("homing locate feed, mm/min")),
+        25 => (Num(&mut s.homing_seek_mm_per_min), F!("homing seek feed, mm/min")),
+        27 => (Num(&mut s.homing_pulloff_mm), F!("homing pull-off, mm")),
+        30 => (Num(&mut s.spindle_max_rpm), F!("spindle rpm at 100 % PWM")),
+        100..=103 => (Num(&mut s.steps_per_mm[(n - 100) as usize]), F!("steps/mm (E: steps/pocket)")),
+        110..=113 => (Num(&mut s.max_feed_mm_per_min[(n - 110) as usize]), F!("max rate, mm/min")),
+        120..=123 => (Num(&mut s.accel_mm_per_s2[(n - 120) as usize]), F!("acceleration, mm/s^2")),
+        130..=132 => (Num(&mut s.travel_mm[(n - 130) as usize]), F!("max travel, mm")),
+        140..=142 => (Num(&mut s.backlash_mm[(n - 140) as usize]), F!("backlash, mm")),
+        150 => (Flag(&mut s.auto_tool_offset), F!("apply tool length offset after a change, 0/1")),
+        _ => return None,
+    })
+}
+
+/// A parsed `$` command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    List,
+    Set(u8, f32),
+    Home,
+    Unlock,
+}
+
+/// Why a `$` line was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DollarError {
+    Syntax,
+    Unknown,
+    BadValue,
+}
+
+impl DollarError {
+    pub fn message(self) -> FStr {
+        match self {
+            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H or $X"),
+            DollarError::Unknown => F!("$ command: no such setting (see $$)"),
+            DollarError::BadValue => F!("$ command: value out of range, nothing changed"),
+        }
+    }
+}
+
+/// Parse a line that starts with `$`.
+pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
+    let rest = line.strip_prefix(b"$").ok_or(DollarError::Syntax)?;
+    let trimmed = trim(rest);
+    match trimmed {
+        b"$" => return Ok(Command::List),
+        b"H" | b"h" => return Ok(Command::Home),
+        b"X" | b"x" => return Ok(Command::Unlock),
+        _ => {}
+    }
+    let eq = trimmed.iter().position(|&b| b == b'=').ok_or(DollarError::Syntax)?;
+    let (num, val) = (trim(&trimmed[..eq]), trim(&trimmed[eq + 1..]));
+    if num.is_empty() || num.len() > 3 || !num.iter().all(u8::is_ascii_digit) {
+        return Err(DollarError::Syntax);
+    }
+    let n = num.iter().fold(0u16, |a, &d| a * 10 + (d - b'0') as u16);
+    let n = u8::try_from(n).map_err(|_| DollarError::Unknown)?;
+    let v = parse_value(val).ok_or(DollarError::BadValue)?;
+    Ok(Command::Set(n, v))
+}
+
+fn trim(b: &[u8]) -> &[u8] {
+    let start = b.iter().position(|c| !c.is_ascii_whitespace()).unwrap_or(b.len());
+    let end = b.iter().rposition(|c| !c.is_ascii_whitespace()).map_or(start, |e| e + 1);
+    &b[start..end]
+}
+
+/// A plain decimal (sign, digits, one point, at most 7 significant digits).
+fn parse_value(b: &[u8]) -> Option<f32> {
+    let (neg, digits) = match b.first()? {
+        b'-' => (true, &b[1..]),
+        b'+' => (false, &b[1..]),
+        _ => (false, b),
+    };
+    let (mut int, mut frac, mut scale, mut seen_point, mut n) = (0u32, 0u32, 1u32, false, 0);
+    for &c in digits {
+        match c {
+            b'.' if !seen_point => seen_point = true,
+            b'0'..=b'9' => {
+                n += 1;
+                if n > 9 {
+                    return None;
+                }
+                let d = (c - b'0') as u32;
+                if seen_point {
+                    frac = frac * 10 + d;
+                    scale *= 10;
+                } else {
+                    int = int * 10 + d;
+                }
+            }
+            _ => return None,
+        }
+    }
+    if n == 0 {
+        return None;
+    }
+    let v = int as f32 + frac as f32 / scale as f32;
+    Some(if neg { -v } else { v })
+}
+
+/// Set setting `n` of `s` to `v`. The caller checks `s.is_sane()` after.
+pub fn set(s: &mut Settings, n: u8, v: f32) -> Result<(), DollarError> {
+    let (f, _) = field(s, n).ok_or(DollarError::Unknown)?;
+    match f {
+        Field::Num(x) => *x = v,
+        Field::Flag(x) => {
+            *x = match v {
+                0.0 => false,
+                1.0 => true,
+                _ => return Err(DollarError::BadValue),
+            }
+        }
+        Field::Mask(x) => {
+            if !(0.0..=15.0).contains(&v) || v != (v as u8) as f32 {
+                return Err(DollarError::BadValue);
+            }
+            *x = v as u8;
+        }
+    }
+    Ok(())
+}
+
+/// `$$`: every setting, one `$<n>=<value> (<meaning>)` line each.
+pub fn list(s: &Settings, w: &mut impl uWrite) {
+    let mut copy = *s;
+    // The match in `field` is the table: no list to keep in step with it.
+    for n in 0..=255u8 {
+        if let Some((f, what)) = field(&mut copy, n) {
+            match f {
+                Field::Num(x) => uwriteln!(w, "${}={} ({})", n, Micros::from_mm(*x), what),
+                Field::Flag(x) => uwriteln!(w, "${}={} ({})", n, *x as u8, what),
+                Field::Mask(x) => uwriteln!(w, "${}={} ({})", n, *x, what),
+            }
+            .ok();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct S(String);
+    impl uWrite for S {
+        type Error = ();
+        fn write_str(&mut self, s: &str) -> Result<(), ()> {
+            self.0.push_str(s);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn dollar_dollar_prints_grbl_lines_with_the_values() {
+        let mut out = S(String::new());
+        let mut s = Settings::DEFAULT;
+        s.steps_per_mm[0] = 80.0;
+        s.hard_limits = false;
+        list(&s, &mut out);
+        let lines: Vec<&str> = out.0.lines().collect();
+        assert_eq!(lines.len(), 28);
+        assert!(lines.contains(&"$100=80.000 (steps/mm (E: steps/pocket))"), "{lines:?}");
+        assert!(lines.contains(&"$21=0 (hard limits, 0/1)"));
+        assert!(lines.contains(&"$130=45.000 (max travel, mm)"));
+    }
+
+    #[test]
+    fn commands_parse_and_nonsense_is_refused() {
+        assert_eq!(parse(b"$$"), Ok(Command::List));
+        assert_eq!(parse(b"$H"), Ok(Command::Home));
+        assert_eq!(parse(b"$x"), Ok(Command::Unlock));
+        assert_eq!(parse(b"$100=80"), Ok(Command::Set(100, 80.0)));
+        assert_eq!(parse(b"$ 11 = 0.02 "), Ok(Command::Set(11, 0.02)));
+        assert_eq!(parse(b"$140=-1.5"), Ok(Command::Set(140, -1.5)));
+        assert_eq!(parse(b"$"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$100"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$A=1"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$1000=1"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$300=1"), Err(DollarError::Unknown));
+        assert_eq!(parse(b"$100="), Err(DollarError::BadValue));
+        assert_eq!(parse(b"$100=1e99"), Err(DollarError::BadValue));
+        assert_eq!(parse(b"$100=1.2.3"), Err(DollarError::BadValue));
+        assert_eq!(parse(b"$100=1234567890"), Err(DollarError::BadValue));
+    }
+
+    #[test]
+    fn set_checks_the_kind_of_each_setting() {
+        let mut s = Settings::DEFAULT;
+        set(&mut s, 101, 400.0).unwrap();
+        assert_eq!(s.steps_per_mm[1], 400.0);
+        set(&mut s, 20, 0.0).unwrap();
+        assert!(!s.soft_limits);
+        assert_eq!(set(&mut s, 20, 2.0), Err(DollarError::BadValue));
+        set(&mut s, 3, 5.0).unwrap();
+        assert_eq!(s.invert_dir_mask, 5);
+        assert_eq!(set(&mut s, 3, 16.0), Err(DollarError::BadValue));
+        assert_eq!(set(&mut s, 3, 1.5), Err(DollarError::BadValue));
+        assert_eq!(set(&mut s, 99, 1.0), Err(DollarError::Unknown));
+        // A value of the right kind but insane is caught by is_sane.
+        set(&mut s, 100, -5.0).unwrap();
+        assert!(!s.is_sane());
+    }
+}

@@ -1,0 +1,58 @@
+//! grbl-style `$` settings on the real firmware: list, set (stored in EEPROM
+//! at once, as grbl does), refuse nonsense, and drive the motion after a
+//! reboot.
+
+mod common;
+use common::*;
+use sim::Axis;
+
+fn setting(vm: &mut sim::Vm, n: u32) -> String {
+    let lines = ok(vm, "$$");
+    let prefix = format!("${n}=");
+    lines
+        .iter()
+        .find_map(|l| l.strip_prefix(&prefix))
+        .map(|v| v.split(' ').next().unwrap().to_string())
+        .unwrap_or_else(|| panic!("${n} not listed: {lines:?}"))
+}
+
+#[test]
+fn dollar_settings_list_set_persist_and_drive_the_motion() {
+    let mut vm = boot();
+    let lines = ok(&mut vm, "$$");
+    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 28, "{lines:?}");
+    assert_eq!(setting(&mut vm, 100), "100.000");
+    assert_eq!(setting(&mut vm, 130), "45.000");
+
+    // Nonsense is refused and changes nothing, in RAM or in EEPROM.
+    let eeprom = vm.eeprom();
+    for bad in ["$100=-5", "$100=0", "$20=2", "$3=16", "$999=1", "$100=abc", "$100", "$"] {
+        let e = refused(&mut vm, bad);
+        assert!(e.starts_with("Error:$ command:"), "{bad}: {e}");
+    }
+    assert_eq!(vm.eeprom(), eeprom);
+    assert_eq!(setting(&mut vm, 100), "100.000");
+
+    // A change is stored at once and survives a power cycle.
+    ok(&mut vm, "$100=80");
+    ok(&mut vm, "$131=30");
+    assert_ne!(vm.eeprom(), eeprom);
+    vm.power_cycle();
+    vm.wait_for_start(3.0).unwrap();
+    vm.run_for(0.05).unwrap();
+    vm.take_lines();
+    assert_eq!(setting(&mut vm, 100), "80.000");
+    assert_eq!(setting(&mut vm, 131), "30.000");
+    // M503 agrees.
+    let m503 = ok(&mut vm, "M503").join("\n");
+    assert!(m503.contains("M92 X80.000"), "{m503}");
+
+    // And the motion follows: 10 mm on X is now 800 steps; Y travel is 30 mm.
+    let x0 = vm.position(Axis::X);
+    ok(&mut vm, "M999");
+    ok(&mut vm, "G21 G90 G1 X10 F1200");
+    ok(&mut vm, "M400");
+    assert_eq!(vm.position(Axis::X) - x0, 800);
+    let e = refused(&mut vm, "G1 Y35");
+    assert!(e.contains("soft limit"), "{e}");
+}
