@@ -409,32 +409,37 @@ fn m110_param(cmd: &[u8]) -> Option<i32> {
     parse_i32(rest.get(n + 1..)?).map(|(v, _)| v)
 }
 
-/// Watches the raw RX stream for `M112` inside the ISR (SPEC §4: e-stop acts
-/// as the bytes arrive, not when the line is parsed). One byte of state, O(1)
-/// per byte.
+/// Watches the raw RX stream for one M-code inside the ISR (SPEC §4: e-stop
+/// acts as the bytes arrive, not when the line is parsed). One byte of state,
+/// O(1) per byte; the code's digits are const parameters, so they cost no RAM.
 ///
-/// Triggers on `M112` (any case, no blanks inside) that does not follow a
-/// letter, once the next byte shows it is not a longer number: `M112\n`,
-/// `N7 M112*40`, `G0M112 ` trigger; `M1120`, `M11 2`, `AM112.GCO` do not.
-/// It does not know about comments: `(M112)` triggers, which errs on the
-/// safe side.
+/// Triggers on `M<abc>` (any case, no blanks inside) that does not follow a
+/// letter, once the next byte shows it is not a longer number: for M112,
+/// `M112\n`, `N7 M112*40`, `G0M112 ` trigger; `M1120`, `M11 2`, `AM112.GCO`
+/// do not. It does not know about comments: `(M112)` triggers, which errs on
+/// the safe side.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct EstopScanner {
-    /// Low 3 bits: how many bytes of `M112` matched (0..=4).
+pub struct MCodeScanner<const A: u8, const B: u8, const C: u8> {
+    /// Low 3 bits: how many bytes of `M<abc>` matched (0..=4).
     /// `PREV_LETTER`: the previous byte was a letter.
     state: u8,
 }
 
+/// `M112`, emergency stop.
+pub type EstopScanner = MCodeScanner<b'1', b'1', b'2'>;
+/// `M108`, continue after M0/M1 (Marlin's emergency parser takes it too).
+pub type ContinueScanner = MCodeScanner<b'1', b'0', b'8'>;
+
 const PREV_LETTER: u8 = 0x80;
 const MATCHED_MASK: u8 = 0x07;
 
-impl EstopScanner {
+impl<const A: u8, const B: u8, const C: u8> MCodeScanner<A, B, C> {
     /// A scanner that has seen nothing.
     pub const fn new() -> Self {
-        EstopScanner { state: 0 }
+        MCodeScanner { state: 0 }
     }
 
-    /// Feed one received byte; true when it completes an `M112` token.
+    /// Feed one received byte; true when it completes the token.
     #[inline]
     pub fn feed(&mut self, b: u8) -> bool {
         let up = b.to_ascii_uppercase();
@@ -447,7 +452,9 @@ impl EstopScanner {
                 fire = true;
                 0
             }
-            (1, b'1') | (2, b'1') | (3, b'2') => matched + 1,
+            (1, d) if d == A => 2,
+            (2, d) if d == B => 3,
+            (3, d) if d == C => 4,
             _ => 0,
         };
         let next = if next == 0 && up == b'M' && !prev_letter {
@@ -924,5 +931,22 @@ mod tests {
         ring.push(b'\n');
         let out: Vec<_> = ring.iter().filter_map(|&b| asm.push(b)).collect();
         assert_eq!(out, vec![Assembled::BadByte]);
+    }
+
+    #[test]
+    fn m108_is_caught_like_m112_and_neither_fires_for_the_other() {
+        let count = |stream: &[u8]| {
+            let (mut e, mut c) = (EstopScanner::new(), ContinueScanner::new());
+            let (mut ne, mut nc) = (0, 0);
+            for &b in stream {
+                ne += e.feed(b) as u32;
+                nc += c.feed(b) as u32;
+            }
+            (ne, nc)
+        };
+        assert_eq!(count(b"M108\n"), (0, 1));
+        assert_eq!(count(b"N3 m108*55\n"), (0, 1));
+        assert_eq!(count(b"M1080\nM10 8\nAM108\n"), (0, 0));
+        assert_eq!(count(b"M112\nM108\nM112 "), (2, 1));
     }
 }

@@ -160,3 +160,23 @@ fn m112_from_a_full_queue_stops_everything() {
     assert!(e.starts_with("Error:alarm emergency stop"), "{e}");
     assert!(vm.recorder().violations_of(ViolationKind::StepWhileDisabled).is_empty());
 }
+
+#[test]
+fn m108_continues_after_m0_although_it_waits_behind_the_pause() {
+    let mut vm = boot();
+    ok(&mut vm, "M999");
+    ok(&mut vm, "G21 G90");
+    let x0 = steps(&vm)[0];
+    vm.send_line("M0");
+    vm.wait_line(|l| l.starts_with("echo:paused"), 1.0).expect("paused");
+    // Queued behind M0: nothing runs while paused.
+    vm.send_line("G1 X5 F1200");
+    vm.run_for(0.3).unwrap();
+    assert_eq!(steps(&vm)[0], x0, "moved while paused");
+    assert!(!vm.pending_lines().iter().any(|l| l == "ok"), "M0 acknowledged before it was continued");
+    vm.send_line("M108");
+    vm.run_for(1.0).unwrap();
+    let oks = vm.take_lines().iter().filter(|l| *l == "ok").count();
+    assert_eq!(oks, 3, "M0, G1 and M108 each get one ok");
+    assert_eq!(steps(&vm)[0] - x0, 500);
+}

@@ -3,7 +3,8 @@
 //! RX: the `USART0_RX` ISR takes every byte as it arrives. Realtime bytes
 //! (`?` `!` `~`) become bits in [`super::REALTIME`] and never reach the ring;
 //! `M112` is spotted by `protocol::EstopScanner` and stops the machine from
-//! inside the ISR. Other bytes go into a 256-byte `heapless::spsc` ring whose
+//! inside the ISR, and `M108` (continue after M0) sets the resume bit; both
+//! lines also reach the ring and run as usual. Other bytes go into a 256-byte `heapless::spsc` ring whose
 //! consumer is the main loop. If the ring is full the byte is dropped, and a
 //! gap marker (`protocol::RX_GAP`) is stored before the next byte that fits,
 //! so the line assembler drops exactly the damaged line instead of running
@@ -18,7 +19,7 @@ use super::{realtime, REALTIME};
 use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
 use heapless::spsc::{Consumer, Producer, Queue};
-use mill::protocol::{EstopScanner, RxStore};
+use mill::protocol::{ContinueScanner, EstopScanner, RxStore};
 
 /// RX ring capacity + 1 (heapless keeps one slot free): 255 bytes usable.
 /// A character-counting host may keep this many bytes in flight.
@@ -35,6 +36,7 @@ static mut RX_CONS: Option<Consumer<'static, u8, RX_LEN>> = None;
 static mut TX_PROD: Option<Producer<'static, u8, TX_LEN>> = None;
 static mut TX_CONS: Option<Consumer<'static, u8, TX_LEN>> = None;
 static mut ESTOP_SCAN: EstopScanner = EstopScanner::new();
+static mut CONTINUE_SCAN: ContinueScanner = ContinueScanner::new();
 /// The RX ISR's gap-marking store (one byte).
 static mut RX_STORE: RxStore = RxStore::new();
 /// Run while waiting for TX space (set by main).
@@ -154,6 +156,11 @@ fn USART0_RX() {
             unsafe {
                 if (*addr_of_mut!(ESTOP_SCAN)).feed(b) {
                     super::emergency_stop();
+                }
+                // M108 continues after M0/M1 even though the line waits in
+                // the ring behind the pause (Marlin's emergency parser).
+                if (*addr_of_mut!(CONTINUE_SCAN)).feed(b) {
+                    REALTIME.fetch_or(realtime::RESUME, portable_atomic::Ordering::AcqRel);
                 }
                 if let Some(p) = (*addr_of_mut!(RX_PROD)).as_mut() {
                     (*addr_of_mut!(RX_STORE)).store(b, |x| p.enqueue(x).is_ok());
