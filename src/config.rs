@@ -10,7 +10,7 @@
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
-pub const SETTINGS_VERSION: u8 = 1;
+pub const SETTINGS_VERSION: u8 = 2;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -49,6 +49,9 @@ pub struct Settings {
     pub spindle_max_rpm: f32,
     /// Apply the new tool's length offset automatically after a change.
     pub auto_tool_offset: bool,
+    /// Refuse motion after power-on or an alarm until homed or unlocked
+    /// (grbl's `$22` homing lock).
+    pub homing_lock: bool,
     /// Work coordinate offsets G54..G59, X/Y/Z, mm.
     pub wcs_mm: [[f32; 3]; N_WCS],
 }
@@ -76,11 +79,12 @@ impl Settings {
         hard_limits: true,
         spindle_max_rpm: 10300.0,
         auto_tool_offset: true,
+        homing_lock: true,
         wcs_mm: [[0.0; 3]; N_WCS],
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 3 + 1;
+    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 4 + 1;
 
     /// Serialise to the EEPROM image.
     pub fn to_bytes(&self) -> [u8; Self::IMAGE_LEN] {
@@ -116,6 +120,7 @@ impl Settings {
         w.u8(self.soft_limits as u8);
         w.u8(self.hard_limits as u8);
         w.u8(self.auto_tool_offset as u8);
+        w.u8(self.homing_lock as u8);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -163,6 +168,7 @@ impl Settings {
         s.soft_limits = r.u8() != 0;
         s.hard_limits = r.u8() != 0;
         s.auto_tool_offset = r.u8() != 0;
+        s.homing_lock = r.u8() != 0;
         if s.is_sane() {
             Some(s)
         } else {

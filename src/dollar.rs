@@ -10,7 +10,7 @@
 //! ```
 //!
 //! The numbers follow grbl where grbl has the setting ($3, $11, $12, $20,
-//! $21, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
+//! $21, $22, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
 //! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
 //! automatic tool offset). The table is a `match`, so it lives in flash.
 //!
@@ -38,6 +38,7 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
         12 => (Num(&mut s.arc_tolerance_mm), F!("arc tolerance, mm")),
         20 => (Flag(&mut s.soft_limits), F!("soft limits, 0/1")),
         21 => (Flag(&mut s.hard_limits), F!("hard limits, 0/1")),
+        22 => (Flag(&mut s.homing_lock), F!("homing lock: no motion until homed or unlocked, 0/1")),
         24 => (Num(&mut s.homing_feed_mm_per_min), F!("homing locate feed, mm/min")),
         25 => (Num(&mut s.homing_seek_mm_per_min), F!("homing seek feed, mm/min")),
         27 => (Num(&mut s.homing_pulloff_mm), F!("homing pull-off, mm")),
@@ -199,7 +200,7 @@ mod tests {
         s.hard_limits = false;
         list(&s, &mut out);
         let lines: Vec<&str> = out.0.lines().collect();
-        assert_eq!(lines.len(), 28);
+        assert_eq!(lines.len(), 29);
         assert!(lines.contains(&"$100=80.000 (steps/mm (E: steps/pocket))"), "{lines:?}");
         assert!(lines.contains(&"$21=0 (hard limits, 0/1)"));
         assert!(lines.contains(&"$130=45.000 (max travel, mm)"));

@@ -168,6 +168,8 @@ pub struct Machine {
     pub alarm: Option<Alarm>,
     /// Axes with a known position (bit i = axis i).
     pub homed: u8,
+    /// M999 / `$X` since the last power-on or alarm: motion allowed unhomed.
+    pub unlocked: bool,
     /// Feed-hold requested and not yet resumed.
     holding: bool,
     /// Milliseconds of the last `busy:processing`.
@@ -191,6 +193,7 @@ impl Machine {
             state: State::Idle,
             alarm: None,
             homed: 0,
+            unlocked: false,
             holding: false,
             last_busy_ms: 0,
             last_rt: Realtime {
@@ -225,7 +228,15 @@ impl Machine {
         }
         if reset_cause == "watchdog" {
             self.raise(io, Alarm::WatchdogReset);
+        } else if self.settings.homing_lock {
+            uwriteln!(io, "{}", F!("echo:home (G28) before moving, or M999 to unlock")).ok();
         }
+    }
+
+    /// May motion commands run? Not after power-on or an alarm until the
+    /// machine is homed or unlocked, while the homing lock (`$22`) is on.
+    pub fn motion_allowed(&self) -> bool {
+        !self.settings.homing_lock || self.homed & 0b111 == 0b111 || self.unlocked
     }
 
     /// The M115 / boot firmware line.
@@ -482,6 +493,7 @@ impl Machine {
         self.alarm = Some(alarm);
         self.state = State::Alarm;
         self.homed = 0;
+        self.unlocked = false;
         self.holding = false;
         self.planner.clear();
         self.prep.reset();
@@ -499,6 +511,7 @@ impl Machine {
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
         self.alarm = None;
+        self.unlocked = true;
         self.state = State::Idle;
         self.apply_watch(io, 0, false);
     }

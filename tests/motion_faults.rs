@@ -239,6 +239,11 @@ fn m500_settings_survive_a_reboot_and_drive_the_motion_after_it() {
     assert!(!vm.take_lines().iter().any(|l| l.contains("EEPROM settings invalid")));
     let r = ok(&mut vm, "M503");
     let has = |want: &str| assert!(r.iter().any(|l| l == want), "{want} not in {r:?}");
+    // After a power cycle the homing lock ($22) refuses motion until homed
+    // or unlocked; this test unlocks.
+    let e = refused(&mut vm, "G1 X1 F600");
+    assert!(e.starts_with("Error:not homed"), "{e}");
+    ok(&mut vm, "M999");
     has("M92 X100.000 Y100.000 Z400.000 E177.778");
     has("M203 X40.000 Y30.000 Z50.000 E10.000");
     has("M201 X1000.000 Y500.000 Z1000.000 E50.000");

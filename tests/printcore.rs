@@ -28,6 +28,7 @@ fn printcore_streams_a_job_with_checksums_and_recovers_a_corrupted_line() {
     // A square with a rounded corner and a diagonal back, in mm from the
     // power-on position (the firmware's 0 until homed).
     let job = "\
+M999 ; unlock: the job does not home (the homing lock refuses motion until then)
 G21 G90 ; mm, absolute
 G1 X10 F1500
 G1 Y8

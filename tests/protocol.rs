@@ -128,6 +128,7 @@ fn a_flood_that_overruns_the_rx_ring_drops_only_the_damaged_lines() {
 #[test]
 fn m112_from_a_full_queue_stops_everything() {
     let mut vm = boot();
+    ok(&mut vm, "M999");
     ok(&mut vm, "G21 G90 G1 F600");
     // Far more moves than the planner holds, sent without waiting for ok.
     let mut job = String::new();

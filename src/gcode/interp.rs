@@ -46,6 +46,8 @@ pub enum Error {
     NotAvailable(FStr),
     /// Homing failed (alarm raised).
     HomingFailed,
+    /// Motion before homing or unlocking (homing lock, `$22`).
+    NotHomed,
     /// G38.2 did not trip.
     ProbeFailed,
     /// The probe input was already triggered at the start.
@@ -64,6 +66,7 @@ impl Error {
             Error::Arc(e) => e.message(),
             Error::BadWord(m) => *m,
             Error::NotAvailable(m) => *m,
+            Error::NotHomed => F!("not homed: home (G28) or unlock (M999) first, nothing moved"),
             Error::HomingFailed => F!("homing failed: switch not found"),
             Error::ProbeFailed => F!("probe failed: input did not trip"),
             Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
@@ -511,6 +514,12 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
 /// Queue a move to `target` machine mm; updates the commanded position.
 #[inline(never)]
 pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, rapid: bool) -> Result<(), Error> {
+    if m.alarm.is_some() {
+        return Err(Error::Alarm);
+    }
+    if !m.motion_allowed() {
+        return Err(Error::NotHomed);
+    }
     let steps = to_steps(&m.settings, &target);
     m.queue_line(io, steps, feed, rapid)?;
     m.interp.pos_mm = target;
@@ -681,6 +690,12 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
 /// G38.2/G38.3: move toward `target` until the tool-setter input trips.
 #[inline(never)]
 fn probe(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, must_trip: bool) -> Result<(), Error> {
+    if m.alarm.is_some() {
+        return Err(Error::Alarm);
+    }
+    if !m.motion_allowed() {
+        return Err(Error::NotHomed);
+    }
     m.wait_idle(io)?;
     if io.switches().tool_setter {
         return Err(Error::ProbeAlreadyTriggered);
