@@ -132,7 +132,7 @@ impl Settings {
             return None;
         }
         let mut r = Reader { buf: b, at: 1 };
-        let mut s = Settings::DEFAULT;
+        let mut s = Settings::defaults();
         for a in 0..N_AXES {
             s.steps_per_mm[a] = r.f32();
         }
@@ -194,9 +194,23 @@ impl Settings {
     }
 }
 
+/// The factory settings, kept in flash: a `Settings::DEFAULT` used at run
+/// time would be a 172-byte constant copied into RAM at boot on AVR.
+#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+static DEFAULTS_IN_FLASH: Settings = Settings::DEFAULT;
+
+impl Settings {
+    /// The factory settings (M502), read from flash.
+    pub fn defaults() -> Settings {
+        // SAFETY: DEFAULTS_IN_FLASH is an immutable static in program memory
+        // (plain memory on the host); Settings is Copy.
+        unsafe { avr_progmem::raw::read_value(&DEFAULTS_IN_FLASH) }
+    }
+}
+
 impl Default for Settings {
     fn default() -> Self {
-        Settings::DEFAULT
+        Settings::defaults()
     }
 }
 

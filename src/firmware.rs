@@ -36,7 +36,6 @@ impl Io for Hw {
             limit: m & stepper::motion::LIMIT != 0,
             home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
             probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
-            rx_overrun: serial::rx_overrun(),
         }
     }
 

@@ -13,6 +13,8 @@
 //! unit-tested on the host with plain `cargo test`.
 #![cfg_attr(not(test), no_std)]
 
+#[macro_use]
+pub mod flash;
 pub mod atc;
 pub mod config;
 pub mod fixed;

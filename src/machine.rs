@@ -15,6 +15,7 @@
 //! `?`, `!`, `~`, M112 and switch trips.
 
 use crate::config::Settings;
+use crate::flash::FStr;
 use crate::fixed::Micros;
 use crate::gcode::interp::{self, Interp};
 use crate::planner::{PlanError, Planner};
@@ -34,7 +35,6 @@ pub struct Realtime {
     pub limit: bool,
     pub home_tripped: bool,
     pub probe_tripped: bool,
-    pub rx_overrun: bool,
 }
 
 /// What the stepper ISR reports.
@@ -144,15 +144,15 @@ pub enum Alarm {
 
 impl Alarm {
     /// Text after `Error:alarm ` / `ALARM:`.
-    pub fn message(self) -> &'static str {
+    pub fn message(self) -> FStr {
         match self {
-            Alarm::EmergencyStop => "emergency stop",
-            Alarm::HardLimit => "hard limit",
-            Alarm::HomingFailed => "homing failed",
-            Alarm::ProbeFailed => "probe failed",
-            Alarm::WatchdogReset => "watchdog reset",
-            Alarm::CarouselHome => "carousel home switch not found",
-            Alarm::BrokenTool => "broken tool",
+            Alarm::EmergencyStop => F!("emergency stop"),
+            Alarm::HardLimit => F!("hard limit"),
+            Alarm::HomingFailed => F!("homing failed"),
+            Alarm::ProbeFailed => F!("probe failed"),
+            Alarm::WatchdogReset => F!("watchdog reset"),
+            Alarm::CarouselHome => F!("carousel home switch not found"),
+            Alarm::BrokenTool => F!("broken tool"),
         }
     }
 }
@@ -214,7 +214,6 @@ impl Machine {
                 limit: false,
                 home_tripped: false,
                 probe_tripped: false,
-                rx_overrun: false,
             },
             numbered: false,
         }
@@ -235,7 +234,7 @@ impl Machine {
         self.firmware_line(io);
         uwriteln!(io, "echo:reset cause: {}", reset_cause).ok();
         if loaded.is_none() {
-            uwriteln!(io, "echo:EEPROM settings invalid or blank, using defaults").ok();
+            uwriteln!(io, "{}", F!("echo:EEPROM settings invalid or blank, using defaults")).ok();
         }
         crate::atc::run::boot(self, io);
         if reset_cause == "watchdog" {
@@ -247,9 +246,10 @@ impl Machine {
     pub fn firmware_line(&self, io: &mut impl Io) {
         uwriteln!(
             io,
-            "FIRMWARE_NAME:{} {} FIRMWARE_URL:none PROTOCOL_VERSION:1.0 MACHINE_TYPE:Mill EXTRUDER_COUNT:1 AXIS_COUNT:3 TOOLS:12",
+            "FIRMWARE_NAME:{} {}{}",
             crate::FIRMWARE_NAME,
-            crate::FIRMWARE_VERSION
+            crate::FIRMWARE_VERSION,
+            F!(" FIRMWARE_URL:none PROTOCOL_VERSION:1.0 MACHINE_TYPE:Mill EXTRUDER_COUNT:1 AXIS_COUNT:3 TOOLS:12")
         )
         .ok();
     }
@@ -268,9 +268,9 @@ impl Machine {
             }
             Some(other) => {
                 let msg = match other {
-                    Assembled::TooLong => "line too long (max 96 characters), ignored",
-                    Assembled::Overrun => "serial receive overrun, line dropped",
-                    _ => "binary data in line, ignored",
+                    Assembled::TooLong => F!("line too long (max 96 characters), ignored"),
+                    Assembled::Overrun => F!("serial receive overrun, line dropped"),
+                    _ => F!("binary data in line, ignored"),
                 };
                 uwriteln!(io, "Error:{}", msg).ok();
                 self.resend(io);
@@ -309,8 +309,8 @@ impl Machine {
     fn report_error(&mut self, io: &mut impl Io, e: interp::Error) {
         match e {
             interp::Error::Alarm => {
-                let why = self.alarm.map_or("unknown", |a| a.message());
-                uwriteln!(io, "Error:alarm {}; home or M999", why).ok();
+                let why = self.alarm.map_or(F!("unknown"), |a| a.message());
+                uwriteln!(io, "Error:alarm {}{}", why, F!("; home or M999")).ok();
             }
             interp::Error::Parse(p) => {
                 uwriteln!(io, "Error:{} at col {}", p.kind.message(), p.col).ok();
@@ -344,7 +344,7 @@ impl Machine {
             match self.planner.push_line(target, feed_mm_per_min, rapid, &self.settings) {
                 Ok(p) => {
                     if p.rate_capped {
-                        uwriteln!(io, "echo:warning: feed capped to the maximum step rate").ok();
+                        uwriteln!(io, "{}", F!("echo:warning: feed capped to the maximum step rate")).ok();
                     }
                     if self.state == State::Idle {
                         self.state = State::Run;
@@ -388,7 +388,7 @@ impl Machine {
         let now = io.millis();
         if now.wrapping_sub(self.last_busy_ms) >= 2000 {
             self.last_busy_ms = now;
-            uwriteln!(io, "busy:processing").ok();
+            uwriteln!(io, "{}", F!("busy:processing")).ok();
         }
     }
 
@@ -417,9 +417,6 @@ impl Machine {
         }
         if rt.limit && self.alarm.is_none() {
             self.raise(io, Alarm::HardLimit);
-        }
-        if rt.rx_overrun {
-            self.asm.mark_overrun();
         }
         if rt.hold && self.alarm.is_none() && !self.holding {
             self.holding = true;
@@ -465,7 +462,7 @@ impl Machine {
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
         uwriteln!(io, "ALARM:{}", alarm.message()).ok();
-        uwriteln!(io, "echo:home (G28) or M999 to continue").ok();
+        uwriteln!(io, "{}", F!("echo:home (G28) or M999 to continue")).ok();
     }
 
     /// M999: leave the alarm state. Position stays unknown until homed.

@@ -46,15 +46,40 @@ pub fn round_i32(x: f32) -> i32 {
     }
 }
 
-/// Sine and cosine for arc chords. Host and AVR both use `libm`'s f32 code,
-/// which is table-free for sin/cos.
+/// Sine and cosine for arc chords. On AVR these are avr-libc's assembly
+/// routines (tables in flash); `libm`'s argument reduction would put a
+/// 264-byte table and 64 bytes of constants in RAM.
 #[inline]
 pub fn sincosf(x: f32) -> (f32, f32) {
-    libm::sincosf(x)
+    #[cfg(target_arch = "avr")]
+    {
+        extern "C" {
+            // avr-libc: `double` is 32 bits wide.
+            fn sin(x: f32) -> f32;
+            fn cos(x: f32) -> f32;
+        }
+        // SAFETY: pure avr-libc functions with no preconditions.
+        unsafe { (sin(x), cos(x)) }
+    }
+    #[cfg(not(target_arch = "avr"))]
+    {
+        libm::sincosf(x)
+    }
 }
 
-/// atan2 for arc angles.
+/// atan2 for arc angles (avr-libc's on AVR, as for [`sincosf`]).
 #[inline]
 pub fn atan2f(y: f32, x: f32) -> f32 {
-    libm::atan2f(y, x)
+    #[cfg(target_arch = "avr")]
+    {
+        extern "C" {
+            fn atan2(y: f32, x: f32) -> f32;
+        }
+        // SAFETY: pure avr-libc function with no preconditions.
+        unsafe { atan2(y, x) }
+    }
+    #[cfg(not(target_arch = "avr"))]
+    {
+        libm::atan2f(y, x)
+    }
 }

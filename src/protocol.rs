@@ -55,16 +55,16 @@ pub enum ProtoError {
 
 impl ProtoError {
     /// Text printed after `Error:`.
-    pub fn message(&self) -> &'static str {
+    pub fn message(&self) -> FStr {
         match self {
-            ProtoError::Checksum => "checksum mismatch",
-            ProtoError::LineNumber => "line number is not last line number+1",
-            ProtoError::MissingChecksum => "no checksum with line number",
-            ProtoError::MissingLineNumber => "no line number with checksum",
-            ProtoError::BadLineNumber => "bad line number",
-            ProtoError::TooLong => "line too long",
-            ProtoError::Overrun => "serial receive overrun, line dropped",
-            ProtoError::BadByte => "binary or control byte in line",
+            ProtoError::Checksum => F!("checksum mismatch"),
+            ProtoError::LineNumber => F!("line number is not last line number+1"),
+            ProtoError::MissingChecksum => F!("no checksum with line number"),
+            ProtoError::MissingLineNumber => F!("no line number with checksum"),
+            ProtoError::BadLineNumber => F!("bad line number"),
+            ProtoError::TooLong => F!("line too long"),
+            ProtoError::Overrun => F!("serial receive overrun, line dropped"),
+            ProtoError::BadByte => F!("binary or control byte in line"),
         }
     }
 }
@@ -100,6 +100,44 @@ const F_OVERRUN: u8 = 1 << 1;
 const F_BAD_BYTE: u8 = 1 << 2;
 /// The last push completed a line that `line()` may return.
 const F_READY: u8 = 1 << 3;
+
+/// The byte the serial RX ISR stores in its ring at the place where it had to
+/// drop received bytes (ring full, or a UART overrun). The assembler turns it
+/// into [`LineAssembler::mark_overrun`], so exactly the damaged line is
+/// dropped, wherever the main loop happens to be reading when the loss
+/// occurs. A real 0xFF from the host is stored as 0xFE: still a bad byte.
+pub const RX_GAP: u8 = 0xFF;
+
+/// The RX ISR's side of [`RX_GAP`]: stores received bytes into a ring and,
+/// after a loss, a gap marker before the next byte that fits. One byte of
+/// state; the ring is any `enqueue` that can refuse.
+#[derive(Default)]
+pub struct RxStore {
+    gap: bool,
+}
+
+impl RxStore {
+    pub const fn new() -> Self {
+        RxStore { gap: false }
+    }
+
+    /// Bytes were lost before the next one (the UART's data overrun flag).
+    pub fn note_loss(&mut self) {
+        self.gap = true;
+    }
+
+    /// Store `b`; `enqueue` returns false when the ring is full.
+    #[inline(always)]
+    pub fn store(&mut self, b: u8, mut enqueue: impl FnMut(u8) -> bool) {
+        let b = if b == RX_GAP { RX_GAP - 1 } else { b };
+        if self.gap {
+            self.gap = !enqueue(RX_GAP);
+        }
+        if self.gap || !enqueue(b) {
+            self.gap = true;
+        }
+    }
+}
 
 /// Collects bytes into lines in a fixed buffer (RAM: `MAX_LINE_LEN` + 2 bytes).
 ///
@@ -141,6 +179,10 @@ impl LineAssembler {
         }
         match b {
             b'\n' | b'\r' => self.finish(),
+            RX_GAP => {
+                self.mark_overrun();
+                None
+            }
             // Blanks before the text are not stored; blanks that arrive with
             // the buffer full are dropped, since only a later non-blank can
             // make the line too long.
@@ -423,6 +465,7 @@ impl EstopScanner {
     }
 }
 
+use crate::flash::FStr;
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -569,7 +612,7 @@ mod tests {
     #[test]
     fn binary_bytes_reject_the_line() {
         let mut a = LineAssembler::new();
-        let out = assemble(&mut a, b"G1 X\x0010\nG1\xff\nM3\x1b\nG1\tX1\n");
+        let out = assemble(&mut a, b"G1 X\x0010\nG1\xfe\nM3\x1b\nG1\tX1\n");
         assert_eq!(
             out,
             vec![
@@ -798,5 +841,88 @@ mod tests {
     #[test]
     fn estop_scanner_is_one_byte() {
         assert_eq!(core::mem::size_of::<EstopScanner>(), 1);
+    }
+
+    /// A model of the serial RX path: a 255-byte ring filled by the ISR's
+    /// `RxStore` faster than the main loop drains it into a `LineAssembler`.
+    /// The host sends numbered lines `N<i> G4 P<i>`; every line that arrives
+    /// complete must come out intact, every damaged one must come out as
+    /// `Overrun`, and nothing else.
+    #[test]
+    fn rx_losses_drop_exactly_the_damaged_lines() {
+        use std::collections::VecDeque;
+        let mut rng = XorShift(7);
+        let mut store = RxStore::new();
+        let mut asm = LineAssembler::new();
+        let mut ring: VecDeque<u8> = VecDeque::new();
+        let mut sent: Vec<u8> = Vec::new();
+        let mut markers = 0;
+        for i in 0..3000 {
+            for b in format!("N{i} G4 P{i}\n").bytes() {
+                sent.push(b);
+            }
+        }
+        let (mut next, mut intact, mut overruns) = (0usize, 0, 0);
+        let mut got: Vec<Result<String, ()>> = Vec::new();
+        while next < sent.len() || !ring.is_empty() {
+            for _ in 0..rng.next() % 4 {
+                if let Some(&b) = sent.get(next) {
+                    store.store(b, |x| {
+                        if ring.len() < 255 {
+                            markers += (x == RX_GAP) as usize;
+                            ring.push_back(x);
+                            true
+                        } else {
+                            false
+                        }
+                    });
+                    next += 1;
+                }
+            }
+            for _ in 0..rng.next() % 4 {
+                if let Some(b) = ring.pop_front() {
+                    match asm.push(b) {
+                        Some(Assembled::Line) => {
+                            intact += 1;
+                            got.push(Ok(String::from_utf8(asm.line().to_vec()).unwrap()));
+                        }
+                        Some(Assembled::Overrun) => {
+                            overruns += 1;
+                            got.push(Err(()));
+                        }
+                        None => {}
+                        other => panic!("{other:?}"),
+                    }
+                }
+            }
+        }
+        // Every intact line is one the host sent, in order, unchanged.
+        let mut expect = 0;
+        for g in &got {
+            if let Ok(l) = g {
+                let n: usize = l[1..l.find(' ').unwrap()].parse().unwrap();
+                assert!(n >= expect, "{l} out of order");
+                assert_eq!(*l, format!("N{n} G4 P{n}"));
+                expect = n + 1;
+            }
+        }
+        assert!(intact > 2000 && overruns >= 10, "{intact} intact, {overruns} overruns");
+        // Each loss costs at most the one line it hit.
+        assert!(overruns <= markers, "{overruns} lines dropped for {markers} losses");
+    }
+
+    #[test]
+    fn a_real_0xff_from_the_host_is_a_bad_byte_not_a_gap() {
+        let mut store = RxStore::new();
+        let mut ring = Vec::new();
+        store.store(0xFF, |x| {
+            ring.push(x);
+            true
+        });
+        assert_eq!(ring, vec![0xFE]);
+        let mut asm = LineAssembler::new();
+        ring.push(b'\n');
+        let out: Vec<_> = ring.iter().filter_map(|&b| asm.push(b)).collect();
+        assert_eq!(out, vec![Assembled::BadByte]);
     }
 }

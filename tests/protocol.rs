@@ -98,6 +98,34 @@ fn four_kib_of_random_bytes_without_flow_control_do_not_crash_or_reset() {
 }
 
 #[test]
+fn a_flood_that_overruns_the_rx_ring_drops_only_the_damaged_lines() {
+    // M114 answers with ~50 bytes for 5 received, so a host that ignores `ok`
+    // soon fills the 255-byte RX ring and bytes are lost. Any M114 that loses
+    // a byte becomes a different line ("M14", "114", "M114M114"...), so the
+    // only acceptable errors are the overrun ones: a damaged line must never
+    // run, and an intact one must answer normally.
+    let mut vm = boot();
+    let n = 400;
+    vm.send_unpaced_flood("M114\n".repeat(n).as_bytes());
+    vm.run_until(|vm| vm.tx_pending() == 0 && vm.output().matches("ok").count() > 10, 20.0).unwrap();
+    vm.run_for(1.0).unwrap();
+    let lines = vm.take_lines();
+    let overruns = lines.iter().filter(|l| l.starts_with("Error:serial receive overrun")).count();
+    let other_errors: Vec<_> = lines.iter().filter(|l| l.starts_with("Error") && !l.contains("overrun")).collect();
+    let reports = lines.iter().filter(|l| l.starts_with("X:")).count();
+    let oks = lines.iter().filter(|l| *l == "ok").count();
+    assert!(vm.uart_rx_dropped() > 0 || overruns > 0, "the flood never overran the ring; the test proves nothing");
+    assert!(overruns > 0, "bytes were lost but no line was dropped");
+    assert!(other_errors.is_empty(), "a damaged line ran: {other_errors:?}");
+    assert_eq!(oks, reports + overruns, "one ok per line, for {reports} reports and {overruns} drops");
+    eprintln!("{n} sent: {reports} answered, {overruns} dropped, {} bytes lost by the UART model", vm.uart_rx_dropped());
+    assert!(reports > 0 && reports < n);
+    let r = vm.command("M115").expect("firmware still answers");
+    assert!(r.iter().any(|l| l.starts_with("FIRMWARE_NAME:MillFW")), "{r:?}");
+    assert_eq!(vm.resets().iter().filter(|r| r.kind != sim::ResetKind::PowerOn).count(), 0);
+}
+
+#[test]
 fn m112_from_a_full_queue_stops_everything() {
     let mut vm = boot();
     ok(&mut vm, "G21 G90 G1 F600");

@@ -16,6 +16,7 @@
 //! - [`elf`]: ELF symbols (RAM addresses, `__heap_start`).
 //! - [`report`]: JSON report and CSV step trace.
 //! - [`pins`]: the RAMPS pin map, the only place `sim/` knows pins.
+//! - [`pty`]: UART0 as a pseudo-terminal for real G-code senders.
 //!
 //! ```no_run
 //! use sim::{Axis, Flow, Input, StreamOptions, Vm, VmConfig};
@@ -41,6 +42,7 @@ pub mod host;
 pub mod isr;
 pub mod physics;
 pub mod pins;
+pub mod pty;
 pub mod recorder;
 pub mod report;
 pub mod spindle;

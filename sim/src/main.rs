@@ -3,7 +3,14 @@
 //! ```text
 //! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv]
 //!                               [--checksums] [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]
+//! cargo run -p sim --release -- --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]
 //! ```
+//!
+//! With `--pty`, no job is streamed: UART0 becomes a pseudo-terminal (its path
+//! is printed; with LINK, e.g. `/tmp/millsim`, a symlink to it too) and a real
+//! sender connects to it at any baud rate. The machine runs in real time until
+//! Ctrl-C, or until no byte has moved for `--idle-exit` seconds; then the
+//! report is printed as for a job.
 //!
 //! Boots the ELF, waits for `start`, streams the job (default
 //! `sim/jobs/demo.gcode`), sends `M400` and waits for its `ok`, settles
@@ -23,10 +30,14 @@ struct Args {
     flow: Flow,
     timeout_s: f64,
     job: PathBuf,
+    /// `--pty [LINK]`: Some(None) for a pty without a link.
+    pty: Option<Option<PathBuf>>,
+    idle_exit_s: Option<f64>,
 }
 
 const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--checksums] \
-[--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]";
+[--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]\n       \
+sim --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -37,8 +48,10 @@ fn parse_args() -> Result<Args, String> {
         flow: Flow::PingPong,
         timeout_s: 600.0,
         job: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("jobs/demo.gcode"),
+        pty: None,
+        idle_exit_s: None,
     };
-    let mut it = std::env::args().skip(1);
+    let mut it = std::env::args().skip(1).peekable();
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
@@ -49,6 +62,13 @@ fn parse_args() -> Result<Args, String> {
             "--flow" => a.flow = value("--flow")?.parse()?,
             "--timeout" => {
                 a.timeout_s = value("--timeout")?.parse().map_err(|e| format!("--timeout: {e}"))?;
+            }
+            "--pty" => {
+                let link = it.next_if(|v| !v.starts_with("--")).map(PathBuf::from);
+                a.pty = Some(link);
+            }
+            "--idle-exit" => {
+                a.idle_exit_s = Some(value("--idle-exit")?.parse().map_err(|e| format!("--idle-exit: {e}"))?);
             }
             "-h" | "--help" => return Err(USAGE.to_string()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
@@ -66,6 +86,9 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if let Some(link) = args.pty.clone() {
+        return run_pty(&args, link);
+    }
     let text = match std::fs::read_to_string(&args.job) {
         Ok(t) => t,
         Err(e) => {
@@ -141,6 +164,68 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
         println!("{:<22}{}", "csv", p.display());
+    }
+    if report.clean() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}
+
+/// `--pty`: bridge UART0 to a pseudo-terminal until idle or Ctrl-C.
+fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
+    let mut config = VmConfig::default();
+    if let Some(elf) = &args.elf {
+        config.elf = elf.clone();
+    }
+    let mut vm = match Vm::new(config) {
+        Ok(vm) => vm,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(2);
+        }
+    };
+    let bridge = match sim::pty::PtyBridge::open(&vm, link.as_deref()) {
+        Ok(b) => b.realtime(true),
+        Err(e) => {
+            eprintln!("cannot open a pty: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let mut bridge = bridge;
+    println!("pty: {} (connect a sender at any baud; Ctrl-C to stop)", bridge.port().display());
+    let mut last_traffic = std::time::Instant::now();
+    let mut failure = None;
+    loop {
+        match bridge.pump(&mut vm, 0.002) {
+            Ok(true) => last_traffic = std::time::Instant::now(),
+            Ok(false) => {}
+            Err(e) => {
+                failure = Some(e.to_string());
+                break;
+            }
+        }
+        if args.idle_exit_s.is_some_and(|s| last_traffic.elapsed().as_secs_f64() > s) {
+            break;
+        }
+    }
+    let mut report = vm.report(None);
+    if let Some(f) = failure {
+        report.errors.push(f);
+    }
+    print!("{}", report.human());
+    println!("{:<22}{} bytes from the sender, {} to it", "pty", bridge.bytes_in, bridge.bytes_out);
+    if let Some(p) = &args.json {
+        if let Err(e) = report.write_json(p) {
+            eprintln!("cannot write {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
+    }
+    if let Some(p) = &args.csv {
+        if let Err(e) = vm.write_trace_csv(p) {
+            eprintln!("cannot write {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
     }
     if report.clean() {
         ExitCode::SUCCESS

@@ -106,7 +106,7 @@ pub fn report(m: &Machine, io: &mut impl Io) {
     let steps = io.stepper().position[axis::E];
     let pos = Micros::from_mm(steps as f32 / m.settings.steps_per_mm[axis::E]);
     let hit = io.switches().carousel_home as u8;
-    uwriteln!(io, "Motor0 Pos:{} Endstop Hit:{}", pos, hit).ok();
+    uwriteln!(io, "{}{}{}{}", F!("Motor0 Pos:"), pos, F!(" Endstop Hit:"), hit).ok();
 }
 
 /// Turn the carousel to `position` pitches through the planner and wait

@@ -164,6 +164,18 @@ pub const TABLE: [Row; 20] = [
     row(State::EndJournal, When::Always, Do::EndJournal),
 ];
 
+/// [`TABLE`] kept in flash: used at run time, a `const` table would be
+/// copied into RAM at boot on AVR (80 bytes).
+#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+static TABLE_IN_FLASH: [Row; TABLE.len()] = TABLE;
+
+/// Row `i` of [`TABLE`], read from flash.
+fn row_at(i: usize) -> Option<Row> {
+    // SAFETY: TABLE_IN_FLASH is an immutable static in program memory (plain
+    // memory on the host); Row is Copy.
+    TABLE_IN_FLASH.get(i).map(|r| unsafe { avr_progmem::raw::read_value(r) })
+}
+
 /// What the executor is asked to do next.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Action {
@@ -287,7 +299,7 @@ impl Change {
         if self.result.is_some() {
             None
         } else {
-            TABLE.get(self.at as usize).map(|r| r.state)
+            row_at(self.at as usize).map(|r| r.state)
         }
     }
 
@@ -316,7 +328,7 @@ impl Change {
 
     /// First row at or after `i` that applies.
     fn next_row(&self, mut i: usize) -> usize {
-        while i < TABLE.len() && !self.applies(TABLE[i].when) {
+        while i < TABLE.len() && !row_at(i).is_some_and(|r| self.applies(r.when)) {
             i += 1;
         }
         i
@@ -342,7 +354,7 @@ impl Change {
                 Action::Abort(f)
             }
             Event::Done => {
-                match TABLE.get(self.at as usize).map(|r| r.act) {
+                match row_at(self.at as usize).map(|r| r.act) {
                     Some(Do::StoreReleased) => self.tools = self.tools.released(),
                     Some(Do::StoreClamped) => self.tools = self.tools.clamped(self.to),
                     Some(Do::HomeCarousel) => self.carousel_homed = true,
@@ -356,7 +368,7 @@ impl Change {
 
     /// The action of the current row.
     fn action(&mut self) -> Action {
-        let Some(row) = TABLE.get(self.at as usize) else {
+        let Some(row) = row_at(self.at as usize) else {
             self.result = Some(Ok(()));
             return Action::Done;
         };

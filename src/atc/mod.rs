@@ -115,23 +115,23 @@ pub enum Fault {
 
 impl Fault {
     /// Text after `Error:`.
-    pub fn message(self) -> &'static str {
+    pub fn message(self) -> crate::flash::FStr {
         match self {
-            Fault::ToolRange => "tool must be T0-T12",
-            Fault::NotHomed => "home X Y Z (G28) before a tool change",
-            Fault::PocketEmpty => "pocket of that tool is empty (M61 P<n> S1 if loaded)",
-            Fault::ReturnPocketFull => "pocket of the spindle tool is full, cannot return it",
-            Fault::SoftLimit => "tool change station outside travel (soft limit)",
-            Fault::Interrupted => "tool change interrupted: check spindle, then M61 Q<tool>",
-            Fault::CarouselHome => "carousel home switch not found",
-            Fault::Stopped => "tool change stopped",
-            Fault::Motor => "P must be 0 (the carousel)",
-            Fault::CarouselX => "X missing or out of range (-360..360)",
-            Fault::OnOff => "S and E must be 0 or 1",
-            Fault::WithMotion => "T/M6 must be on a line without motion",
-            Fault::NoTool => "M6 needs a T word",
-            Fault::M61Words => "M61 Q<0-12>, or M61 P<1-12> S<0|1>",
-            Fault::PocketOfSpindleTool => "that tool is in the spindle",
+            Fault::ToolRange => F!("tool must be T0-T12"),
+            Fault::NotHomed => F!("home X Y Z (G28) before a tool change"),
+            Fault::PocketEmpty => F!("pocket of that tool is empty (M61 P<n> S1 if loaded)"),
+            Fault::ReturnPocketFull => F!("pocket of the spindle tool is full, cannot return it"),
+            Fault::SoftLimit => F!("tool change station outside travel (soft limit)"),
+            Fault::Interrupted => F!("tool change interrupted: check spindle, then M61 Q<tool>"),
+            Fault::CarouselHome => F!("carousel home switch not found"),
+            Fault::Stopped => F!("tool change stopped"),
+            Fault::Motor => F!("P must be 0 (the carousel)"),
+            Fault::CarouselX => F!("X missing or out of range (-360..360)"),
+            Fault::OnOff => F!("S and E must be 0 or 1"),
+            Fault::WithMotion => F!("T/M6 must be on a line without motion"),
+            Fault::NoTool => F!("M6 needs a T word"),
+            Fault::M61Words => F!("M61 Q<0-12>, or M61 P<1-12> S<0|1>"),
+            Fault::PocketOfSpindleTool => F!("that tool is in the spindle"),
         }
     }
 }

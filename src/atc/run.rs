@@ -27,7 +27,7 @@ use crate::gcode::interp::{self, Error};
 use crate::gcode::{Line, Word};
 use crate::machine::{Io, Machine, State};
 use crate::math::round_i32;
-use ufmt::uwriteln;
+use ufmt::{uwrite, uwriteln};
 
 /// Load the tool records at boot and say what the operator must know.
 #[inline(never)]
@@ -38,26 +38,28 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
         Some(s) => m.atc.tools = s,
         None => {
             m.atc.tools = ToolState::FACTORY;
-            uwriteln!(io, "echo:no tool record: spindle empty, pockets full assumed (M61)").ok();
+            uwriteln!(io, "{}", F!("echo:no tool record: spindle empty, pockets full assumed (M61)")).ok();
         }
     }
     let mut tb = [0u8; ToolTable::IMAGE_LEN];
     io.eeprom_read(EEPROM_TABLE_ADDR, &mut tb);
-    m.atc.table = ToolTable::from_bytes(&tb).unwrap_or(ToolTable::EMPTY);
+    if let Some(t) = ToolTable::from_bytes(&tb) {
+        m.atc.table = t;
+    }
     let mut jb = [0u8; Journal::IMAGE_LEN];
     io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
     m.atc.interrupted = Journal::from_bytes(&jb);
     crate::toolsetter::run::boot(m, io);
     apply_offset(m);
-    uwriteln!(io, "echo:tool in spindle: T{}", m.atc.spindle()).ok();
+    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle()).ok();
     report_interrupted(m, io);
 }
 
 /// The interrupted-change line, if a change is interrupted.
 pub fn report_interrupted(m: &Machine, io: &mut impl Io) {
     if let Some(j) = m.atc.interrupted {
-        uwriteln!(io, "echo:tool change T{}->T{} interrupted: motion refused until M61 Q<tool in spindle>", j.from, j.to)
-            .ok();
+        uwrite!(io, "{}{}->T{}", F!("echo:tool change T"), j.from, j.to).ok();
+        uwriteln!(io, "{}", F!(" interrupted: motion refused until M61 Q<tool in spindle>")).ok();
     }
 }
 
@@ -94,7 +96,7 @@ pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), 
     let Some(mut c) = change else {
         return Ok(());
     };
-    uwriteln!(io, "SelectTool:{}", to).ok();
+    uwriteln!(io, "{}{}", F!("SelectTool:"), to).ok();
     m.state = State::Tool;
     let mut journal = false;
     let mut failure = None;
@@ -132,7 +134,7 @@ pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), 
     }
     m.state = State::Idle;
     apply_offset(m);
-    uwriteln!(io, "NowSelectedTool:{}", m.atc.spindle()).ok();
+    uwriteln!(io, "{}{}", F!("NowSelectedTool:"), m.atc.spindle()).ok();
     Ok(())
 }
 
@@ -202,7 +204,7 @@ pub fn m61(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
                 clear_journal(io);
             }
             apply_offset(m);
-            uwriteln!(io, "echo:tool in spindle: T{}", t).ok();
+            uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), t).ok();
             Ok(())
         }
         (None, Some(p), Some(s)) => {

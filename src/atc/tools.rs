@@ -231,7 +231,7 @@ impl ToolTable {
         if !valid(img) {
             return None;
         }
-        let mut t = ToolTable::EMPTY;
+        let mut t = ToolTable { length_um: [0; N_POCKETS], diameter_um: [0; N_POCKETS] };
         for i in 0..N_POCKETS {
             let b = &img[1 + 4 * i..5 + 4 * i];
             t.length_um[i] = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);

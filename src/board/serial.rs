@@ -4,9 +4,10 @@
 //! (`?` `!` `~`) become bits in [`super::REALTIME`] and never reach the ring;
 //! `M112` is spotted by `protocol::EstopScanner` and stops the machine from
 //! inside the ISR. Other bytes go into a 256-byte `heapless::spsc` ring whose
-//! consumer is the main loop. If the ring is full the byte is dropped and
-//! [`rx_overrun`] reports it, so the line assembler throws the damaged line
-//! away instead of running it: the ring itself can never overflow.
+//! consumer is the main loop. If the ring is full the byte is dropped, and a
+//! gap marker (`protocol::RX_GAP`) is stored before the next byte that fits,
+//! so the line assembler drops exactly the damaged line instead of running
+//! it: the ring itself can never overflow.
 //!
 //! TX: [`write`] queues bytes in a 128-byte ring drained by `USART0_UDRE`.
 //! While the ring is full the writer runs a wait hook (the firmware's feeds
@@ -17,7 +18,7 @@ use super::{realtime, REALTIME};
 use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
 use heapless::spsc::{Consumer, Producer, Queue};
-use mill::protocol::EstopScanner;
+use mill::protocol::{EstopScanner, RxStore};
 
 /// RX ring capacity + 1 (heapless keeps one slot free): 255 bytes usable.
 /// A character-counting host may keep this many bytes in flight.
@@ -34,8 +35,8 @@ static mut RX_CONS: Option<Consumer<'static, u8, RX_LEN>> = None;
 static mut TX_PROD: Option<Producer<'static, u8, TX_LEN>> = None;
 static mut TX_CONS: Option<Consumer<'static, u8, TX_LEN>> = None;
 static mut ESTOP_SCAN: EstopScanner = EstopScanner::new();
-/// Set by the RX ISR when a byte was lost (ring full or hardware overrun).
-static OVERRUN: portable_atomic::AtomicBool = portable_atomic::AtomicBool::new(false);
+/// The RX ISR's gap-marking store (one byte).
+static mut RX_STORE: RxStore = RxStore::new();
 /// Run while waiting for TX space (set by main).
 static mut TX_WAIT_HOOK: fn() = || {};
 
@@ -87,11 +88,6 @@ pub fn read() -> Option<u8> {
 pub fn rx_len() -> usize {
     // SAFETY: main loop only; len() reads the indices atomically.
     unsafe { (*addr_of_mut!(RX_CONS)).as_ref().map_or(0, |c| c.len()) }
-}
-
-/// True once after a received byte was lost.
-pub fn rx_overrun() -> bool {
-    OVERRUN.swap(false, portable_atomic::Ordering::AcqRel)
 }
 
 /// Queue bytes for sending; waits (running the wait hook) while the ring is full.
@@ -146,7 +142,8 @@ fn USART0_RX() {
     let lost = u.ucsr0a().read().dor0().bit_is_set();
     let b = u.udr0().read().bits();
     if lost {
-        OVERRUN.store(true, portable_atomic::Ordering::Release);
+        // SAFETY: RX_STORE is only used by this ISR.
+        unsafe { (*addr_of_mut!(RX_STORE)).note_loss() };
     }
     match b {
         b'?' => REALTIME.fetch_or(realtime::STATUS, portable_atomic::Ordering::AcqRel),
@@ -158,9 +155,8 @@ fn USART0_RX() {
                 if (*addr_of_mut!(ESTOP_SCAN)).feed(b) {
                     super::emergency_stop();
                 }
-                let full = (*addr_of_mut!(RX_PROD)).as_mut().map_or(true, |p| p.enqueue(b).is_err());
-                if full {
-                    OVERRUN.store(true, portable_atomic::Ordering::Release);
+                if let Some(p) = (*addr_of_mut!(RX_PROD)).as_mut() {
+                    (*addr_of_mut!(RX_STORE)).store(b, |x| p.enqueue(x).is_ok());
                 }
             }
             0

@@ -10,6 +10,7 @@
 //! a missing feed or a target outside travel returns an [`Error`] and leaves
 //! the machine exactly as it was.
 
+use crate::flash::FStr;
 use super::{Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
 use crate::config::{Settings, N_WCS};
 use crate::fixed::Micros;
@@ -40,9 +41,9 @@ pub enum Error {
     /// Arc with no solution or inconsistent centre.
     Arc(ArcError),
     /// A word needed by the code is missing or out of range.
-    BadWord(&'static str),
+    BadWord(FStr),
     /// A code this build does not provide yet.
-    NotAvailable(&'static str),
+    NotAvailable(FStr),
     /// Homing failed (alarm raised).
     HomingFailed,
     /// G38.2 did not trip.
@@ -57,19 +58,19 @@ pub enum Error {
 
 impl Error {
     /// Text printed after `Error:`.
-    pub fn message(&self) -> &'static str {
+    pub fn message(&self) -> FStr {
         match self {
             Error::Parse(p) => p.kind.message(),
-            Error::Alarm => "alarm",
-            Error::BadFeed => "feed rate missing or not positive (F)",
-            Error::SoftLimit => "target outside travel (soft limit), nothing moved",
-            Error::SpindleCcw => "M4 not supported: the spindle turns one way only",
+            Error::Alarm => F!("alarm"),
+            Error::BadFeed => F!("feed rate missing or not positive (F)"),
+            Error::SoftLimit => F!("target outside travel (soft limit), nothing moved"),
+            Error::SpindleCcw => F!("M4 not supported: the spindle turns one way only"),
             Error::Arc(e) => e.message(),
-            Error::BadWord(m) => m,
-            Error::NotAvailable(m) => m,
-            Error::HomingFailed => "homing failed: switch not found",
-            Error::ProbeFailed => "probe failed: input did not trip",
-            Error::ProbeAlreadyTriggered => "probe input already triggered, nothing moved",
+            Error::BadWord(m) => *m,
+            Error::NotAvailable(m) => *m,
+            Error::HomingFailed => F!("homing failed: switch not found"),
+            Error::ProbeFailed => F!("probe failed: input did not trip"),
+            Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
             Error::Atc(f) => f.message(),
             Error::Setter(f) => f.message(),
         }
@@ -192,6 +193,13 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
                 report_position(m, io);
                 return Ok(());
             }
+            105 => {
+                // Senders (printcore, Pronterface, OctoPrint) poll M105 for
+                // temperatures; a mill has no heaters, so it reports none
+                // rather than an error every few seconds.
+                uwriteln!(io, "T:0.0 /0.0").ok();
+                return Ok(());
+            }
             119 => {
                 report_switches(m, io);
                 return Ok(());
@@ -203,7 +211,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             61 => return crate::atc::run::m61(m, io, l),
             999 => {
                 m.clear_alarm(io);
-                uwriteln!(io, "echo:alarm cleared; position unknown until homed (G28)").ok();
+                uwriteln!(io, "{}", F!("echo:alarm cleared; position unknown until homed (G28)")).ok();
                 return Ok(());
             }
             110 => return Ok(()), // handled by the line checker
@@ -253,7 +261,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     }
     if let Some(code) = l.other_m {
         if (20..=29).contains(&code) {
-            return Err(Error::NotAvailable("SD card not available in this build"));
+            return Err(Error::NotAvailable(F!("SD card not available in this build")));
         }
     }
     if let Some(f) = l.word(Word::F) {
@@ -263,7 +271,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     }
     if let Some(s) = l.word(Word::S) {
         if s < 0.0 && l.non_modal != Some(NonModal::Dwell) {
-            return Err(Error::BadWord("S must not be negative"));
+            return Err(Error::BadWord(F!("S must not be negative")));
         }
     }
 
@@ -292,7 +300,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             ToolLength::Cancel => 0.0,
             ToolLength::Apply => {
                 let t = match l.word(Word::H) {
-                    Some(h) => tool_index(h).ok_or(Error::BadWord("H must be a tool number 0-12"))?,
+                    Some(h) => tool_index(h).ok_or(Error::BadWord(F!("H must be a tool number 0-12")))?,
                     None => m.atc.spindle() as usize,
                 };
                 crate::atc::tool_length_offset_mm(m.atc.length_mm(t as u8))
@@ -306,7 +314,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             let ms = match (l.word(Word::P), l.word(Word::S)) {
                 (Some(p), None) if p >= 0.0 => p,
                 (None, Some(s)) if s >= 0.0 => s * 1000.0,
-                _ => return Err(Error::BadWord("G4 needs one of P<ms> or S<s>, not negative")),
+                _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
             };
             g.commit(&mut m.interp);
             m.wait_idle(io)?;
@@ -381,7 +389,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     let mut do_motion = None;
     if any_axis || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
         match motion {
-            Motion::Cancel => return Err(Error::BadWord("axis words without a motion mode (G80 active)")),
+            Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active)"))),
             Motion::Rapid => {}
             _ => {
                 if !(g.feed > 0.0) {
@@ -415,8 +423,8 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         let spec = match (r, any_off) {
             (Some(r), false) => arc::Centre::Radius(r),
             (None, true) => arc::Centre::Offset(centre_off),
-            (Some(_), true) => return Err(Error::BadWord("arc: give R or I/J/K, not both")),
-            (None, false) => return Err(Error::BadWord("arc needs R or I/J/K")),
+            (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
+            (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
         };
         let plan = arc::Arc::new(start, end, spec, (a0, a1, a2), mo == Motion::ArcCw, m.settings.arc_tolerance_mm)
             .map_err(Error::Arc)?;
@@ -488,11 +496,11 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             m.wait_idle(io)?;
             m.interp.spindle_on = false;
             io.spindle(0);
-            uwriteln!(io, "echo:program end").ok();
+            uwriteln!(io, "{}", F!("echo:program end")).ok();
         }
         Some(Stopping::Pause | Stopping::OptionalPause) => {
             m.wait_idle(io)?;
-            uwriteln!(io, "echo:paused, send ~ to resume").ok();
+            uwriteln!(io, "{}", F!("echo:paused, send ~ to resume")).ok();
             m.pause_until_resume(io)?;
         }
         None => {}
@@ -556,18 +564,18 @@ fn tool_index(v: f32) -> Option<usize> {
 /// G10 L1 / L2 / L20.
 #[inline(never)]
 fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
-    let lv = l.word(Word::L).ok_or(Error::BadWord("G10 needs L1, L2 or L20"))?;
-    let p = l.word(Word::P).ok_or(Error::BadWord("G10 needs P"))?;
+    let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;
+    let p = l.word(Word::P).ok_or(Error::BadWord(F!("G10 needs P")))?;
     let conv = |v: f32| if g.inches { v * MM_PER_INCH } else { v };
     match round_i32(lv) {
         1 if lv == 1.0 => {
-            let t = tool_index(p).ok_or(Error::BadWord("G10 L1: P must be a tool number 0-12"))?;
+            let t = tool_index(p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool number 0-12")))?;
             if t == 0 {
-                return Err(Error::BadWord("G10 L1: P must be a tool number 1-12"));
+                return Err(Error::BadWord(F!("G10 L1: P must be a tool number 1-12")));
             }
             let r = l.word(Word::R);
             if r.is_some_and(|r| r < 0.0) {
-                return Err(Error::BadWord("G10 L1: R must not be negative"));
+                return Err(Error::BadWord(F!("G10 L1: R must not be negative")));
             }
             crate::atc::run::set_tool(m, io, t as u8, l.word(Word::Z).map(conv), r.map(conv));
             Ok(())
@@ -575,7 +583,7 @@ fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Re
         n @ (2 | 20) if lv == n as f32 => {
             let idx = round_i32(p);
             if idx as f32 != p || !(0..=N_WCS as i32).contains(&idx) {
-                return Err(Error::BadWord("G10 L2/L20: P must be 0-6"));
+                return Err(Error::BadWord(F!("G10 L2/L20: P must be 0-6")));
             }
             let w = if idx == 0 { g.wcs as usize } else { (idx - 1) as usize };
             let mut off = m.interp.wcs_mm[w];
@@ -596,7 +604,7 @@ fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Re
             m.save_settings(io);
             Ok(())
         }
-        _ => Err(Error::BadWord("G10: L must be 1, 2 or 20")),
+        _ => Err(Error::BadWord(F!("G10: L must be 1, 2 or 20"))),
     }
 }
 
@@ -620,7 +628,7 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             for (a, &w) in words.iter().enumerate() {
                 if let Some(v) = l.word(w) {
                     if !(v > 0.0) {
-                        return Err(Error::BadWord("value must be positive"));
+                        return Err(Error::BadWord(F!("value must be positive")));
                     }
                     match code {
                         92 => s.steps_per_mm[a] = v,
@@ -630,7 +638,7 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
                 }
             }
             if !s.is_sane() {
-                return Err(Error::BadWord("value out of range"));
+                return Err(Error::BadWord(F!("value out of range")));
             }
             let steps = io.stepper().position;
             let mm = m.steps_to_mm(steps);
@@ -643,33 +651,33 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             }
         }
         220 => {
-            let s = l.word(Word::S).ok_or(Error::BadWord("M220 needs S<percent>"))?;
+            let s = l.word(Word::S).ok_or(Error::BadWord(F!("M220 needs S<percent>")))?;
             if !(10.0..=500.0).contains(&s) {
-                return Err(Error::BadWord("M220 S must be 10-500"));
+                return Err(Error::BadWord(F!("M220 S must be 10-500")));
             }
             m.interp.feed_override_pct = round_i32(s) as u16;
         }
         400 => m.wait_idle(io)?,
         500 => {
             m.save_settings(io);
-            uwriteln!(io, "echo:settings stored").ok();
+            uwriteln!(io, "{}", F!("echo:settings stored")).ok();
         }
         501 => {
             m.wait_idle(io)?;
             if m.load_settings(io) {
-                uwriteln!(io, "echo:settings loaded").ok();
+                uwriteln!(io, "{}", F!("echo:settings loaded")).ok();
             } else {
-                return Err(Error::BadWord("EEPROM settings invalid; kept the current ones"));
+                return Err(Error::BadWord(F!("EEPROM settings invalid; kept the current ones")));
             }
         }
         502 => {
             m.wait_idle(io)?;
-            m.settings = Settings::DEFAULT;
+            m.settings = Settings::defaults();
             m.interp.load_settings(&m.settings);
-            uwriteln!(io, "echo:factory settings restored (M500 to store)").ok();
+            uwriteln!(io, "{}", F!("echo:factory settings restored (M500 to store)")).ok();
         }
         108 => {}
-        _ => return Err(Error::NotAvailable("M code not supported")),
+        _ => return Err(Error::NotAvailable(F!("M code not supported"))),
     }
     Ok(())
 }
@@ -707,11 +715,12 @@ fn report_position(m: &Machine, io: &mut impl Io) {
     let w = m.interp.machine_to_work(m.steps_to_mm(st));
     uwriteln!(
         io,
-        "X:{} Y:{} Z:{} E:{} Count X:{} Y:{} Z:{} E:{}",
+        "X:{} Y:{} Z:{} E:{}{}{} Y:{} Z:{} E:{}",
         Micros::from_mm(w[0]),
         Micros::from_mm(w[1]),
         Micros::from_mm(w[2]),
         Micros::from_mm(w[3]),
+        F!(" Count X:"),
         st[0],
         st[1],
         st[2],
@@ -723,59 +732,67 @@ fn report_position(m: &Machine, io: &mut impl Io) {
 #[inline(never)]
 fn report_switches(_m: &Machine, io: &mut impl Io) {
     let s = io.switches();
-    let word = |b: bool| if b { "TRIGGERED" } else { "open" };
-    uwriteln!(io, "Reporting endstop status").ok();
-    uwriteln!(io, "x_min: {}", word(s.home & 1 != 0)).ok();
-    uwriteln!(io, "y_min: {}", word(s.home & 2 != 0)).ok();
-    uwriteln!(io, "z_min: {}", word(s.home & 4 != 0)).ok();
-    uwriteln!(io, "carousel: {}", word(s.carousel_home)).ok();
-    uwriteln!(io, "tool_setter: {}", word(s.tool_setter)).ok();
+    uwriteln!(io, "{}", F!("Reporting endstop status")).ok();
+    let lines = [
+        (F!("x_min: "), s.home & 1 != 0),
+        (F!("y_min: "), s.home & 2 != 0),
+        (F!("z_min: "), s.home & 4 != 0),
+        (F!("carousel: "), s.carousel_home),
+        (F!("tool_setter: "), s.tool_setter),
+    ];
+    for (name, on) in lines {
+        uwriteln!(io, "{}{}", name, if on { F!("TRIGGERED") } else { F!("open") }).ok();
+    }
 }
 
 #[inline(never)]
 fn report_settings(m: &Machine, io: &mut impl Io) {
     let s = &m.settings;
-    let line = |io: &mut dyn DynOut, code: &str, v: &[f32; N_AXES], scale: f32| {
+    let line = |io: &mut dyn DynOut, code: FStr, v: &[f32; N_AXES], scale: f32| {
         io.out(code);
-        for (a, &n) in [" X", " Y", " Z", " E"].iter().enumerate() {
-            io.out(n);
+        for (a, &n) in AXIS_NAMES.iter().enumerate() {
+            io.text(n);
             io.num(v[a] * scale);
         }
-        io.out("\n");
+        io.text("\n");
     };
     let mut d = Dyn(io);
-    d.out("echo:Steps per unit:\n");
-    line(&mut d, "M92", &s.steps_per_mm, 1.0);
-    d.out("echo:Max feedrates (units/s):\n");
-    line(&mut d, "M203", &s.max_feed_mm_per_min, 1.0 / 60.0);
-    d.out("echo:Max acceleration (units/s2):\n");
-    line(&mut d, "M201", &s.accel_mm_per_s2, 1.0);
-    d.out("echo:Work offsets:\n");
+    d.out(F!("echo:Steps per unit:\n"));
+    line(&mut d, F!("M92"), &s.steps_per_mm, 1.0);
+    d.out(F!("echo:Max feedrates (units/s):\n"));
+    line(&mut d, F!("M203"), &s.max_feed_mm_per_min, 1.0 / 60.0);
+    d.out(F!("echo:Max acceleration (units/s2):\n"));
+    line(&mut d, F!("M201"), &s.accel_mm_per_s2, 1.0);
+    d.out(F!("echo:Work offsets:\n"));
     for (i, o) in m.interp.wcs_mm.iter().enumerate() {
-        d.out("G10 L2 P");
+        d.out(F!("G10 L2 P"));
         d.int(i as i32 + 1);
-        for (a, &n) in [" X", " Y", " Z"].iter().enumerate() {
-            d.out(n);
+        for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
+            d.text(n);
             d.num(o[a]);
         }
-        d.out("\n");
+        d.text("\n");
     }
-    d.out("echo:Travel (mm): X");
-    d.num(s.travel_mm[0]);
-    d.out(" Y");
-    d.num(s.travel_mm[1]);
-    d.out(" Z");
-    d.num(s.travel_mm[2]);
-    d.out(" soft limits ");
-    d.out(if s.soft_limits { "on" } else { "off" });
-    d.out(", hard limits ");
-    d.out(if s.hard_limits { "on" } else { "off" });
-    d.out("\n");
+    d.out(F!("echo:Travel (mm):"));
+    for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
+        d.text(n);
+        d.num(s.travel_mm[a]);
+    }
+    let on_off = |on: bool| if on { F!("on") } else { F!("off") };
+    d.out(F!(" soft limits "));
+    d.out(on_off(s.soft_limits));
+    d.out(F!(", hard limits "));
+    d.out(on_off(s.hard_limits));
+    d.text("\n");
 }
+
+/// ` X` … ` E`: short, so plain RAM strings.
+const AXIS_NAMES: [&str; N_AXES] = [" X", " Y", " Z", " E"];
 
 /// Small object-safe writer used by the settings report.
 trait DynOut {
-    fn out(&mut self, s: &str);
+    fn out(&mut self, s: FStr);
+    fn text(&mut self, s: &str);
     fn num(&mut self, v: f32);
     fn int(&mut self, v: i32);
 }
@@ -783,7 +800,10 @@ trait DynOut {
 struct Dyn<'a, W: Io>(&'a mut W);
 
 impl<W: Io> DynOut for Dyn<'_, W> {
-    fn out(&mut self, s: &str) {
+    fn out(&mut self, s: FStr) {
+        s.write_to(self.0).ok();
+    }
+    fn text(&mut self, s: &str) {
         self.0.write_str(s).ok();
     }
     fn num(&mut self, v: f32) {

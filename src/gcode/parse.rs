@@ -24,6 +24,7 @@
 //! number errors at the word's letter, code errors at the `G`/`M`, the rest
 //! at the offending character.
 
+use crate::flash::FStr;
 use ufmt::{uDisplay, uWrite, uwrite};
 
 /// Longest text [`parse`] accepts, in bytes (columns and file name offsets
@@ -318,7 +319,7 @@ pub enum Spindle {
 /// M codes outside the stopping, tool-change and spindle groups: at most one
 /// of them per line, in [`Line::other_m`]. Add new ones here.
 pub const OTHER_M_CODES: &[u16] = &[
-    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 108, 110, 112, 114, 115, 119, 201, 203, 220,
+    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220,
     400, 500, 501, 502, 503, 999,
 ];
 
@@ -418,20 +419,20 @@ pub enum ParseErrorKind {
 
 impl ParseErrorKind {
     /// Text printed after `Error:`.
-    pub fn message(&self) -> &'static str {
+    pub fn message(&self) -> FStr {
         match self {
-            ParseErrorKind::BadNumber => "bad number",
-            ParseErrorKind::Exponent => "bad number: exponent not allowed",
-            ParseErrorKind::NumberOutOfRange => "number out of range",
-            ParseErrorKind::UnknownWord => "unknown word",
-            ParseErrorKind::Unexpected => "unexpected character",
-            ParseErrorKind::UnsupportedCode => "unsupported code",
-            ParseErrorKind::RepeatedWord => "word repeated",
-            ParseErrorKind::ModalGroupConflict => "two codes of one modal group",
-            ParseErrorKind::UnclosedComment => "unclosed comment",
-            ParseErrorKind::BadToolNumber => "tool number must be a whole number",
-            ParseErrorKind::MissingFileName => "missing file name",
-            ParseErrorKind::LineTooLong => "line too long",
+            ParseErrorKind::BadNumber => F!("bad number"),
+            ParseErrorKind::Exponent => F!("bad number: exponent not allowed"),
+            ParseErrorKind::NumberOutOfRange => F!("number out of range"),
+            ParseErrorKind::UnknownWord => F!("unknown word"),
+            ParseErrorKind::Unexpected => F!("unexpected character"),
+            ParseErrorKind::UnsupportedCode => F!("unsupported code"),
+            ParseErrorKind::RepeatedWord => F!("word repeated"),
+            ParseErrorKind::ModalGroupConflict => F!("two codes of one modal group"),
+            ParseErrorKind::UnclosedComment => F!("unclosed comment"),
+            ParseErrorKind::BadToolNumber => F!("tool number must be a whole number"),
+            ParseErrorKind::MissingFileName => F!("missing file name"),
+            ParseErrorKind::LineTooLong => F!("line too long"),
         }
     }
 }
@@ -447,7 +448,7 @@ pub struct ParseError {
 
 impl ParseError {
     /// Text printed after `Error:`, before ` at col <c>`.
-    pub fn message(&self) -> &'static str {
+    pub fn message(&self) -> FStr {
         self.kind.message()
     }
 }
@@ -919,7 +920,7 @@ mod tests {
         assert_eq!(fails("G93"), (ParseErrorKind::UnsupportedCode, 1));
         assert_eq!(fails("G1 X1 G41"), (ParseErrorKind::UnsupportedCode, 7));
         assert_eq!(fails("M7"), (ParseErrorKind::UnsupportedCode, 1));
-        assert_eq!(fails("G0 M105"), (ParseErrorKind::UnsupportedCode, 4));
+        assert_eq!(fails("G0 M104"), (ParseErrorKind::UnsupportedCode, 4));
         assert_eq!(fails("M65535"), (ParseErrorKind::UnsupportedCode, 1));
         assert_eq!(fails("G7000"), (ParseErrorKind::UnsupportedCode, 1));
     }

@@ -23,6 +23,7 @@
 //!
 //! All lengths in mm, angles in radians, f32 (the AVR has no f64 hardware).
 
+use crate::flash::FStr;
 use crate::math::{atan2f, fabsf, sincosf, sqrtf};
 
 /// Chords between exact sin/cos recomputations.
@@ -61,13 +62,13 @@ pub enum ArcError {
 
 impl ArcError {
     /// Text printed after `Error:`.
-    pub fn message(&self) -> &'static str {
+    pub fn message(&self) -> FStr {
         match self {
-            ArcError::RadiusTooSmall => "arc: R too small for the distance to the end point",
-            ArcError::RadiusMismatch => "arc: end point not on the circle (I/J/K radius mismatch)",
-            ArcError::ZeroRadius => "arc: zero radius",
-            ArcError::FullCircleWithRadius => "arc: full circle needs I/J/K, not R",
-            ArcError::NotFinite => "arc: invalid number",
+            ArcError::RadiusTooSmall => F!("arc: R too small for the distance to the end point"),
+            ArcError::RadiusMismatch => F!("arc: end point not on the circle (I/J/K radius mismatch)"),
+            ArcError::ZeroRadius => F!("arc: zero radius"),
+            ArcError::FullCircleWithRadius => F!("arc: full circle needs I/J/K, not R"),
+            ArcError::NotFinite => F!("arc: invalid number"),
         }
     }
 }

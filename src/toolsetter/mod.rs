@@ -74,18 +74,18 @@ pub enum Fault {
 
 impl Fault {
     /// Text after `Error:`.
-    pub fn message(self) -> &'static str {
+    pub fn message(self) -> crate::flash::FStr {
         match self {
-            Fault::BeamBlocked => "tool setter beam blocked at start, nothing moved",
-            Fault::BeamNeverBroke => "tool setter beam never broke; tool retracted, nothing stored",
-            Fault::BeamStuck => "tool setter beam stays blocked after back-off",
-            Fault::NotCalibrated => "tool setter not calibrated (G37 L<len> R<radius>)",
-            Fault::NoTool => "no tool in the spindle",
-            Fault::NothingToCheck => "no stored length to check against",
-            Fault::Words => "G37 [D1] [B<tol>] or G37 L<len> R<radius> [X Y]",
-            Fault::SoftLimit => "tool setter outside travel (soft limit)",
-            Fault::NotHomed => "home X Y Z (G28) before G37",
-            Fault::Stopped => "G37 stopped",
+            Fault::BeamBlocked => F!("tool setter beam blocked at start, nothing moved"),
+            Fault::BeamNeverBroke => F!("tool setter beam never broke; tool retracted, nothing stored"),
+            Fault::BeamStuck => F!("tool setter beam stays blocked after back-off"),
+            Fault::NotCalibrated => F!("tool setter not calibrated (G37 L<len> R<radius>)"),
+            Fault::NoTool => F!("no tool in the spindle"),
+            Fault::NothingToCheck => F!("no stored length to check against"),
+            Fault::Words => F!("G37 [D1] [B<tol>] or G37 L<len> R<radius> [X Y]"),
+            Fault::SoftLimit => F!("tool setter outside travel (soft limit)"),
+            Fault::NotHomed => F!("home X Y Z (G28) before G37"),
+            Fault::Stopped => F!("G37 stopped"),
         }
     }
 }
@@ -257,6 +257,17 @@ pub const TABLE: [Row; 12] = [
     row(State::LiftPlus, When::Diameter, Do::ZSafe),
 ];
 
+/// [`TABLE`] kept in flash (a run-time `const` table would sit in RAM on AVR).
+#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+static TABLE_IN_FLASH: [Row; TABLE.len()] = TABLE;
+
+/// Row `i` of [`TABLE`], read from flash.
+fn row_at(i: usize) -> Option<Row> {
+    // SAFETY: TABLE_IN_FLASH is an immutable static in program memory (plain
+    // memory on the host); Row is Copy.
+    TABLE_IN_FLASH.get(i).map(|r| unsafe { avr_progmem::raw::read_value(r) })
+}
+
 /// What the executor is asked to do next.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Action {
@@ -361,7 +372,7 @@ impl Measure {
         if self.result.is_some() || self.pending.is_some() {
             None
         } else {
-            TABLE.get(self.at as usize).map(|r| r.state)
+            row_at(self.at as usize).map(|r| r.state)
         }
     }
 
@@ -379,7 +390,7 @@ impl Measure {
 
     /// Move to the first row at or after `i` that applies.
     fn go_to(&mut self, mut i: usize) {
-        while i < TABLE.len() && !self.applies(TABLE[i].when) {
+        while i < TABLE.len() && !row_at(i).is_some_and(|r| self.applies(r.when)) {
             i += 1;
         }
         self.at = i as u8;
@@ -407,7 +418,7 @@ impl Measure {
         match ev {
             Event::Failed(f) => self.retract_then_abort(f),
             Event::Tripped(p) => {
-                match TABLE.get(self.at as usize).map(|r| r.act) {
+                match row_at(self.at as usize).map(|r| r.act) {
                     Some(Do::Seek(2, _)) => self.trip_z = p,
                     Some(Do::Seek(_, 1)) => self.y1 = p,
                     Some(Do::Seek(_, _)) => self.y2 = p,
@@ -431,7 +442,7 @@ impl Measure {
 
     /// The action of the current row, or the result at the end.
     fn action(&mut self) -> Action {
-        let Some(row) = TABLE.get(self.at as usize) else {
+        let Some(row) = row_at(self.at as usize) else {
             self.result = Some(Ok(self.outcome()));
             return Action::Done;
         };

@@ -114,15 +114,16 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
         Outcome::Measured { length_um, diameter_um } => {
             let i = tool as usize - 1;
             m.atc.table.length_um[i] = length_um;
-            uwrite!(io, "[TOOL:{} L:{}", tool, Micros(length_um)).ok();
+            uwrite!(io, "{}{}{}{}", F!("[TOOL:"), tool, F!(" L:"), Micros(length_um)).ok();
             if let Some(d) = diameter_um {
                 m.atc.table.diameter_um[i] = d.clamp(0, u16::MAX as i32) as u16;
-                uwrite!(io, " D:{}", Micros(d)).ok();
+                uwrite!(io, "{}{}", F!(" D:"), Micros(d)).ok();
             }
             uwriteln!(io, "]").ok();
         }
         Outcome::Checked { length_um, diff_um, broken } => {
-            uwriteln!(io, "[TOOL:{} L:{} dL:{}]", tool, Micros(length_um), Micros(diff_um)).ok();
+            uwrite!(io, "{}{}{}{}", F!("[TOOL:"), tool, F!(" L:"), Micros(length_um)).ok();
+            uwriteln!(io, "{}{}]", F!(" dL:"), Micros(diff_um)).ok();
             if broken {
                 m.raise(io, Alarm::BrokenTool);
                 return Err(Error::Alarm);
@@ -138,7 +139,7 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
                 m.atc.table.length_um[i] = s.ref_length_um;
                 m.atc.table.diameter_um[i] = s.ref_diameter_um.clamp(0, u16::MAX as i32) as u16;
             }
-            uwriteln!(io, "[SETTER Z:{} W:{}]", Micros(s.beam_z_um), Micros(s.beam_width_um)).ok();
+            uwriteln!(io, "{}{}{}{}]", F!("[SETTER Z:"), Micros(s.beam_z_um), F!(" W:"), Micros(s.beam_width_um)).ok();
         }
     }
     crate::atc::run::store_table(m, io, &before);

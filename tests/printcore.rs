@@ -1,0 +1,103 @@
+//! A real G-code sender on the simulated board: Printrun's `printcore` (the
+//! engine of Pronterface, installed by `tools/setup` into `target/pyenv`)
+//! streams a job through the pty bridge (`sim::pty`) with line numbers and
+//! checksums. The bridge corrupts one line's checksum in transit; the firmware
+//! must ask for it again and printcore must recover. The recorded steps must
+//! end exactly at the job's final point.
+
+mod common;
+use common::*;
+use sim::pty::PtyBridge;
+use sim::Axis;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn printcore_python() -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let py = std::env::var_os("MILL_PRINTCORE_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join("target/pyenv/bin/python"));
+    assert!(py.exists(), "{} missing: run tools/setup (tools/test does)", py.display());
+    py
+}
+
+#[test]
+fn printcore_streams_a_job_with_checksums_and_recovers_a_corrupted_line() {
+    let mut vm = boot();
+    // A square with a rounded corner and a diagonal back, in mm from the
+    // power-on position (the firmware's 0 until homed).
+    let job = "\
+G21 G90 ; mm, absolute
+G1 X10 F1500
+G1 Y8
+G2 X14 Y12 I4 J0
+G1 X4 Y12
+G1 X0 Y0
+G1 X3.33 Y1.25
+G91
+G1 X1 Y1
+G90
+M400
+";
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/tmp");
+    std::fs::create_dir_all(&dir).unwrap();
+    let job_path = dir.join("printcore-job.gcode");
+    std::fs::write(&job_path, job).unwrap();
+
+    // printcore numbers the job from N0 (after its own `N-1 M110`): corrupt N3.
+    let mut bridge = PtyBridge::open(&vm, None).expect("pty").realtime(true).corrupt_checksum_of_line(3);
+    let printcore = printcore_python().with_file_name("printcore.py");
+    let mut child = Command::new(printcore_python())
+        .arg(&printcore)
+        .args(["-v", "-b", "250000"])
+        .arg(bridge.port())
+        .arg(&job_path)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start printcore");
+
+    let started = Instant::now();
+    let status = loop {
+        bridge.pump(&mut vm, 0.002).expect("virtual machine");
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(started.elapsed() < Duration::from_secs(90), "printcore did not finish");
+    };
+    // Let the last bytes reach the machine and the motion finish.
+    for _ in 0..200 {
+        bridge.pump(&mut vm, 0.005).unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    let log = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(status.success(), "printcore failed:\n{log}");
+
+    // The fault was injected and recovered from.
+    assert_eq!(bridge.corrupted.len(), 1, "no line was corrupted: {log}");
+    assert!(bridge.corrupted[0].starts_with("N3 "), "{:?}", bridge.corrupted);
+    let fw: Vec<String> = vm.line_log().iter().map(|(_, l)| l.clone()).collect();
+    assert!(fw.iter().any(|l| l == "Resend:3"), "no Resend:3 in {fw:?}");
+    let sent: Vec<&str> = log.lines().filter_map(|l| l.strip_prefix("SENT: ")).collect();
+    assert!(sent.iter().filter(|l| l.starts_with("N3 ")).count() >= 2, "N3 not resent: {sent:?}");
+
+    // Every job line reached the machine and was acknowledged: one `ok` per
+    // line the firmware received (printcore waits for each before the next).
+    let job_lines = job.lines().filter(|l| !l.split(';').next().unwrap().trim().is_empty()).count();
+    let last_n = format!("N{} ", job_lines - 1);
+    assert!(sent.iter().any(|l| l.starts_with(&last_n)), "the last line {last_n} was never sent: {sent:?}");
+    let oks = fw.iter().filter(|l| *l == "ok").count();
+    let received = fw.iter().filter(|l| l.starts_with("Error:") || *l == "ok").count();
+    assert!(oks >= job_lines + 1, "{oks} oks for {job_lines} lines: {fw:?}");
+    assert!(received >= oks);
+
+    // The final position is exact: (3.33 + 1, 1.25 + 1) mm at 100 steps/mm
+    // from the power-on position, and nothing broke the timing rules.
+    let start = vm.config().machine.initial_position;
+    assert_eq!(vm.position(Axis::X), start[0] + 433);
+    assert_eq!(vm.position(Axis::Y), start[1] + 225);
+    assert_eq!(vm.position(Axis::Z), start[2]);
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+    assert!(vm.resets().iter().all(|r| r.kind == sim::ResetKind::PowerOn));
+}
