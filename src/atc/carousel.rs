@@ -101,10 +101,11 @@ pub fn command(m: &mut Machine, io: &mut impl Io, l: &Line, nm: NonModal) -> Res
     }
 }
 
-/// G203: `Motor0 Pos:<pitches> Endstop Hit:<0|1>`.
+/// G203: `Motor0 Pos:<pitches> Endstop Hit:<0|1>`. The position is the
+/// commanded one (where G201 put it), as Repetier reports it; the switch is
+/// read now.
 pub fn report(m: &Machine, io: &mut impl Io) {
-    let steps = io.stepper().position[axis::E];
-    let pos = Micros::from_mm(steps as f32 / m.settings.steps_per_mm[axis::E]);
+    let pos = Micros::from_mm(m.interp.pos_mm[axis::E]);
     let hit = io.switches().carousel_home as u8;
     uwriteln!(io, "{}{}{}{}", F!("Motor0 Pos:"), pos, F!(" Endstop Hit:"), hit).ok();
 }

@@ -115,6 +115,9 @@ pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), 
                 return Err(failure.unwrap_or(Error::Atc(Fault::Stopped)));
             }
             Action::BeginJournal(j) => {
+                // The tool record first (a no-op unless it was blank or
+                // stale), so a fault leaves both records valid.
+                io.eeprom_write(EEPROM_STATE_ADDR, &m.atc.tools.to_bytes());
                 io.eeprom_write(EEPROM_JOURNAL_ADDR, &Journal::to_bytes(Some(j)));
                 journal = true;
                 Event::Done
