@@ -76,6 +76,10 @@ impl Io for Hw {
         board::drivers_enable(on);
     }
 
+    fn carousel_driver(&mut self, on: bool) {
+        board::carousel_driver_enable(on);
+    }
+
     fn spindle(&mut self, duty: u8) {
         board::spindle_set(duty);
     }

@@ -79,6 +79,8 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8);
     /// Enable or disable the stepper drivers.
     fn drivers(&mut self, on: bool);
+    /// Enable or disable the carousel (E0) driver alone (G204).
+    fn carousel_driver(&mut self, on: bool);
     /// Spindle PWM duty, 0 = off.
     fn spindle(&mut self, duty: u8);
     /// Current switch levels.
@@ -135,6 +137,10 @@ pub enum Alarm {
     ProbeFailed,
     /// Booted after a watchdog reset.
     WatchdogReset,
+    /// G205 / a tool change did not find the carousel switch.
+    CarouselHome,
+    /// G37 B: the tool's length is off by more than the tolerance.
+    BrokenTool,
 }
 
 impl Alarm {
@@ -146,6 +152,8 @@ impl Alarm {
             Alarm::HomingFailed => F!("homing failed"),
             Alarm::ProbeFailed => F!("probe failed"),
             Alarm::WatchdogReset => F!("watchdog reset"),
+            Alarm::CarouselHome => F!("carousel home switch not found"),
+            Alarm::BrokenTool => F!("broken tool"),
         }
     }
 }
@@ -162,6 +170,10 @@ pub struct Machine {
     pub planner: Planner,
     pub prep: Prep,
     pub interp: Interp,
+    /// Tool changer: where the tools are, the tool table, an interrupted change.
+    pub atc: crate::atc::Atc,
+    /// Tool setter position and calibration.
+    pub setter: crate::toolsetter::Setter,
     asm: LineAssembler,
     chk: LineChecker,
     pub state: State,
@@ -188,6 +200,8 @@ impl Machine {
             planner: Planner::new(),
             prep: Prep::new(),
             interp: Interp::new(),
+            atc: crate::atc::Atc::new(),
+            setter: crate::toolsetter::Setter::DEFAULT,
             asm: LineAssembler::new(),
             chk: LineChecker::new(),
             state: State::Idle,
@@ -226,6 +240,7 @@ impl Machine {
         if loaded.is_none() {
             uwriteln!(io, "{}", F!("echo:EEPROM settings invalid or blank, using defaults")).ok();
         }
+        crate::atc::run::boot(self, io);
         if reset_cause == "watchdog" {
             self.raise(io, Alarm::WatchdogReset);
         } else if self.settings.homing_lock {
@@ -533,7 +548,7 @@ impl Machine {
         let wpos = self.interp.machine_to_work(mpos);
         self.write_xyz(io, wpos);
         let (feed, rpm) = self.interp.feed_and_speed();
-        uwrite!(io, "|FS:{},{}|T:{}", feed as i32, rpm as i32, self.interp.tool).ok();
+        uwrite!(io, "|FS:{},{}|T:{}", feed as i32, rpm as i32, self.atc.spindle()).ok();
         uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
         if let Some(a) = self.alarm {
             uwrite!(io, "|A:{}", a.message()).ok();

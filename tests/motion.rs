@@ -388,15 +388,17 @@ fn g92_and_g43_shift_the_work_position_without_moving() {
     run(&mut vm, "G0 X2");
     assert_eq!(xyz_now(&vm), [1700, 1500, 1500]);
     ok(&mut vm, "G10 L2 P1 X0");
-    // G43 H2 applies tool 2's length (3 mm) to Z; G49 cancels it.
+    // G43 H2 applies tool 2's length (3 mm) to Z; G49 cancels it. Z grows
+    // downward on this machine (SPEC §3), so work Z is the tool tip: a 3 mm
+    // tool reaches 3 mm further down (+Z) than the spindle nose.
     ok(&mut vm, "G10 L1 P2 Z3");
     mark(&mut vm);
     ok(&mut vm, "G43 H2");
     ok(&mut vm, "M400");
     assert_eq!(steps_since_mark(&vm), 0, "G43 alone moves nothing");
-    assert_eq!(m114_work(&mut vm)[2], 2.0);
+    assert_eq!(m114_work(&mut vm)[2], 8.0);
     run(&mut vm, "G0 Z5");
-    assert_eq!(xyz_now(&vm)[2], 1800);
+    assert_eq!(xyz_now(&vm)[2], 1200);
     run(&mut vm, "G49 G0 Z5");
     assert_eq!(xyz_now(&vm)[2], 1500);
     // G53 ignores G92 too.

@@ -9,6 +9,7 @@
 //!   violations, step rates, acceleration. Pure, unit-tested on synthetic events.
 //! - [`physics`]: positions → home switches, carousel sensor, tool-setter beam,
 //!   with per-input test overrides.
+//! - [`atc`]: the physical tool changer (pockets, spindle clamp, collisions).
 //! - [`host`]: the scripted G-code host on UART0 (ok / character-counting flow,
 //!   line numbers and checksums, resends).
 //! - [`isr`]: per-vector interrupt service times.
@@ -38,6 +39,7 @@
 //! # Ok::<(), sim::VmError>(())
 //! ```
 
+pub mod atc;
 pub mod elf;
 pub mod host;
 pub mod isr;
@@ -52,7 +54,8 @@ pub mod vm;
 
 pub use host::{Flow, StreamOptions, StreamReport};
 pub use isr::{IsrStats, STEPPER_VECTOR};
-pub use physics::{CarouselConfig, MachineConfig, Physics, ToolSetter};
+pub use atc::{AtcConfig, AtcModel, Collision, CollisionKind, Tool, Transfer};
+pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, ToolSetter};
 pub use pins::{Axis, Input, Pin, SignalKind};
 pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
 pub use report::Report;

@@ -12,13 +12,15 @@
 //! - The carousel switch closes when `E mod steps_per_rev` is in
 //!   `[0, switch_width)`; it can be configured as disconnected (never closes).
 //! - The tool setter is a [`ToolSetter`] model: never, scripted, a beam at a Z
-//!   height (optionally only inside an X/Y window), or any closure. The ATC
-//!   tool geometry will plug in here later.
+//!   height (optionally only inside an X/Y window), an [`OpticalBeam`] broken
+//!   by the real geometry of the tool in the spindle, or any closure.
+//! - The tool changer is a [`crate::atc::AtcModel`], stepped with every move.
 //! - Encoder contacts and button have no model: they are idle (inactive)
 //!   unless a test drives them.
 //!
 //! Every input can be overridden by a test; `None` hands it back to the model.
 
+use crate::atc::{AtcConfig, AtcModel, Tool};
 use crate::pins::{Axis, Input};
 use std::sync::Arc;
 
@@ -41,6 +43,8 @@ pub struct MachineConfig {
     pub carousel: CarouselConfig,
     /// The optical tool setter.
     pub tool_setter: ToolSetter,
+    /// The tool changer: pockets, spindle, station geometry.
+    pub atc: AtcConfig,
 }
 
 impl Default for MachineConfig {
@@ -54,6 +58,7 @@ impl Default for MachineConfig {
             invert_dir_mask: 0,
             carousel: CarouselConfig::default(),
             tool_setter: ToolSetter::Never,
+            atc: AtcConfig::default(),
         }
     }
 }
@@ -94,8 +99,39 @@ pub enum ToolSetter {
         x_window: Option<(i64, i64)>,
         y_window: Option<(i64, i64)>,
     },
+    /// An optical beam broken by the tool in the spindle (its length and
+    /// diameter), see [`OpticalBeam`].
+    Optical(OpticalBeam),
     /// Any model of the position.
     Custom(SetterFn),
+}
+
+/// A light beam along X at height `z_mm` (as a tool-tip Z: the spindle Z
+/// plus the tool length; Z grows downward) and at `y_mm`, `width_mm` wide,
+/// between the setter's arms `x_mm.0..=x_mm.1`. It breaks when the tool's tip
+/// is at or below the beam and the tool's side reaches it:
+/// |Y − y| ≤ (diameter + width)/2. With an empty spindle the bare nose is a
+/// point at the gauge line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpticalBeam {
+    pub x_mm: (f64, f64),
+    pub y_mm: f64,
+    pub z_mm: f64,
+    pub width_mm: f64,
+    /// Steps per mm of X, Y, Z.
+    pub steps_per_mm: f64,
+}
+
+impl OpticalBeam {
+    /// Is the beam broken with the spindle at `pos` (steps) holding `tool`?
+    pub fn broken(&self, pos: &[i64; 4], tool: Option<&Tool>) -> bool {
+        let k = self.steps_per_mm;
+        let (len, d) = tool.map_or((0.0, 0.0), |t| (t.length_mm, t.diameter_mm));
+        let x = pos[0] as f64 / k;
+        let tip = pos[2] as f64 + len * k;
+        let side = (pos[1] as f64 - self.y_mm * k).abs() <= (d + self.width_mm) / 2.0 * k;
+        x >= self.x_mm.0 && x <= self.x_mm.1 && tip >= self.z_mm * k && side
+    }
 }
 
 impl std::fmt::Debug for ToolSetter {
@@ -106,6 +142,7 @@ impl std::fmt::Debug for ToolSetter {
             ToolSetter::Beam { z_trip_steps, x_window, y_window } => {
                 write!(f, "Beam {{ z_trip_steps: {z_trip_steps}, x_window: {x_window:?}, y_window: {y_window:?} }}")
             }
+            ToolSetter::Optical(b) => write!(f, "{b:?}"),
             ToolSetter::Custom(_) => write!(f, "Custom(..)"),
         }
     }
@@ -121,6 +158,7 @@ impl ToolSetter {
                 let inside = |w: &Option<(i64, i64)>, v: i64| w.map_or(true, |(lo, hi)| v >= lo && v <= hi);
                 pos[2] >= *z_trip_steps && inside(x_window, pos[0]) && inside(y_window, pos[1])
             }
+            ToolSetter::Optical(b) => b.broken(pos, None),
             ToolSetter::Custom(f) => f(pos),
         }
     }
@@ -131,17 +169,34 @@ impl ToolSetter {
 pub struct Physics {
     config: MachineConfig,
     overrides: [Option<bool>; 8],
+    atc: AtcModel,
 }
 
 impl Physics {
     /// A machine with the given configuration and no overrides.
     pub fn new(config: MachineConfig) -> Physics {
-        Physics { config, overrides: [None; 8] }
+        let atc = AtcModel::new(config.atc.clone(), &config.initial_position);
+        Physics { config, overrides: [None; 8], atc }
     }
 
     /// The configuration.
     pub fn config(&self) -> &MachineConfig {
         &self.config
+    }
+
+    /// The tool changer's physical state.
+    pub fn atc(&self) -> &AtcModel {
+        &self.atc
+    }
+
+    /// The tool changer, mutable (a test swaps or breaks a tool).
+    pub fn atc_mut(&mut self) -> &mut AtcModel {
+        &mut self.atc
+    }
+
+    /// The machine made one step on `axis` and is now at `pos`.
+    pub fn on_step(&mut self, pos: &[i64; 4], axis: Axis) {
+        self.atc.on_step(pos, axis.index());
     }
 
     /// Change the tool-setter model.
@@ -174,7 +229,10 @@ impl Physics {
                 let c = &self.config.carousel;
                 c.connected && c.steps_per_rev > 0 && pos[3].rem_euclid(c.steps_per_rev) < c.switch_width_steps
             }
-            Input::ToolSetter => self.config.tool_setter.triggered(pos),
+            Input::ToolSetter => match &self.config.tool_setter {
+                ToolSetter::Optical(b) => b.broken(pos, self.atc.spindle.as_ref()),
+                other => other.triggered(pos),
+            },
             Input::EncoderA | Input::EncoderB | Input::EncoderButton => false,
         }
     }

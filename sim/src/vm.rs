@@ -394,6 +394,8 @@ unsafe extern "C" fn pin_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *m
     let inner = unsafe { &mut *hook.inner };
     let cycle = inner.now();
     if let Some(ev) = inner.recorder.on_pin(cycle, hook.axis, hook.kind, value & 1 != 0) {
+        let pos = inner.recorder.positions();
+        inner.physics.on_step(&pos, ev.axis);
         for &input in Physics::inputs_moved_by(ev.axis) {
             drive_input(inner, input, false);
         }
@@ -1371,6 +1373,20 @@ impl Vm {
     /// The machine model.
     pub fn physics(&self) -> &Physics {
         &self.inner().physics
+    }
+
+    /// The tool changer's physical state: spindle tool, pocket contents,
+    /// transfers and collisions.
+    pub fn atc(&self) -> &crate::atc::AtcModel {
+        self.inner().physics.atc()
+    }
+
+    /// Change the tool changer's physical state (swap, break or remove a
+    /// tool); the tool-setter input follows at once.
+    pub fn with_atc(&mut self, f: impl FnOnce(&mut crate::atc::AtcModel)) {
+        let inner = self.inner_mut();
+        f(inner.physics.atc_mut());
+        drive_input(inner, Input::ToolSetter, false);
     }
 
     /// Force an input active/inactive (`Some`) or give it back to the model

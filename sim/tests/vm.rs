@@ -346,8 +346,11 @@ fn cli_streams_a_job_and_exits_zero_when_clean() {
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
-    // demo job: 5 lines + M110 preamble, all acknowledged.
-    assert!(stdout.contains("5 lines, 6 sent, 6 ok, 0 errors"), "{stdout}");
+    // The demo job's lines + the M110 preamble, all acknowledged.
+    let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/jobs/demo.gcode")).unwrap();
+    let n = sim::host::prepare_gcode(&demo).len();
+    let want = format!("{n} lines, {} sent, {} ok, 0 errors", n + 1, n + 1);
+    assert!(stdout.contains(&want), "{want} not in {stdout}");
     assert!(dir.join("r.json").exists() && dir.join("t.csv").exists());
 
     // The step-train firmware never answers: timeout -> non-zero exit.

@@ -1,6 +1,182 @@
-//! Automatic tool changer (SPEC §7): the T/M6 tool-change state machine, the
-//! G201–G205 carousel commands and the EEPROM record of which tool is where.
+//! Automatic tool changer (SPEC §7, thesis §4.1.10 and §5.3): the T/M6
+//! tool change, the G201–G205 carousel commands, and what the firmware
+//! remembers about the tools.
 //!
-//! Not implemented yet (its own issue). It will sit between the G-code
-//! interpreter and the planner: the interpreter hands it `Tn`/`M6`, it drives
-//! moves through the planner and the carousel through the E0 axis.
+//! ```text
+//!  gcode::interp ─ T/M6 ─► run::select ─► change::Change (pure table) ─► actions
+//!                                              ▲ events                  │
+//!                                              └── run: planner moves, carousel, EEPROM
+//!  gcode::interp ─ G201..G205 ─► carousel (E0 axis through the planner)
+//! ```
+//!
+//! - [`change`]: the sequence as a state machine whose transitions are a
+//!   table; pure, host-tested.
+//! - [`tools`]: tool table, spindle/pocket state, change journal and their
+//!   EEPROM records.
+//! - [`carousel`]: G201–G205 on motor P0 (the E0 axis) and carousel homing.
+//! - [`run`]: the executor over `machine::Machine`, boot, M61, G10 L1.
+//!
+//! Carousel units: one unit is one pocket pitch (20°), counted from the home
+//! switch (0°). Pocket `p` sits at position `p + 3` (pocket 1 at 80°), the
+//! thesis's `ATC_OFFSET + id` with `ATC_OFFSET = 3` in these units.
+//!
+//! All operator-facing ATC texts are in [`Fault::message`] and in
+//! `run::report_*`, so they can move to flash in one place.
+
+pub mod carousel;
+pub mod change;
+pub mod run;
+pub mod tools;
+
+pub use tools::{Journal, ToolState, ToolTable, N_POCKETS};
+
+/// Carousel position of pocket 1 minus one: pocket `p` is at `p + POCKET_OFFSET` pitches.
+pub const POCKET_OFFSET: f32 = 3.0;
+
+/// Carousel position (pitches from home) of pocket `p`.
+pub fn pocket_position(p: u8) -> f32 {
+    p as f32 + POCKET_OFFSET
+}
+
+/// The tool-change station (thesis Table 8) and the travel height, machine
+/// mm (Z grows downward), with the feeds of the sequence, mm/min.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Station {
+    /// X1: in front of the magazine.
+    pub x1: f32,
+    /// Y point A: outside the magazine.
+    pub y_a: f32,
+    /// Y point B: in the pocket.
+    pub y_b: f32,
+    /// Z1: safe, above the tool in the pocket.
+    pub z1: f32,
+    /// Z2: clamp / release.
+    pub z2: f32,
+    /// Travel height to and from the station (near the Z home at the top).
+    pub z_safe: f32,
+    /// Y in, mm/min.
+    pub feed_y_in: f32,
+    /// Z down to clamp, mm/min.
+    pub feed_z_clamp: f32,
+    /// Z down to release and back up, mm/min.
+    pub feed_z_release: f32,
+    /// Y out, mm/min.
+    pub feed_y_out: f32,
+}
+
+/// Thesis Table 8 (SPEC §3). Compile-time constants: they cost no RAM.
+pub const STATION: Station = Station {
+    x1: 23.0,
+    y_a: 28.0,
+    y_b: 44.0,
+    z1: 40.5,
+    z2: 45.0,
+    z_safe: 1.0,
+    feed_y_in: 800.0,
+    feed_z_clamp: 200.0,
+    feed_z_release: 1000.0,
+    feed_y_out: 1000.0,
+};
+
+/// Why an ATC command was refused or stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// T outside 0..=12.
+    ToolRange,
+    /// X, Y, Z not homed.
+    NotHomed,
+    /// The pocket of the tool asked for is empty.
+    PocketEmpty,
+    /// The pocket of the tool in the spindle is full.
+    ReturnPocketFull,
+    /// A station point or the return point is outside travel.
+    SoftLimit,
+    /// A change was interrupted; the operator must confirm the spindle (M61).
+    Interrupted,
+    /// The carousel home switch did not close within a revolution + margin.
+    CarouselHome,
+    /// An alarm (M112, limit, …) stopped the change.
+    Stopped,
+    /// G201–G205 without `P0`.
+    Motor,
+    /// G201/G202 without X, or X out of range.
+    CarouselX,
+    /// G204 S must be 0 or 1; G205 S/E must be 0 or 1.
+    OnOff,
+    /// T or M6 on a line that also moves.
+    WithMotion,
+    /// M6 without any T word so far.
+    NoTool,
+    /// M61: Q must be a tool 0–12, or P a pocket 1–12 with S0/S1.
+    M61Words,
+    /// M61 P S1 for the pocket of the tool in the spindle.
+    PocketOfSpindleTool,
+}
+
+impl Fault {
+    /// Text after `Error:`.
+    pub fn message(self) -> crate::flash::FStr {
+        match self {
+            Fault::ToolRange => F!("tool must be T0-T12"),
+            Fault::NotHomed => F!("home X Y Z (G28) before a tool change"),
+            Fault::PocketEmpty => F!("pocket of that tool is empty (M61 P<n> S1 if loaded)"),
+            Fault::ReturnPocketFull => F!("pocket of the spindle tool is full, cannot return it"),
+            Fault::SoftLimit => F!("tool change station outside travel (soft limit)"),
+            Fault::Interrupted => F!("tool change interrupted: check spindle, then M61 Q<tool>"),
+            Fault::CarouselHome => F!("carousel home switch not found"),
+            Fault::Stopped => F!("tool change stopped"),
+            Fault::Motor => F!("P must be 0 (the carousel)"),
+            Fault::CarouselX => F!("X missing or out of range (-360..360)"),
+            Fault::OnOff => F!("S and E must be 0 or 1"),
+            Fault::WithMotion => F!("T/M6 must be on a line without motion"),
+            Fault::NoTool => F!("M6 needs a T word"),
+            Fault::M61Words => F!("M61 Q<0-12>, or M61 P<1-12> S<0|1>"),
+            Fault::PocketOfSpindleTool => F!("that tool is in the spindle"),
+        }
+    }
+}
+
+/// The ATC's state in RAM (about 80 bytes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Atc {
+    /// Where the tools are (EEPROM record).
+    pub tools: ToolState,
+    /// Tool lengths and diameters (EEPROM record).
+    pub table: ToolTable,
+    /// A change that did not finish: from the EEPROM journal at boot, or a
+    /// fault in this session. Motion is refused until M61 confirms.
+    pub interrupted: Option<Journal>,
+    /// Last T word (0..=12); M6 without T changes to it. 0xFF = none yet.
+    pub last_t: u8,
+}
+
+impl Atc {
+    /// Power-up state, before the EEPROM is read.
+    pub const fn new() -> Atc {
+        Atc { tools: ToolState::FACTORY, table: ToolTable::EMPTY, interrupted: None, last_t: 0xFF }
+    }
+
+    /// Tool in the spindle.
+    pub fn spindle(&self) -> u8 {
+        self.tools.spindle
+    }
+
+    /// Length of tool `t`, mm.
+    pub fn length_mm(&self, t: u8) -> f32 {
+        self.table.length_um(t) as f32 / 1000.0
+    }
+}
+
+impl Default for Atc {
+    fn default() -> Self {
+        Atc::new()
+    }
+}
+
+/// The G43 tool length offset for a tool of `length_mm`. Z grows downward on
+/// this machine and the tool tip hangs `length` below the spindle nose, so
+/// the spindle must stay `length` higher: the offset is negative, and work Z
+/// is the tip's Z.
+pub fn tool_length_offset_mm(length_mm: f32) -> f32 {
+    -length_mm
+}

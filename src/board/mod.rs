@@ -72,6 +72,17 @@ fn drivers_enable_raw(on: bool) {
     }
 }
 
+/// Enable (`true`) or disable the carousel (E0) driver alone (G204).
+pub fn carousel_driver_enable(on: bool) {
+    let p = pins::E_ENABLE;
+    // SAFETY: RMW of PORTA inside a critical section (the step ISR writes
+    // PORTA only through PINA toggles, which cannot interleave here).
+    avr_device::interrupt::free(|_| unsafe {
+        let v = core::ptr::read_volatile(p.port.port);
+        core::ptr::write_volatile(p.port.port, if on { v & !p.mask } else { v | p.mask });
+    });
+}
+
 /// True when the drivers are enabled (X's enable pin is low).
 pub fn drivers_enabled() -> bool {
     // SAFETY: reading PORTD has no side effects.

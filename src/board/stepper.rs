@@ -57,7 +57,8 @@ pub static MOTION: AtomicU8 = AtomicU8::new(0);
 /// What the ISR watches on each step (written by main in a critical section).
 #[derive(Clone, Copy, Default)]
 pub struct Watch {
-    /// Axes being homed: a closed home switch on one of them latches and stops.
+    /// Axes being homed: a closed home switch on one of them latches and
+    /// stops (bit 3, E0: the carousel home switch).
     pub homing: u8,
     /// Probe active: the tool-setter input latches and stops.
     pub probe: bool,
@@ -227,6 +228,10 @@ fn check_switches(st: &mut State, bits: u8) -> bool {
         }
     }
     if w.homing != 0 {
+        // Bit 3 (E0): the carousel switch, closed at 0° (pulls low).
+        if w.homing & (1 << 3) != 0 && !pins::CAROUSEL_HOME.is_high() {
+            home |= 1 << 3;
+        }
         if home & w.homing != 0 {
             st.trip_position = st.position;
             MOTION.fetch_or(motion::HOME_TRIPPED | motion::STOP, Ordering::AcqRel);

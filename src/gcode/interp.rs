@@ -52,6 +52,10 @@ pub enum Error {
     ProbeFailed,
     /// The probe input was already triggered at the start.
     ProbeAlreadyTriggered,
+    /// Tool changer or carousel (T, M6, M61, G201–G205).
+    Atc(crate::atc::Fault),
+    /// Tool setter (G37).
+    Setter(crate::toolsetter::Fault),
 }
 
 impl Error {
@@ -70,17 +74,10 @@ impl Error {
             Error::HomingFailed => F!("homing failed: switch not found"),
             Error::ProbeFailed => F!("probe failed: input did not trip"),
             Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
+            Error::Atc(f) => f.message(),
+            Error::Setter(f) => f.message(),
         }
     }
-}
-
-/// Tool table entry (G10 L1).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ToolEntry {
-    /// Tool length, mm.
-    pub length_mm: f32,
-    /// Tool radius, mm.
-    pub radius_mm: f32,
 }
 
 /// Modal state and commanded position.
@@ -106,12 +103,9 @@ pub struct Interp {
     pub wcs_mm: [[f32; 3]; N_WCS],
     /// G92 offset, mm.
     pub g92_mm: [f32; 3],
-    /// Tool length offset applied to Z, mm.
+    /// Tool length offset applied to Z, mm (the tool table and the tool
+    /// in the spindle live in `atc`).
     pub tlo_mm: f32,
-    /// Tool in the spindle (0 = none).
-    pub tool: u8,
-    /// Tool table T0..T12.
-    pub tools: [ToolEntry; N_TOOLS],
     /// Commanded position, machine mm (E in carousel units).
     pub pos_mm: [f32; N_AXES],
 }
@@ -132,8 +126,6 @@ impl Interp {
             wcs_mm: [[0.0; 3]; N_WCS],
             g92_mm: [0.0; 3],
             tlo_mm: 0.0,
-            tool: 0,
-            tools: [ToolEntry { length_mm: 0.0, radius_mm: 0.0 }; N_TOOLS],
             pos_mm: [0.0; N_AXES],
         }
     }
@@ -225,6 +217,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
                 report_settings(m, io);
                 return Ok(());
             }
+            61 => return crate::atc::run::m61(m, io, l),
             999 => {
                 m.clear_alarm(io);
                 uwriteln!(io, "{}", F!("echo:alarm cleared; position unknown until homed (G28)")).ok();
@@ -249,28 +242,33 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         || l.words.contains(Word::T)
         || l.other_m.is_some()
         || l.stopping.is_some();
+    if l.non_modal == Some(NonModal::AuxReport) {
+        crate::atc::carousel::report(m, io);
+        return Ok(());
+    }
+    let harmless = matches!(l.other_m, Some(500..=502) | Some(17) | Some(18) | Some(84)) || l.spindle == Some(Spindle::Off);
     if m.alarm.is_some() && moves {
         let homing_allowed = l.non_modal == Some(NonModal::Home) && m.alarm != Some(Alarm::EmergencyStop);
-        let harmless = matches!(l.other_m, Some(500..=502) | Some(17) | Some(18) | Some(84)) || l.spindle == Some(Spindle::Off);
         if !homing_allowed && !harmless {
             return Err(Error::Alarm);
         }
+    }
+    // After an interrupted tool change nothing moves until M61 confirms the spindle.
+    if m.atc.interrupted.is_some() && moves && !harmless {
+        return Err(Error::Atc(crate::atc::Fault::Interrupted));
     }
 
     // ---- Validate everything before changing anything -----------------
     if l.spindle == Some(Spindle::Ccw) {
         return Err(Error::SpindleCcw);
     }
-    if l.tool_change || l.words.contains(Word::T) {
-        return Err(Error::NotAvailable(F!("tool changer (T/M6) not available in this build")));
-    }
-    if let Some(nm) = l.non_modal {
-        match nm {
-            NonModal::MeasureTool => return Err(Error::NotAvailable(F!("G37 tool setter not available in this build"))),
-            NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxReport | NonModal::AuxEnable | NonModal::AuxHome => {
-                return Err(Error::NotAvailable(F!("G201-G205 carousel commands not available in this build")))
-            }
-            _ => {}
+    let tool_change = l.tool_change || l.words.contains(Word::T);
+    if tool_change {
+        if l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some() {
+            return Err(Error::Atc(crate::atc::Fault::WithMotion));
+        }
+        if l.tool().is_some_and(|t| t as usize >= N_TOOLS) {
+            return Err(Error::Atc(crate::atc::Fault::ToolRange));
         }
     }
     if let Some(code) = l.other_m {
@@ -315,9 +313,9 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             ToolLength::Apply => {
                 let t = match l.word(Word::H) {
                     Some(h) => tool_index(h).ok_or(Error::BadWord(F!("H must be a tool number 0-12")))?,
-                    None => m.interp.tool as usize,
+                    None => m.atc.spindle() as usize,
                 };
-                m.interp.tools[t].length_mm
+                crate::atc::tool_length_offset_mm(m.atc.length_mm(t as u8))
             }
         };
     }
@@ -370,6 +368,14 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
                 mask = 0b111;
             }
             return crate::machine::home(m, io, mask);
+        }
+        Some(NonModal::MeasureTool) => {
+            g.commit(&mut m.interp);
+            return crate::toolsetter::run::g37(m, io, l);
+        }
+        Some(nm @ (NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxEnable | NonModal::AuxHome)) => {
+            g.commit(&mut m.interp);
+            return crate::atc::carousel::command(m, io, l, nm);
         }
         _ => {}
     }
@@ -447,6 +453,9 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
 
     // ---- Commit modal state, then act -------------------------------------
     g.commit(&mut m.interp);
+    if tool_change {
+        crate::atc::run::select(m, io, l.tool().map(u16::from))?;
+    }
     if let Some(s) = l.word(Word::S) {
         m.interp.spindle_rpm = s;
     }
@@ -517,7 +526,10 @@ pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f
     if m.alarm.is_some() {
         return Err(Error::Alarm);
     }
-    if !m.motion_allowed() {
+    // The homing lock guards X/Y/Z; the carousel alone (G201) has its own
+    // homing (G205), and an interrupted tool change is locked separately.
+    let xyz_moves = (0..3).any(|a| target[a] != m.interp.pos_mm[a]);
+    if xyz_moves && !m.motion_allowed() {
         return Err(Error::NotHomed);
     }
     let steps = to_steps(&m.settings, &target);
@@ -582,15 +594,11 @@ fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Re
             if t == 0 {
                 return Err(Error::BadWord(F!("G10 L1: P must be a tool number 1-12")));
             }
-            if let Some(z) = l.word(Word::Z) {
-                m.interp.tools[t].length_mm = conv(z);
+            let r = l.word(Word::R);
+            if r.is_some_and(|r| r < 0.0) {
+                return Err(Error::BadWord(F!("G10 L1: R must not be negative")));
             }
-            if let Some(r) = l.word(Word::R) {
-                if r < 0.0 {
-                    return Err(Error::BadWord(F!("G10 L1: R must not be negative")));
-                }
-                m.interp.tools[t].radius_mm = conv(r);
-            }
+            crate::atc::run::set_tool(m, io, t as u8, l.word(Word::Z).map(conv), r.map(conv));
             Ok(())
         }
         n @ (2 | 20) if lv == n as f32 => {

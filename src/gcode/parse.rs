@@ -321,7 +321,7 @@ pub enum Spindle {
 /// M codes outside the stopping, tool-change and spindle groups: at most one
 /// of them per line, in [`Line::other_m`]. Add new ones here.
 pub const OTHER_M_CODES: &[u16] = &[
-    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220,
+    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220,
     400, 500, 501, 502, 503, 999,
 ];
 

@@ -1,0 +1,245 @@
+//! The ATC's executor: performs the actions of [`super::change::Change`]
+//! through the planner, keeps the EEPROM records in step with where the
+//! tools are, loads them at boot, and serves M61 and G10 L1.
+//!
+//! Wire protocol (SPEC §4, thesis log lines):
+//! - `SelectTool:<n>` when a change starts, `NowSelectedTool:<n>` when it is
+//!   complete; `busy:processing` every 2 s in between.
+//! - `T<n>` for the tool already in the spindle does nothing and prints nothing.
+//! - A change stopped by a fault leaves the "change in progress" record in
+//!   EEPROM and refuses motion until `M61 Q<tool in spindle>`:
+//!   `echo:tool change T<a>->T<b> interrupted: motion refused until M61 Q<tool in spindle>`.
+//!
+//! M61 (LinuxCNC's "set current tool", extended):
+//! - `M61 Q<t>`: the operator confirms the spindle holds tool `t` (0 = empty).
+//!   After an interrupted change the two tools of that change are put where
+//!   the confirmation implies (see `ToolState::confirmed`), the record is
+//!   cleared and motion is allowed again.
+//! - `M61 P<p> S1` / `S0`: pocket `p` holds its tool / is empty (the operator
+//!   loaded or took out a tool by hand).
+
+use super::change::{Action, Change, Event, Request};
+use super::tools::{
+    pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR, EEPROM_TABLE_ADDR,
+};
+use super::{carousel, tool_length_offset_mm, Fault};
+use crate::gcode::interp::{self, Error};
+use crate::gcode::{Line, Word};
+use crate::machine::{Io, Machine, State};
+use crate::math::round_i32;
+use ufmt::{uwrite, uwriteln};
+
+/// Load the tool records at boot and say what the operator must know.
+#[inline(never)]
+pub fn boot(m: &mut Machine, io: &mut impl Io) {
+    let mut st = [0u8; ToolState::IMAGE_LEN];
+    io.eeprom_read(EEPROM_STATE_ADDR, &mut st);
+    match ToolState::from_bytes(&st) {
+        Some(s) => m.atc.tools = s,
+        None => {
+            m.atc.tools = ToolState::FACTORY;
+            uwriteln!(io, "{}", F!("echo:no tool record: spindle empty, pockets full assumed (M61)")).ok();
+        }
+    }
+    let mut tb = [0u8; ToolTable::IMAGE_LEN];
+    io.eeprom_read(EEPROM_TABLE_ADDR, &mut tb);
+    if let Some(t) = ToolTable::from_bytes(&tb) {
+        m.atc.table = t;
+    }
+    let mut jb = [0u8; Journal::IMAGE_LEN];
+    io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
+    m.atc.interrupted = Journal::from_bytes(&jb);
+    crate::toolsetter::run::boot(m, io);
+    apply_offset(m);
+    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle()).ok();
+    report_interrupted(m, io);
+}
+
+/// The interrupted-change line, if a change is interrupted.
+pub fn report_interrupted(m: &Machine, io: &mut impl Io) {
+    if let Some(j) = m.atc.interrupted {
+        uwrite!(io, "{}{}->T{}", F!("echo:tool change T"), j.from, j.to).ok();
+        uwriteln!(io, "{}", F!(" interrupted: motion refused until M61 Q<tool in spindle>")).ok();
+    }
+}
+
+/// With auto offset on (the default), make the spindle tool's length the
+/// active G43 offset.
+pub fn apply_offset(m: &mut Machine) {
+    if m.settings.auto_tool_offset {
+        m.interp.tlo_mm = tool_length_offset_mm(m.atc.length_mm(m.atc.spindle()));
+    }
+}
+
+/// `T<n>`, `M6 T<n>` or `M6` (the last T word): change to tool `to`.
+#[inline(never)]
+pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), Error> {
+    let to = match to {
+        Some(t) => t,
+        None if m.atc.last_t != 0xFF => m.atc.last_t as u16,
+        None => return Err(Error::Atc(Fault::NoTool)),
+    };
+    if m.atc.interrupted.is_some() {
+        return Err(Error::Atc(Fault::Interrupted));
+    }
+    m.wait_idle(io)?;
+    let req = Request {
+        to,
+        tools: m.atc.tools,
+        xyz_homed: m.homed & 0b111 == 0b111,
+        carousel_homed: m.homed & carousel::HOMED_BIT != 0,
+        xy_mm: [m.interp.pos_mm[0], m.interp.pos_mm[1]],
+        travel_mm: m.settings.travel_mm,
+    };
+    let change = Change::new(&req).map_err(Error::Atc)?;
+    m.atc.last_t = to as u8;
+    let Some(mut c) = change else {
+        return Ok(());
+    };
+    uwriteln!(io, "{}{}", F!("SelectTool:"), to).ok();
+    m.state = State::Tool;
+    let mut journal = false;
+    let mut failure = None;
+    let mut a = c.start();
+    loop {
+        let ev = match a {
+            Action::Done => break,
+            Action::Abort(_) => {
+                if journal {
+                    m.atc.interrupted = Some(Journal { from: c.from(), to: c.to() });
+                    report_interrupted(m, io);
+                }
+                if m.state == State::Tool {
+                    m.state = State::Idle;
+                }
+                return Err(failure.unwrap_or(Error::Atc(Fault::Stopped)));
+            }
+            Action::BeginJournal(j) => {
+                // The tool record first (a no-op unless it was blank or
+                // stale), so a fault leaves both records valid.
+                io.eeprom_write(EEPROM_STATE_ADDR, &m.atc.tools.to_bytes());
+                io.eeprom_write(EEPROM_JOURNAL_ADDR, &Journal::to_bytes(Some(j)));
+                journal = true;
+                Event::Done
+            }
+            other => match perform(m, io, other) {
+                Ok(()) => Event::Done,
+                Err(e) => {
+                    failure = Some(e);
+                    Event::Failed(match e {
+                        Error::Atc(f) => f,
+                        _ => Fault::Stopped,
+                    })
+                }
+            },
+        };
+        a = c.step(ev);
+    }
+    m.state = State::Idle;
+    apply_offset(m);
+    uwriteln!(io, "{}{}", F!("NowSelectedTool:"), m.atc.spindle()).ok();
+    Ok(())
+}
+
+/// One action of a change.
+fn perform(m: &mut Machine, io: &mut impl Io, a: Action) -> Result<(), Error> {
+    match a {
+        Action::SpindleOff => {
+            m.wait_idle(io)?;
+            m.interp.spindle_on = false;
+            io.spindle(0);
+        }
+        Action::Move { xyz, feed_mm_per_min } => {
+            let mut t = m.interp.pos_mm;
+            for (i, v) in xyz.iter().enumerate() {
+                if let Some(v) = v {
+                    t[i] = *v;
+                }
+            }
+            interp::move_to(m, io, t, feed_mm_per_min.unwrap_or(0.0), feed_mm_per_min.is_none())?;
+            m.wait_motion_or_trip(io)?;
+        }
+        Action::HomeCarousel => carousel::home(m, io)?,
+        Action::Turn { position } => carousel::turn_to(m, io, position)?,
+        Action::Store(s) => store_state(m, io, s),
+        Action::EndJournal => clear_journal(io),
+        Action::BeginJournal(_) | Action::Done | Action::Abort(_) => {}
+    }
+    Ok(())
+}
+
+/// Keep `s` as where the tools are, in RAM and EEPROM.
+fn store_state(m: &mut Machine, io: &mut impl Io, s: ToolState) {
+    m.atc.tools = s;
+    io.eeprom_write(EEPROM_STATE_ADDR, &s.to_bytes());
+}
+
+/// Mark "no change in progress" (only the marker and checksum change).
+fn clear_journal(io: &mut impl Io) {
+    let mut jb = [0u8; Journal::IMAGE_LEN];
+    io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
+    if Journal::from_bytes(&jb).is_some() {
+        io.eeprom_write(EEPROM_JOURNAL_ADDR, &Journal::cleared(jb));
+    }
+}
+
+/// Store the tool table if it differs from `before`.
+pub fn store_table(m: &Machine, io: &mut impl Io, before: &ToolTable) {
+    if m.atc.table != *before {
+        io.eeprom_write(EEPROM_TABLE_ADDR, &m.atc.table.to_bytes());
+    }
+}
+
+/// M61 Q<t> / M61 P<p> S<0|1>; see the module docs.
+#[inline(never)]
+pub fn m61(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
+    let whole = |v: f32, lo: i32, hi: i32| {
+        let n = round_i32(v);
+        (n as f32 == v && (lo..=hi).contains(&n)).then_some(n as u8)
+    };
+    let bad = Error::Atc(Fault::M61Words);
+    match (l.word(Word::Q), l.word(Word::P), l.word(Word::S)) {
+        (Some(q), None, None) => {
+            let t = whole(q, 0, 12).ok_or(bad)?;
+            let s = m.atc.tools.confirmed(t, m.atc.interrupted);
+            store_state(m, io, s);
+            if m.atc.interrupted.take().is_some() {
+                clear_journal(io);
+            }
+            apply_offset(m);
+            uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), t).ok();
+            Ok(())
+        }
+        (None, Some(p), Some(s)) => {
+            let p = whole(p, 1, 12).ok_or(bad)?;
+            let full = whole(s, 0, 1).ok_or(bad)? == 1;
+            if full && p == m.atc.spindle() {
+                return Err(Error::Atc(Fault::PocketOfSpindleTool));
+            }
+            let mut st = m.atc.tools;
+            st.occupied = if full { st.occupied | pocket_bit(p) } else { st.occupied & !pocket_bit(p) };
+            if st != m.atc.tools {
+                store_state(m, io, st);
+            }
+            Ok(())
+        }
+        _ => Err(bad),
+    }
+}
+
+/// G10 L1 P<t> [Z<length>] [R<radius>]: set a tool table entry by hand
+/// (mm, already converted from inches). Stored in EEPROM when it changed.
+pub fn set_tool(m: &mut Machine, io: &mut impl Io, t: u8, length_mm: Option<f32>, radius_mm: Option<f32>) {
+    let before = m.atc.table;
+    let i = t as usize - 1;
+    if let Some(z) = length_mm {
+        m.atc.table.length_um[i] = round_i32(z * 1000.0);
+    }
+    if let Some(r) = radius_mm {
+        m.atc.table.diameter_um[i] = round_i32(2000.0 * r).clamp(0, u16::MAX as i32) as u16;
+    }
+    store_table(m, io, &before);
+    if t == m.atc.spindle() {
+        apply_offset(m);
+    }
+}

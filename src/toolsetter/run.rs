@@ -1,0 +1,199 @@
+//! G37's executor: performs the actions of [`super::Measure`] and
+//! [`super::Seek`] through the planner, with the stepper ISR's probe latch
+//! watching the beam, and stores the results.
+//!
+//! Replies (one line each, SPEC §8):
+//! - `[TOOL:<n> L:<mm>]`, with D1 `[TOOL:<n> L:<mm> D:<mm>]`;
+//! - with B: `[TOOL:<n> L:<mm> dL:<mm>]`, then `ALARM:broken tool` when off by more than tol;
+//! - calibration: `[SETTER Z:<beam tip height mm> W:<beam width mm>]`.
+
+use super::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent, Setter};
+use crate::atc::tools::EEPROM_SETTER_ADDR;
+use crate::fixed::Micros;
+use crate::gcode::interp::{self, Error};
+use crate::gcode::{Line, Word};
+use crate::machine::{Alarm, Io, Machine, State};
+use crate::math::round_i32;
+use crate::N_AXES;
+use ufmt::{uwrite, uwriteln};
+
+/// Load the setter record at boot (defaults when blank).
+pub fn boot(m: &mut Machine, io: &mut impl Io) {
+    let mut b = [0u8; Setter::IMAGE_LEN];
+    io.eeprom_read(EEPROM_SETTER_ADDR, &mut b);
+    m.setter = Setter::from_bytes(&b).unwrap_or(Setter::DEFAULT);
+}
+
+/// Read G37's words into a mode (and the setter position for calibration).
+fn mode_of(m: &Machine, l: &Line) -> Result<(Mode, Option<f32>, Option<f32>), Error> {
+    let bad = Error::Setter(Fault::Words);
+    let k = if m.interp.inches { 25.4 } else { 1.0 };
+    let um = |v: f32| round_i32(v * k * 1000.0);
+    let (d, b, len, r) = (l.word(Word::D), l.word(Word::B), l.word(Word::L), l.word(Word::R));
+    let (x, y) = (l.word(Word::X).map(|v| v * k), l.word(Word::Y).map(|v| v * k));
+    let mode = match (d, b, len, r) {
+        (None, None, None, None) => Mode::Length,
+        (Some(d), None, None, None) if d == 1.0 => Mode::Diameter,
+        (None, Some(t), None, None) if t >= 0.0 => Mode::Check { tol_um: um(t) },
+        (None, None, Some(len), Some(r)) if len > 0.0 && r >= 0.0 => {
+            Mode::Calibrate { length_um: um(len), diameter_um: 2 * um(r) }
+        }
+        _ => return Err(bad),
+    };
+    if (x.is_some() || y.is_some()) && !matches!(mode, Mode::Calibrate { .. }) {
+        return Err(bad);
+    }
+    Ok((mode, x, y))
+}
+
+/// G37 [D1] [B<tol>] / G37 L<len> R<radius> [X Y].
+#[inline(never)]
+pub fn g37(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
+    let (mode, x, y) = mode_of(m, l)?;
+    m.wait_idle(io)?;
+    let mut setter = m.setter;
+    if let Some(x) = x {
+        setter.x_um = round_i32(x * 1000.0);
+    }
+    if let Some(y) = y {
+        setter.y_um = round_i32(y * 1000.0);
+    }
+    let tool = m.atc.spindle();
+    let s = &m.settings;
+    let req = Request {
+        mode,
+        setter,
+        tool,
+        stored_length_um: m.atc.table.length_um(tool),
+        homed: m.homed & 0b111 == 0b111,
+        travel_mm: s.travel_mm,
+        steps_per_mm: [s.steps_per_mm[0], s.steps_per_mm[1], s.steps_per_mm[2]],
+    };
+    let mut meas = Measure::new(&req).map_err(Error::Setter)?;
+    if io.switches().tool_setter {
+        return Err(Error::Setter(Fault::BeamBlocked));
+    }
+    let prev = m.state;
+    m.state = State::Probe;
+    let mut failure = None;
+    let mut a = meas.start();
+    let out = loop {
+        let r = match a {
+            Action::Done => break meas.result(),
+            Action::Abort(_) => break meas.result(),
+            Action::Move { xyz } => rapid(m, io, xyz).map(|_| Event::Done),
+            Action::Seek { axis, dir, max_mm } => seek(m, io, axis as usize, dir, max_mm).map(Event::Tripped),
+        };
+        let ev = match r {
+            Ok(ev) => ev,
+            Err(e) => {
+                let f = match e {
+                    Error::Setter(f) => f,
+                    _ => Fault::Stopped,
+                };
+                failure.get_or_insert(e);
+                Event::Failed(f)
+            }
+        };
+        a = meas.step(ev);
+    };
+    if m.state == State::Probe {
+        m.state = if prev == State::Run { State::Idle } else { prev };
+    }
+    match out {
+        Some(Ok(o)) => store(m, io, tool, o),
+        Some(Err(f)) => Err(failure.unwrap_or(Error::Setter(f))),
+        None => Err(Error::Setter(Fault::Stopped)),
+    }
+}
+
+/// Keep a measurement's result and report it in one line.
+fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), Error> {
+    let before = m.atc.table;
+    match o {
+        Outcome::Measured { length_um, diameter_um } => {
+            let i = tool as usize - 1;
+            m.atc.table.length_um[i] = length_um;
+            uwrite!(io, "{}{}{}{}", F!("[TOOL:"), tool, F!(" L:"), Micros(length_um)).ok();
+            if let Some(d) = diameter_um {
+                m.atc.table.diameter_um[i] = d.clamp(0, u16::MAX as i32) as u16;
+                uwrite!(io, "{}{}", F!(" D:"), Micros(d)).ok();
+            }
+            uwriteln!(io, "]").ok();
+        }
+        Outcome::Checked { length_um, diff_um, broken } => {
+            uwrite!(io, "{}{}{}{}", F!("[TOOL:"), tool, F!(" L:"), Micros(length_um)).ok();
+            uwriteln!(io, "{}{}]", F!(" dL:"), Micros(diff_um)).ok();
+            if broken {
+                m.raise(io, Alarm::BrokenTool);
+                return Err(Error::Alarm);
+            }
+        }
+        Outcome::Calibrated(s) => {
+            if s != m.setter {
+                m.setter = s;
+                io.eeprom_write(EEPROM_SETTER_ADDR, &s.to_bytes());
+            }
+            if tool != 0 {
+                let i = tool as usize - 1;
+                m.atc.table.length_um[i] = s.ref_length_um;
+                m.atc.table.diameter_um[i] = s.ref_diameter_um.clamp(0, u16::MAX as i32) as u16;
+            }
+            uwriteln!(io, "{}{}{}{}]", F!("[SETTER Z:"), Micros(s.beam_z_um), F!(" W:"), Micros(s.beam_width_um)).ok();
+        }
+    }
+    crate::atc::run::store_table(m, io, &before);
+    crate::atc::run::apply_offset(m);
+    Ok(())
+}
+
+/// Rapid to machine mm (`None` keeps the axis) and wait.
+fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(), Error> {
+    let mut t = m.interp.pos_mm;
+    for (i, v) in xyz.iter().enumerate() {
+        if let Some(v) = v {
+            t[i] = *v;
+        }
+    }
+    interp::move_to(m, io, t, 0.0, true)?;
+    m.wait_motion_or_trip(io).map(|_| ())
+}
+
+/// One seek (fast, back off, slow) on `axis`; the latched step of the slow trip.
+fn seek(m: &mut Machine, io: &mut impl Io, axis: usize, dir: i8, max_mm: f32) -> Result<i32, Error> {
+    let (mut s, mut a) = Seek::start(max_mm, dir);
+    loop {
+        let ev = match a {
+            SeekAction::Probe { mm, feed_mm_per_min } => match probe(m, io, axis, mm, Some(feed_mm_per_min))? {
+                Some(p) => SeekEvent::Tripped(p),
+                None => SeekEvent::Missed,
+            },
+            SeekAction::Move { mm } => {
+                probe(m, io, axis, mm, None)?;
+                SeekEvent::Moved
+            }
+            SeekAction::ReadBeam => SeekEvent::Beam(io.switches().tool_setter),
+            SeekAction::Found(p) => return Ok(p),
+            SeekAction::Fail(f) => return Err(Error::Setter(f)),
+        };
+        (s, a) = s.step(dir, ev);
+    }
+}
+
+/// Move `axis` by `mm`. With a feed, the ISR watches the beam and stops on
+/// the step that breaks it: returns that step. Without, a plain move at the
+/// slow-seek feed.
+fn probe(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: Option<f32>) -> Result<Option<i32>, Error> {
+    let watch = feed.is_some();
+    let mut target: [i32; N_AXES] = io.stepper().position;
+    target[axis] += round_i32(mm * m.settings.steps_per_mm[axis]);
+    m.apply_watch(io, 0, watch);
+    let r = m
+        .queue_line(io, target, feed.unwrap_or(super::SEEK_FAST_MM_PER_MIN), false)
+        .and_then(|_| m.wait_motion_or_trip(io));
+    m.apply_watch(io, 0, false);
+    let tripped = r?;
+    let trip = io.stepper().trip_position[axis];
+    m.resync_after_stop(io);
+    Ok((watch && tripped).then_some(trip))
+}
