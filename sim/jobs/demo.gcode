@@ -1,7 +1,52 @@
-; Demo job for the virtual machine: only G-code the firmware supports early.
-G28                ; home Z, Y, X (the homing lock refuses motion until then)
-G21 G90            ; mm, absolute
-G1 X10 Y10 F1200   ; feed to (10, 10)
-G1 X20             ; feed along X
-G0 X0 Y0           ; rapid home corner
-M114               ; report position
+; MillFW demo job for the virtual machine (tools/run with no argument).
+; Home, pick T1 and calibrate the tool setter with it, cut a pocket with arcs,
+; change to T2 and measure it, drill a pattern, put the tool back (T0).
+; Z grows downward on this machine and work Z is the tool tip (SPEC 3).
+G28                      ; home Z, Y, X
+G21 G90 G17              ; mm, absolute, XY plane
+T1                       ; condition 1: pick tool 1 into the empty spindle
+G37 L19.5 R0.75          ; calibrate the setter with T1 (19.5 mm long, 1.5 mm across)
+M3 S8000
+G0 X25 Y20
+G0 Z30                   ; tip 10 mm above the work
+G1 Z40 F300              ; plunge
+G1 X27 F900
+G2 X27 Y20 I-2 J0        ; full circle, radius 2
+G1 X29
+G2 X29 Y20 I-4 J0        ; full circle, radius 4
+G1 X18 Y12
+G1 X34                   ; rounded rectangle, corner radius 2
+G3 X36 Y14 R2
+G1 Y26
+G3 X34 Y28 R2
+G1 X18
+G3 X16 Y26 R2
+G1 Y14
+G3 X18 Y12 R2
+G0 Z30
+M5
+T2                       ; condition 2: tool 1 back to its pocket, pick tool 2
+G37 D1                   ; measure tool 2: length and diameter
+M3 S9000
+G0 X12 Y34
+G1 Z42 F200              ; drill
+G0 Z30
+G0 X20
+G1 Z42
+G0 Z30
+G0 X28
+G1 Z42
+G0 Z30
+G0 X28 Y40
+G1 Z42
+G0 Z30
+G0 X20
+G1 Z42
+G0 Z30
+G0 X12
+G1 Z42
+G0 Z30
+M5
+T0                       ; condition 3: tool 2 back, spindle empty
+G0 X5 Y5
+M30                      ; program end

@@ -100,7 +100,7 @@ fn main() -> ExitCode {
         }
     };
     let lines = prepare_gcode(&text);
-    let mut config = VmConfig::default();
+    let mut config = demo_machine();
     if let Some(elf) = args.elf {
         config.elf = elf;
     }
@@ -154,6 +154,7 @@ fn main() -> ExitCode {
             println!("{:<22}{e}", "firmware error");
         }
     }
+    print_job_summary(&vm);
     if let Some(p) = &args.json {
         if let Err(e) = report.write_json(p) {
             eprintln!("cannot write {}: {e}", p.display());
@@ -186,7 +187,7 @@ fn main() -> ExitCode {
 
 /// `--pty`: bridge UART0 to a pseudo-terminal until idle or Ctrl-C.
 fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
-    let mut config = VmConfig::default();
+    let mut config = demo_machine();
     if let Some(elf) = &args.elf {
         config.elf = elf.clone();
     }
@@ -244,4 +245,44 @@ fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
     } else {
         ExitCode::from(1)
     }
+}
+
+/// The machine the CLI simulates: the default RAMPS machine, the 12-pocket
+/// changer loaded with its default tools (tool n: 18 + 1.5 n mm long,
+/// 1 + 0.5 n mm across) and an optical tool setter beam at the firmware's
+/// default setter position (X 3–7, Y 10, tip height 48 mm, 0.52 mm wide).
+fn demo_machine() -> VmConfig {
+    let mut config = VmConfig::default();
+    config.command_timeout_s = 300.0;
+    config.machine.tool_setter = sim::ToolSetter::Optical(sim::OpticalBeam {
+        x_mm: (3.0, 7.0),
+        y_mm: 10.0,
+        z_mm: 48.0,
+        width_mm: 0.52,
+        steps_per_mm: 100.0,
+    });
+    config
+}
+
+/// Tool changes, measurements and warnings, from what the firmware printed.
+fn print_job_summary(vm: &Vm) {
+    let log = vm.line_log();
+    let changes: Vec<&str> = log.iter().filter_map(|(_, l)| l.strip_prefix("NowSelectedTool:")).collect();
+    println!("{:<22}{} ({})", "tool changes", changes.len(), changes.iter().map(|t| format!("T{t}")).collect::<Vec<_>>().join(" -> "));
+    for (_, l) in log.iter().filter(|(_, l)| l.starts_with("[TOOL:") || l.starts_with("[SETTER")) {
+        println!("{:<22}{l}", "measured");
+    }
+    let warnings: Vec<&String> = log.iter().map(|(_, l)| l).filter(|l| l.starts_with("echo:warning") || l.starts_with("ALARM")).collect();
+    println!("{:<22}{}", "warnings", warnings.len());
+    for w in warnings.iter().take(10) {
+        println!("{:<22}{w}", "");
+    }
+    let atc = vm.atc();
+    println!(
+        "{:<22}spindle {}, pockets {:?}, {} collisions",
+        "tool changer",
+        atc.spindle.map_or("empty".to_string(), |t| format!("T{}", t.id)),
+        atc.pocket_ids(),
+        atc.collisions.len()
+    );
 }

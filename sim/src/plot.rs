@@ -13,6 +13,9 @@ use crate::Vm;
 use plotters::prelude::*;
 use std::path::Path;
 
+/// Where G28 leaves each axis: the firmware's default pull-off.
+const HOME_PULLOFF_MM: f64 = 1.0;
+
 /// A stretch of commanded path with one tool in the spindle.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Polyline {
@@ -50,9 +53,10 @@ pub fn commanded_path(lines: &[String]) -> Vec<Polyline> {
             }
         }
         if is_home {
+            // Homing ends pulled off the switch by the default 1 mm ($27).
             let named: Vec<usize> = (0..3).filter(|&a| get(['X', 'Y', 'Z'][a]).is_some()).collect();
             for a in if named.is_empty() { vec![0, 1, 2] } else { named } {
-                pos[a] = 0.0;
+                pos[a] = HOME_PULLOFF_MM;
             }
             continue;
         }
@@ -151,8 +155,14 @@ fn arc_points(p: [f64; 3], t: [f64; 3], c: [f64; 2], plane: (usize, usize), cw: 
     }
 }
 
-/// The recorded path in machine mm, split where the tool changes.
+/// The recorded path, split where the tool changes. X/Y in machine mm; Z is
+/// the tool tip's (machine Z + the tool's length, since Z grows downward), so
+/// that it compares with the job's work Z.
 pub fn recorded_path(vm: &Vm) -> Vec<Polyline> {
+    let atc = &vm.config().machine.atc;
+    let length = |id: u8| {
+        atc.pockets.iter().chain(std::iter::once(&atc.spindle)).flatten().find(|t| t.id == id).map_or(0.0, |t| t.length_mm)
+    };
     let spm = vm.config().machine.steps_per_mm;
     let changes: Vec<(u64, u8)> = vm
         .line_log()
@@ -168,7 +178,8 @@ pub fn recorded_path(vm: &Vm) -> Vec<Polyline> {
             tool = changes[next_change].1;
             next_change += 1;
         }
-        let mm = [0, 1, 2].map(|a| p.position[a] as f64 / spm[a]);
+        let mut mm = [0, 1, 2].map(|a| p.position[a] as f64 / spm[a]);
+        mm[2] += length(tool);
         if out.last().is_none_or(|l| l.tool != tool) {
             out.push(Polyline { tool, points: vec![] });
         }
@@ -213,21 +224,27 @@ pub fn write_toolpath_png(path: &Path, commanded: &[Polyline], recorded: &[Polyl
         let hi = all.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
         if lo.is_finite() { (lo - 2.0)..(hi + 2.0) } else { 0.0..1.0 }
     };
-    for (area, (ax, ay), title) in [(&top, (0, 1), "top view X/Y (mm)"), (&side, (0, 2), "side view X/Z (mm)")] {
+    for (area, (ax, ay), title) in [(&top, (0, 1), "top view X/Y (mm)"), (&side, (0, 2), "side view X/Z tip (mm, Z down)")] {
+        // Z grows downward on this machine: draw it that way.
+        let yr = range(ay);
+        let yr = if ay == 2 { yr.end..yr.start } else { yr };
         let mut chart = ChartBuilder::on(area)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(30)
             .y_label_area_size(45)
-            .build_cartesian_2d(range(ax), range(ay))
+            .build_cartesian_2d(range(ax), yr)
             .map_err(|x| e(&x))?;
         chart.configure_mesh().light_line_style(RGBColor(235, 235, 235)).draw().map_err(|x| e(&x))?;
+        let mut labelled = Vec::new();
         for p in recorded {
             let c = tool_colour(p.tool);
+            let first_of_tool = !labelled.contains(&p.tool);
+            labelled.push(p.tool);
             let s = chart
                 .draw_series(LineSeries::new(p.points.iter().map(|q| (q[ax], q[ay])), c.stroke_width(4)))
                 .map_err(|x| e(&x))?;
-            if ax == 0 && ay == 1 {
+            if ax == 0 && ay == 1 && first_of_tool {
                 s.label(format!("recorded, T{}", p.tool)).legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(4))
                 });
