@@ -284,10 +284,11 @@ mod tests {
         let p = commanded_path(&lines("G28\nG21 G90\nG1 X10 Y0 F100\nT2\nG91 G1 Y5\nG90 G20 X1 ; inch\nG21 G2 X35.4 Y5 I5 J0"));
         assert_eq!(p.len(), 2);
         assert_eq!(p[0].tool, 0);
-        assert_eq!(p[0].points, vec![[0.0, 0.0, 0.0], [10.0, 0.0, 0.0]]);
+        // G28 leaves every axis at the 1 mm pull-off.
+        assert_eq!(p[0].points, vec![[1.0, 1.0, 1.0], [10.0, 0.0, 1.0]]);
         assert_eq!(p[1].tool, 2);
-        assert_eq!(p[1].points[1], [10.0, 5.0, 0.0]);
-        assert_eq!(p[1].points[2], [25.4, 5.0, 0.0]);
+        assert_eq!(p[1].points[1], [10.0, 5.0, 1.0]);
+        assert_eq!(p[1].points[2], [25.4, 5.0, 1.0]);
         // A half circle of radius 5 clockwise from (25.4, 5) over the top.
         let arc = &p[1].points[3..];
         let end = arc.last().unwrap();
