@@ -49,7 +49,13 @@ impl Io for Hw {
     }
 
     fn stepper(&self) -> StepperStatus {
-        StepperStatus { position: stepper::position(), busy: stepper::busy(), trip_position: stepper::trip_position() }
+        let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
+        StepperStatus {
+            position: stepper::position(),
+            busy: stepper::busy(),
+            trip_position: stepper::trip_position(),
+            tripped: m & (stepper::motion::HOME_TRIPPED | stepper::motion::PROBE_TRIPPED) != 0,
+        }
     }
 
     fn set_stepper_position(&mut self, p: [i32; 4]) {

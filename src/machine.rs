@@ -47,6 +47,8 @@ pub struct StepperStatus {
     pub busy: bool,
     /// Position latched at the last homing/probe trip.
     pub trip_position: [i32; N_AXES],
+    /// A homing or probe trip stopped the ISR (and is not cleared yet).
+    pub tripped: bool,
 }
 
 /// Switch levels, already as "triggered".
@@ -601,7 +603,10 @@ impl Machine {
                 return Ok(true);
             }
             if self.motion_done(io) {
-                return Ok(false);
+                // The trip may have stopped the ISR after this loop's poll:
+                // ask the stepper itself, or a trip in the last queued
+                // segments reads as "never tripped".
+                return Ok(io.stepper().tripped);
             }
         }
     }

@@ -12,7 +12,8 @@ mod motion_util;
 
 use common::*;
 use motion_util::*;
-use sim::{Flow, StreamOptions, Vm};
+use mill::atc::tools::{Journal, ToolState, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR};
+use sim::{Flow, StreamOptions, Vm, VmConfig};
 
 fn seed() -> u32 {
     std::env::var("MILL_FAULT_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x5eed_f417)
@@ -130,4 +131,83 @@ fn power_loss_at_random_instants_keeps_the_eeprom_and_refuses_motion_until_homed
     println!("faults injected: {injected} (power losses), EEPROM state lost: {lost}, moved before homing: {moved_unhomed}");
     assert_eq!(lost, 0);
     assert_eq!(moved_unhomed, 0);
+}
+
+/// The tool state and change journal records in EEPROM.
+fn atc_records(vm: &Vm) -> (Option<ToolState>, Option<Journal>) {
+    let e = vm.eeprom();
+    let (s, j) = (EEPROM_STATE_ADDR as usize, EEPROM_JOURNAL_ADDR as usize);
+    let st: [u8; ToolState::IMAGE_LEN] = e[s..s + ToolState::IMAGE_LEN].try_into().unwrap();
+    let jb: [u8; Journal::IMAGE_LEN] = e[j..j + Journal::IMAGE_LEN].try_into().unwrap();
+    (ToolState::from_bytes(&st), Journal::from_bytes(&jb))
+}
+
+/// Does the tool record say exactly where the tools physically are?
+fn record_matches_the_machine(vm: &Vm) -> bool {
+    let (Some(st), None) = atc_records(vm) else { return false };
+    st.spindle == vm.atc().spindle.map_or(0, |t| t.id) && (1..=12u8).all(|p| st.pocket_full(p) == vm.atc().pocket(p).is_some())
+}
+
+#[test]
+fn power_loss_during_tool_changes_leaves_a_record_the_operator_can_confirm() {
+    let mut rng = Rng(seed() ^ 0x3333);
+    let mut cfg = VmConfig::default();
+    cfg.command_timeout_s = 120.0;
+    let mut vm = boot_with(cfg);
+    ok(&mut vm, "G28");
+    let (mut injected, mut mid_change, mut lost, mut moved) = (0, 0, 0, 0);
+    for round in 0..20 {
+        // A job with two changes (from whatever is in the spindle now).
+        let a = 1 + rng.next() % 12;
+        let b = rng.next() % 13;
+        let job: Vec<String> = [format!("T{a}"), "G0 X10 Y5".into(), format!("T{b}"), "G0 X20 Y10".into()].to_vec();
+        let t = uniform(&mut rng, 0.3, 25.0);
+        let _ = vm.stream(&job, StreamOptions::new(Flow::PingPong).timeout(t)).unwrap();
+        vm.power_cycle();
+        injected += 1;
+        vm.wait_for_start(3.0).expect("boots after the power loss");
+        vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).unwrap();
+        vm.run_for(0.05).unwrap();
+        let banner = vm.take_lines();
+        let at = vm.positions();
+        let (state, journal) = atc_records(&vm);
+        assert!(state.is_some(), "round {round}: the tool record does not load");
+        if let Some(j) = journal {
+            // Cut mid-change: motion is refused until the operator confirms
+            // what is in the spindle; then the record is exact.
+            mid_change += 1;
+            assert!(banner.iter().any(|l| l.contains("interrupted")), "round {round}: {banner:?}");
+            let e = refused(&mut vm, "G28");
+            assert!(e.contains("M61"), "round {round}: {e}");
+            let e = refused(&mut vm, "G0 X5");
+            assert!(e.contains("M61"), "round {round}: {e}");
+            let spindle = vm.atc().spindle.map_or(0, |t| t.id);
+            ok(&mut vm, &format!("M61 Q{spindle}"));
+            if !record_matches_the_machine(&vm) {
+                lost += 1;
+                println!("round {round}: after T{}->T{} and M61 Q{spindle}, the record is wrong", j.from, j.to);
+            }
+        } else if !record_matches_the_machine(&vm) {
+            lost += 1;
+            println!("round {round}: the record does not match the changer");
+        }
+        // Either way nothing moves until homed.
+        let e = refused(&mut vm, "G0 X5");
+        assert!(e.starts_with("Error:not homed"), "round {round}: {e}");
+        vm.run_for(0.2).unwrap();
+        if vm.positions() != at {
+            moved += 1;
+        }
+        let before = vm.positions();
+        let r = vm.command("G28").unwrap();
+        assert!(r.iter().all(|l| !l.starts_with("Error")), "round {round}: G28 from {before:?} (banner {banner:?}): {r:?}");
+        vm.take_lines();
+    }
+    let collisions = vm.atc().collisions.len();
+    println!(
+        "faults injected: {injected} (power losses during tool changes, {mid_change} mid-change), tool state lost: {lost}, moved before homing or confirmation: {moved}, collisions: {collisions}"
+    );
+    assert!(mid_change >= 5, "too few cuts landed inside a change ({mid_change}) to prove anything");
+    assert_eq!(lost, 0);
+    assert_eq!(moved, 0);
 }
