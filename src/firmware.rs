@@ -1,18 +1,241 @@
 //! The firmware's main loop and its hardware side of `mill::machine::Io`.
 //!
-//! `board` provides registers; `mill::machine::Machine` provides all the
-//! logic. This file only connects the two: it boots the board, loads the
-//! settings from EEPROM, prints the banner and then pumps serial bytes into
-//! the machine forever.
+//! `board` provides registers; `mill::machine::Machine` and `mill::ui`
+//! provide all the logic. This file only connects them: it boots the board,
+//! loads the settings from EEPROM, prints the banner, then forever
+//!
+//! ```text
+//!  serial bytes ─► Machine::push_byte
+//!  SD job       ─► one line per turn while the planner has room ─► Machine::run_job_line
+//!  menu command ─► jog / home / start a file (at the top level, never nested in a wait)
+//!  Machine::idle ─► segment prep, realtime ─► Io::background: encoder, one display slice
+//! ```
+//!
+//! The SD card sits behind `embedded-sdmmc` (`VolumeManager` with one
+//! volume, one directory and one file open at most: its 512-byte block
+//! cache is the biggest RAM item here).
 
+use crate::board::oled::Sh1106;
+use crate::board::spi::{BusyDelay, ClockDiv, SdDevice, SpiBus};
+use crate::board::twi::Twi;
 use crate::board::{self, eeprom::Eeprom, serial, stepper, wdt};
 use core::convert::Infallible;
+use core::ops::ControlFlow;
+use embedded_sdmmc::{Mode, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
+use mill::gcode::interp;
 use mill::machine::{Io, Machine, Realtime, StepperStatus};
+use mill::protocol::MAX_LINE_LEN;
 use mill::stepper::StepperCmd;
+use mill::ui::menu::{Cmd, Screen, Ui, View};
+use mill::ui::render::{Line, ROWS, SLICE, WIDTH};
+use mill::ui::sd::{self as sdjob, req, Card, Name, SdError, SdJob, Turn};
+use ufmt::uwriteln;
 
-/// The hardware behind `Io`.
+/// Display frames start at most this often (5 Hz; SPEC §9 asks ≥ 4 Hz).
+const FRAME_MS: u32 = 200;
+/// Jog feed from the menu, mm/min.
+const JOG_FEED_MM_PER_MIN: f32 = 1200.0;
+
+/// The serial port as a `uWrite`, for code that holds parts of `Hw`.
+struct SerialOut;
+
+impl ufmt::uWrite for SerialOut {
+    type Error = Infallible;
+    fn write_str(&mut self, s: &str) -> Result<(), Infallible> {
+        serial::write(s.as_bytes());
+        Ok(())
+    }
+}
+
+/// Files get this date (there is no real-time clock).
+struct FixedClock;
+
+impl TimeSource for FixedClock {
+    fn get_timestamp(&self) -> Timestamp {
+        Timestamp { year_since_1970: 56, zero_indexed_month: 0, zero_indexed_day: 0, hours: 0, minutes: 0, seconds: 0 }
+    }
+}
+
+/// The SD driver's retry delay: a busy wait that also feeds the watchdog,
+/// because a card that never answers keeps `embedded-sdmmc` retrying for
+/// seconds (10 000 polls per command, 50 CMD0 attempts).
+#[derive(Clone, Copy)]
+struct SdDelay;
+
+impl embedded_hal::delay::DelayNs for SdDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        wdt::feed();
+        BusyDelay.delay_ns(ns);
+    }
+}
+
+type SdDev = SdCard<SdDevice, SdDelay>;
+/// One volume, one directory, one file open at a time.
+type Volumes = VolumeManager<SdDev, FixedClock, 1, 1, 1>;
+
+/// The SD card behind `mill::ui::sd::Card`.
+struct Storage {
+    vm: Volumes,
+    vol: Option<RawVolume>,
+    file: Option<RawFile>,
+}
+
+fn map_err<E: core::fmt::Debug + core::error::Error>(e: embedded_sdmmc::Error<E>) -> SdError {
+    use embedded_sdmmc::Error as E2;
+    match e {
+        E2::DeviceError(_) => SdError::NoCard,
+        E2::FormatError(_) | E2::NoSuchVolume => SdError::NoFilesystem,
+        E2::NotFound => SdError::NotFound,
+        E2::FilenameError(_) => SdError::BadName,
+        _ => SdError::ReadFailed,
+    }
+}
+
+impl Storage {
+    fn set_clock(&mut self, div: ClockDiv) {
+        self.vm.device(|d| d.spi(|s| s.bus.set_clock(div)));
+    }
+
+    fn close_file(&mut self) -> Result<(), SdError> {
+        match self.file.take() {
+            Some(f) => self.vm.close_file(f).map_err(|_| SdError::WriteFailed),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Card for Storage {
+    fn detected(&self) -> bool {
+        board::sd_detected()
+    }
+
+    #[inline(never)]
+    fn mount(&mut self) -> Result<(), SdError> {
+        if !board::sd_detected() {
+            self.unmount();
+            return Err(SdError::NoCard);
+        }
+        if self.vol.is_some() {
+            return Ok(());
+        }
+        // A fresh card: slow clock, 80 idle clocks, then let the driver
+        // initialise it on the first block read (the MBR).
+        self.set_clock(ClockDiv::SD_INIT);
+        self.vm.device(|d| {
+            d.mark_card_uninit();
+            d.spi(|s| s.wake_card().ok());
+        });
+        let v = self.vm.open_raw_volume(VolumeIdx(0)).map_err(map_err)?;
+        self.vol = Some(v);
+        self.set_clock(ClockDiv::FAST);
+        Ok(())
+    }
+
+    #[inline(never)]
+    fn unmount(&mut self) {
+        // Handles are dropped whatever the card says (it may be gone).
+        if let Some(f) = self.file.take() {
+            let _ = self.vm.close_file(f);
+        }
+        if let Some(v) = self.vol.take() {
+            let _ = self.vm.close_volume(v);
+        }
+        self.vm.device(|d| d.mark_card_uninit());
+    }
+
+    #[inline(never)]
+    fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError> {
+        let vol = self.vol.ok_or(SdError::NoCard)?;
+        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
+        let r = self.vm.iterate_dir(dir, |e| {
+            if !e.attributes.is_directory() && !e.attributes.is_volume() && !e.attributes.is_hidden() {
+                f(&Name::from_parts(e.name.base_name(), e.name.extension()), e.size);
+            }
+            ControlFlow::Continue(())
+        });
+        let _ = self.vm.close_dir(dir);
+        r.map_err(map_err)
+    }
+
+    #[inline(never)]
+    fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError> {
+        self.close_file()?;
+        let vol = self.vol.ok_or(SdError::NoCard)?;
+        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
+        let mode = if write { Mode::ReadWriteCreateOrTruncate } else { Mode::ReadOnly };
+        // The name goes in as a ShortFileName: passed as a `&str`, the AVR
+        // build of open_file_in_dir did not find files that
+        // find_directory_entry found (measured in simavr; not chased further).
+        let r = embedded_sdmmc::ShortFileName::create_from_str(name.as_str())
+            .map_err(embedded_sdmmc::Error::FilenameError)
+            .and_then(|sfn| self.vm.open_file_in_dir(dir, &sfn, mode));
+        let _ = self.vm.close_dir(dir);
+        let f = r.map_err(map_err)?;
+        self.file = Some(f);
+        self.vm.file_length(f).map_err(map_err)
+    }
+
+    #[inline(never)]
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError> {
+        let f = self.file.ok_or(SdError::NotFound)?;
+        if self.vm.file_eof(f).map_err(|_| SdError::ReadFailed)? {
+            return Ok(0);
+        }
+        self.vm.read(f, buf).map_err(|_| SdError::ReadFailed)
+    }
+
+    #[inline(never)]
+    fn seek(&mut self, pos: u32) -> Result<(), SdError> {
+        let f = self.file.ok_or(SdError::NotFound)?;
+        self.vm.file_seek_from_start(f, pos).map_err(|_| SdError::ReadFailed)
+    }
+
+    #[inline(never)]
+    fn write(&mut self, data: &[u8]) -> Result<(), SdError> {
+        let f = self.file.ok_or(SdError::NotFound)?;
+        self.vm.write(f, data).map_err(|_| SdError::WriteFailed)
+    }
+
+    #[inline(never)]
+    fn close(&mut self) -> Result<(), SdError> {
+        self.close_file()
+    }
+}
+
+/// Page-by-page drawing state (SPEC §9: no frame buffer, refresh ≥ 4 Hz,
+/// never starving the planner: one 32-column slice per idle call).
+struct Display {
+    oled: Option<Sh1106<Twi>>,
+    /// A frame is being drawn: its page and slice.
+    drawing: bool,
+    page: u8,
+    slice: u8,
+    /// The line being sent and its hash.
+    line: Line,
+    hash: u16,
+    /// Hash of what each page shows; `valid` bit i = page i is known.
+    shown: [u16; ROWS],
+    valid: u8,
+    frame_start_ms: u32,
+}
+
+/// The hardware behind `Io`, plus the UI and the SD job.
 struct Hw {
     eeprom: Eeprom,
+    sd: Storage,
+    job: SdJob,
+    ui: Ui,
+    view: View,
+    display: Display,
+    /// Names of the file rows on the Files screen, from `names_first` on.
+    names: [Name; 7],
+    names_first: u8,
+    names_valid: bool,
+    files: u8,
+    /// A menu command for the main loop (jog, home, start a file ...).
+    pending: Cmd,
+    /// Realtime requests from the menu ([`req`] bits).
+    requests: u8,
 }
 
 impl ufmt::uWrite for Hw {
@@ -27,15 +250,17 @@ impl Io for Hw {
     fn poll(&mut self) -> Realtime {
         wdt::feed();
         let rt = board::take_realtime();
+        let ui = self.job.take_requests() | core::mem::take(&mut self.requests);
         let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
         Realtime {
             status: rt & board::realtime::STATUS != 0,
-            hold: rt & board::realtime::HOLD != 0,
-            resume: rt & board::realtime::RESUME != 0,
+            hold: rt & board::realtime::HOLD != 0 || ui & req::HOLD != 0,
+            resume: rt & board::realtime::RESUME != 0 || ui & req::RESUME != 0,
             estop: rt & board::realtime::ESTOP != 0,
             limit: m & stepper::motion::LIMIT != 0,
             home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
             probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
+            abort: ui & req::ABORT != 0,
         }
     }
 
@@ -114,9 +339,202 @@ impl Io for Hw {
     fn rx_pending(&self) -> usize {
         serial::rx_len()
     }
+
+    fn sd_command(&mut self, m: &mut Machine, code: u16, arg: &[u8]) -> mill::machine::CmdResult {
+        self.names_valid = false;
+        sdjob::command(&mut self.job, &mut self.sd, m, &mut SerialOut, code, arg).map_err(interp::Error::Sd)
+    }
+
+    fn sd_capture(&mut self, line: &[u8]) -> bool {
+        sdjob::capture(&mut self.job, &mut self.sd, line, &mut SerialOut)
+    }
+
+    #[inline(never)]
+    fn background(&mut self, m: &Machine) {
+        let (detents, presses) = board::take_encoder();
+        if detents != 0 || presses != 0 {
+            let cmd = self.ui.step(detents, presses != 0, &self.view);
+            self.command_now(cmd);
+            // Show the change at once.
+            self.display.frame_start_ms = board::millis().wrapping_sub(FRAME_MS);
+        }
+        self.draw_step(m);
+    }
+}
+
+impl Hw {
+    /// Menu commands: realtime ones now, the rest for the main loop.
+    #[inline(never)]
+    fn command_now(&mut self, cmd: Cmd) {
+        match cmd {
+            Cmd::None => {}
+            Cmd::Pause => {
+                if self.job.active() {
+                    self.job.pause();
+                } else {
+                    self.requests |= req::HOLD;
+                }
+            }
+            Cmd::Resume => {
+                if self.job.phase == mill::ui::sd::Phase::Paused {
+                    self.job.resume();
+                } else {
+                    // Feed hold, or M0/M1 inside a job or a stream.
+                    self.requests |= req::RESUME;
+                }
+            }
+            Cmd::Abort => {
+                if self.job.active() {
+                    self.job.abort();
+                } else {
+                    self.requests |= req::ABORT;
+                }
+            }
+            Cmd::Jog { axis, delta_um } => {
+                // Detents add up while a jog is still being queued.
+                self.pending = match self.pending {
+                    Cmd::Jog { axis: a, delta_um: d } if a == axis => Cmd::Jog { axis, delta_um: d + delta_um },
+                    _ => cmd,
+                };
+            }
+            other => self.pending = other,
+        }
+    }
+
+    /// Snapshot of the machine for one frame.
+    #[inline(never)]
+    fn capture(&mut self, m: &Machine) {
+        let v = &mut self.view;
+        let mm = m.steps_to_mm(stepper::position());
+        let w = m.interp.machine_to_work(mm);
+        for a in 0..3 {
+            v.wpos_um[a] = mill::math::round_i32(w[a] * 1000.0);
+        }
+        let (feed, rpm) = m.interp.feed_and_speed();
+        v.state = m.state;
+        v.tool = m.atc.spindle();
+        v.feed = feed.clamp(0.0, 65535.0) as u16;
+        v.override_pct = m.interp.feed_override_pct;
+        v.rpm = rpm.clamp(0.0, 65535.0) as u16;
+        v.job = self.job.phase;
+        v.job_pct = self.job.percent();
+        v.job_name = self.job.name;
+        v.card_in = board::sd_detected();
+        v.files = self.files;
+        if self.ui.screen == Screen::Info {
+            v.free_ram = board::free_ram();
+        }
+    }
+
+    /// One step of drawing: start a frame when due, else send one slice of
+    /// the current page (pages whose text did not change are skipped).
+    #[inline(never)]
+    fn draw_step(&mut self, m: &Machine) {
+        if self.display.oled.is_none() {
+            return;
+        }
+        if !self.display.drawing {
+            let now = board::millis();
+            if now.wrapping_sub(self.display.frame_start_ms) < FRAME_MS {
+                return;
+            }
+            self.display.frame_start_ms = now;
+            self.display.drawing = true;
+            self.display.page = 0;
+            self.display.slice = 0;
+            self.capture(m);
+            return;
+        }
+        let page = self.display.page;
+        if self.display.slice == 0 {
+            let names = &self.names;
+            let first = self.names_first;
+            let valid = self.names_valid;
+            let file = |i: u8| -> Option<Name> {
+                if valid && i >= first && ((i - first) as usize) < names.len() {
+                    Some(names[(i - first) as usize])
+                } else {
+                    None
+                }
+            };
+            let line = self.ui.line(page as usize, &self.view, &m.settings, &file);
+            let h = line.hash();
+            let d = &mut self.display;
+            if d.valid & (1 << page) != 0 && d.shown[page as usize] == h {
+                d.page += 1;
+                if d.page as usize == ROWS {
+                    d.drawing = false;
+                }
+                return;
+            }
+            d.line = line;
+            d.hash = h;
+        }
+        let d = &mut self.display;
+        let x0 = d.slice as usize * SLICE;
+        let mut buf = [0u8; SLICE];
+        let n = SLICE.min(WIDTH - x0);
+        d.line.render(x0, &mut buf[..n]);
+        let ok = match d.oled.as_mut() {
+            Some(o) => o.write(page, x0 as u8, &buf[..n]).is_ok(),
+            None => false,
+        };
+        d.slice += 1;
+        if !ok {
+            d.valid &= !(1 << page);
+        }
+        if d.slice as usize * SLICE >= WIDTH {
+            if ok {
+                d.shown[page as usize] = d.hash;
+                d.valid |= 1 << page;
+            }
+            d.slice = 0;
+            d.page += 1;
+            if d.page as usize == ROWS {
+                d.drawing = false;
+            }
+        }
+    }
+
+    /// Read the file names for the Files screen (count, and the visible ones).
+    #[inline(never)]
+    fn refresh_names(&mut self) {
+        let (first, _) = self.ui.visible_files();
+        let mut count: u8 = 0;
+        let names = &mut self.names;
+        let r = self.sd.mount().and_then(|_| {
+            self.sd.list(&mut |n, _| {
+                if count >= first && ((count - first) as usize) < names.len() {
+                    names[(count - first) as usize] = *n;
+                }
+                count = count.saturating_add(1);
+            })
+        });
+        self.files = if r.is_ok() { count } else { 0 };
+        self.names_first = first;
+        self.names_valid = true;
+    }
+
+    /// The name of file `i` in directory order.
+    #[inline(never)]
+    fn file_name(&mut self, i: u8) -> Option<Name> {
+        let mut k: u8 = 0;
+        let mut found = None;
+        self.sd
+            .list(&mut |n, _| {
+                if k == i {
+                    found = Some(*n);
+                }
+                k = k.saturating_add(1);
+            })
+            .ok()?;
+        found
+    }
 }
 
 static mut MACHINE: Machine = Machine::new();
+/// Zero-initialised (in .bss, no flash image); written once in `run`.
+static mut HW: core::mem::MaybeUninit<Hw> = core::mem::MaybeUninit::uninit();
 
 /// Run the firmware. Never returns.
 pub fn run() -> ! {
@@ -126,19 +544,112 @@ pub fn run() -> ! {
     // SAFETY: taken once, at boot.
     let dp = unsafe { avr_device::atmega2560::Peripherals::steal() };
     board::init(&dp);
-    let mut hw = Hw { eeprom: Eeprom::new(dp.EEPROM) };
-    // SAFETY: MACHINE is used only from this (main) context.
+    let (bus, cs) = SpiBus::new(dp.SPI, &dp.PORTB, ClockDiv::SD_INIT);
+    let mut oled = Sh1106::new(Twi::new(dp.TWI, crate::board::oled::I2C_HZ));
+    let oled = if oled.init().is_ok() { Some(oled) } else { None };
+    let sd = Storage {
+        vm: VolumeManager::new_with_limits(SdCard::new_with_options(SdDevice { bus, cs }, SdDelay, embedded_sdmmc::sdcard::spi::AcquireOpts { use_crc: true, acquire_retries: 5 }), FixedClock, 0),
+        vol: None,
+        file: None,
+    };
+    // SAFETY: HW and MACHINE are used only from this (main) context.
+    let hw = unsafe {
+        let slot = &mut *core::ptr::addr_of_mut!(HW);
+        slot.write(Hw {
+            eeprom: Eeprom::new(dp.EEPROM),
+            sd,
+            job: SdJob::new(),
+            ui: Ui::new(),
+            view: View::new(),
+            display: Display {
+                oled,
+                drawing: false,
+                page: 0,
+                slice: 0,
+                line: Line::blank(),
+                hash: 0,
+                shown: [0; ROWS],
+                valid: 0,
+                frame_start_ms: 0,
+            },
+            names: [Name::EMPTY; 7],
+            names_first: 0,
+            names_valid: false,
+            files: 0,
+            pending: Cmd::None,
+            requests: 0,
+        })
+    };
+    // SAFETY: as above.
     let m = unsafe { &mut *core::ptr::addr_of_mut!(MACHINE) };
     serial::set_tx_wait_hook(tx_wait);
     // SAFETY: all shared state is initialised; ISRs may run from here on.
     unsafe { avr_device::interrupt::enable() };
     wdt::enable_2s();
-    m.boot(&mut hw, cause.as_str());
+    m.boot(hw, cause.as_str());
     loop {
         while let Some(b) = serial::read() {
-            m.push_byte(b, &mut hw);
+            m.push_byte(b, hw);
         }
-        m.idle(&mut hw);
+        job_turn(m, hw);
+        ui_turn(m, hw);
+        m.idle(hw);
+    }
+}
+
+/// The SD job's turn: at most one line.
+#[inline(never)]
+fn job_turn(m: &mut Machine, hw: &mut Hw) {
+    let mut line = [0u8; MAX_LINE_LEN];
+    let done = m.motion_done(hw);
+    let turn = hw.job.poll(&mut hw.sd, m, done, &mut line, &mut SerialOut);
+    match turn {
+        Turn::Run(n) => {
+            let r = m.run_job_line(&line[..n], hw);
+            hw.job.line_done(r, m, &mut SerialOut);
+        }
+        Turn::SpindleOff => m.spindle_off(hw),
+        Turn::Idle => {}
+    }
+}
+
+/// The menu's commands that run at the top level.
+#[inline(never)]
+fn ui_turn(m: &mut Machine, hw: &mut Hw) {
+    if !board::sd_detected() && hw.sd.vol.is_some() && !hw.job.active() {
+        // Pulled while idle: forget it, so the next card is mounted afresh.
+        hw.sd.unmount();
+        hw.names_valid = false;
+    }
+    if hw.ui.screen == Screen::Files && (!hw.names_valid || hw.ui.visible_files().0 != hw.names_first) {
+        hw.refresh_names();
+    }
+    let cmd = core::mem::replace(&mut hw.pending, Cmd::None);
+    let r = match cmd {
+        Cmd::ListFiles => {
+            hw.names_valid = false;
+            Ok(())
+        }
+        Cmd::RunFile(i) => match hw.file_name(i) {
+            Some(name) => match hw.job.select(&mut hw.sd, &name) {
+                Ok(()) => hw.job.start(m).map_err(interp::Error::Sd),
+                Err(e) => Err(interp::Error::Sd(e.text())),
+            },
+            None => Err(interp::Error::Sd(SdError::NotFound.text())),
+        },
+        Cmd::Override(pct) => {
+            m.interp.feed_override_pct = pct;
+            Ok(())
+        }
+        Cmd::Jog { axis, delta_um } => {
+            interp::jog(m, hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN)
+        }
+        Cmd::Home(mask) => mill::machine::home(m, hw, mask),
+        _ => Ok(()),
+    };
+    if let Err(e) = r {
+        uwriteln!(SerialOut, "echo:menu:").ok();
+        m.report_error(&mut SerialOut, e);
     }
 }
 

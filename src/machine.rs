@@ -36,6 +36,8 @@ pub struct Realtime {
     pub limit: bool,
     pub home_tripped: bool,
     pub probe_tripped: bool,
+    /// Abort requested (SD job or menu): decelerate, then drop the queue.
+    pub abort: bool,
 }
 
 /// What the stepper ISR reports.
@@ -97,6 +99,18 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn free_ram(&self) -> u16;
     /// Bytes waiting in the serial RX ring.
     fn rx_pending(&self) -> usize;
+    /// An SD command (M20–M29, M524; `arg` is the text after the code).
+    /// Without an SD card in the build it is refused.
+    fn sd_command(&mut self, _m: &mut Machine, _code: u16, _arg: &[u8]) -> CmdResult {
+        Err(interp::Error::NotAvailable(F!("SD card not available in this build")))
+    }
+    /// While M28 writes a file, store the line there and return true.
+    fn sd_capture(&mut self, _line: &[u8]) -> bool {
+        false
+    }
+    /// End of every [`Machine::idle`]: the standalone UI's turn (encoder,
+    /// one slice of the display). Must be short.
+    fn background(&mut self, _m: &Machine) {}
 }
 
 /// Machine state, as reported by `?` (grbl 1.1 names).
@@ -192,6 +206,16 @@ pub struct Machine {
     last_rt: Realtime,
     /// The host numbers its lines (so dropped lines get `Resend:`).
     numbered: bool,
+    /// An SD job is under way: serial lines may only ask for status.
+    pub sd_job: bool,
+    /// The line being executed comes from the SD job.
+    job_line: bool,
+    /// An abort is decelerating; the queue is dropped once stopped.
+    aborting: bool,
+    /// Aborts completed so far (wraps); waits fail while it differs from
+    /// `line_aborts`, the count when the current line started.
+    pub aborts: u8,
+    line_aborts: u8,
 }
 
 impl Machine {
@@ -220,8 +244,14 @@ impl Machine {
                 limit: false,
                 home_tripped: false,
                 probe_tripped: false,
+                abort: false,
             },
             numbered: false,
+            sd_job: false,
+            job_line: false,
+            aborting: false,
+            aborts: 0,
+            line_aborts: 0,
         }
     }
 
@@ -312,7 +342,16 @@ impl Machine {
                 let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
                 let n = cmd.len();
                 buf[..n].copy_from_slice(cmd);
-                if let Err(e) = self.execute(&buf[..n], io) {
+                self.line_aborts = self.aborts;
+                let sd = crate::ui::sd::sd_code(&buf[..n]);
+                let r = match sd {
+                    // M28 is writing a file: every line but M29 goes there.
+                    Some((29, _)) => io.sd_command(self, 29, &[]),
+                    _ if io.sd_capture(&buf[..n]) => Ok(()),
+                    Some((code, arg)) => io.sd_command(self, code, arg),
+                    None => self.execute(&buf[..n], io),
+                };
+                if let Err(e) = r {
                     self.report_error(io, e);
                 }
             }
@@ -320,7 +359,8 @@ impl Machine {
         uwriteln!(io, "ok").ok();
     }
 
-    fn report_error(&mut self, io: &mut impl Io, e: interp::Error) {
+    /// Print `Error:<what>` for a failed line.
+    pub fn report_error(&self, io: &mut impl ufmt::uWrite, e: interp::Error) {
         match e {
             interp::Error::Alarm => {
                 let why = self.alarm.map_or(F!("unknown"), |a| a.message());
@@ -329,10 +369,30 @@ impl Machine {
             interp::Error::Parse(p) => {
                 uwriteln!(io, "Error:{} at col {}", p.kind.message(), p.col).ok();
             }
+            interp::Error::Sd(t) => crate::ui::sd::write_error(io, t),
             other => {
                 uwriteln!(io, "Error:{}", other.message()).ok();
             }
         }
+    }
+
+    /// Run one line of an SD job (the same path as a serial line, without
+    /// the `ok`; the job reports errors with the line number).
+    #[inline(never)]
+    pub fn run_job_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        self.line_aborts = self.aborts;
+        if crate::ui::sd::sd_code(text).is_some() {
+            return Err(interp::Error::BadWord(F!("SD commands are not allowed inside an SD job")));
+        }
+        self.job_line = true;
+        let r = self.execute(text, io);
+        self.job_line = false;
+        r
+    }
+
+    /// True while the line being run comes from the SD job.
+    pub fn in_job_line(&self) -> bool {
+        self.job_line
     }
 
     /// Parse and run one command line (without N and checksum).
@@ -416,13 +476,15 @@ impl Machine {
         self.idle(io);
         if self.alarm.is_some() {
             Err(interp::Error::Alarm)
+        } else if self.aborts != self.line_aborts {
+            Err(interp::Error::Aborted)
         } else {
             Ok(())
         }
     }
 
     /// True when nothing is planned, prepared or stepping.
-    fn motion_done(&self, io: &impl Io) -> bool {
+    pub fn motion_done(&self, io: &impl Io) -> bool {
         self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy
     }
 
@@ -478,7 +540,7 @@ impl Machine {
                 self.state = State::Hold;
             }
         }
-        if rt.resume && self.holding {
+        if rt.resume && self.holding && !self.aborting {
             self.holding = false;
             if self.prep.is_held() || !io.stepper().busy {
                 self.planner.cycle_reinitialize();
@@ -489,12 +551,59 @@ impl Machine {
             }
             self.fill_segments(io);
         }
+        if rt.abort && self.alarm.is_none() && !self.aborting {
+            self.aborting = true;
+            if !self.holding {
+                self.holding = true;
+                self.prep.hold();
+            }
+        }
+        if self.aborting && (self.prep.is_held() || self.motion_done(io)) && !io.stepper().busy {
+            self.finish_abort(io);
+        }
         if rt.status {
             self.status_report(io);
         }
         if self.state == State::Run && self.motion_done(io) {
             self.state = State::Idle;
         }
+        io.background(self);
+    }
+
+    /// The abort's deceleration has ended: drop the queue, keep the
+    /// position, turn the spindle off. Waits in progress fail with
+    /// `Error::Aborted`, so the line that was running stops too.
+    fn finish_abort(&mut self, io: &mut impl Io) {
+        self.aborting = false;
+        self.holding = false;
+        io.stop_motion();
+        self.planner.clear();
+        self.prep.reset();
+        io.clear_stop();
+        let p = io.stepper().position;
+        self.planner.set_position(p);
+        self.interp.sync_position(&self.settings, p);
+        self.spindle_off(io);
+        if matches!(self.state, State::Hold | State::Run) {
+            self.state = State::Idle;
+        }
+        self.aborts = self.aborts.wrapping_add(1);
+    }
+
+    /// Spindle off (and remembered as off).
+    pub fn spindle_off(&mut self, io: &mut impl Io) {
+        self.interp.spindle_on = false;
+        io.spindle(0);
+    }
+
+    /// A feed hold is in force (`!`, M25, the menu) and not yet resumed.
+    pub fn is_holding(&self) -> bool {
+        self.holding
+    }
+
+    /// An abort is decelerating.
+    pub fn is_aborting(&self) -> bool {
+        self.aborting
     }
 
     /// Enter the alarm state: stop steps, spindle off, forget the queue.
@@ -512,6 +621,7 @@ impl Machine {
         self.homed = 0;
         self.unlocked = false;
         self.holding = false;
+        self.aborting = false;
         self.planner.clear();
         self.prep.reset();
         let p = io.stepper().position;
@@ -645,6 +755,12 @@ impl Machine {
                 self.state = prev;
                 return Ok(());
             }
+            if rt.abort {
+                // Nothing is moving during M0/M1 (the queue drained first).
+                self.finish_abort(io);
+                return Err(interp::Error::Aborted);
+            }
+            io.background(self);
         }
     }
 

@@ -18,8 +18,7 @@ fn main() {
 }
 
 #[cfg(target_arch = "avr")]
-// The TWI/SPI drivers and parts of the pin table serve the OLED and SD card
-// (the UI issue); until that lands they are built but not yet called.
+// Parts of the board layer (release functions, spare pins) are not called yet.
 #[allow(dead_code)]
 mod board;
 #[cfg(target_arch = "avr")]

@@ -14,6 +14,8 @@
 //!   line numbers and checksums, resends).
 //! - [`isr`]: per-vector interrupt service times.
 //! - [`spindle`]: PWM duty of OC2A.
+//! - [`oled`]: the SH1106 OLED on the TWI bus (display RAM, PNG screenshots).
+//! - [`sdcard`], [`sdimage`]: an SPI-mode SD card and the FAT images it holds.
 //! - [`elf`]: ELF symbols (RAM addresses, `__heap_start`).
 //! - [`report`]: JSON report and CSV step trace.
 //! - [`pins`]: the RAMPS pin map, the only place `sim/` knows pins.
@@ -43,12 +45,15 @@ pub mod atc;
 pub mod elf;
 pub mod host;
 pub mod isr;
+pub mod oled;
 pub mod physics;
 pub mod pins;
 pub mod plot;
 pub mod pty;
 pub mod recorder;
 pub mod report;
+pub mod sdcard;
+pub mod sdimage;
 pub mod spindle;
 pub mod vm;
 
@@ -58,5 +63,8 @@ pub use atc::{AtcConfig, AtcModel, Collision, CollisionKind, Tool, Transfer};
 pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, ToolSetter};
 pub use pins::{Axis, Input, Pin, SignalKind};
 pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
+pub use oled::Sh1106;
 pub use report::Report;
+pub use sdcard::{CardKind, SdCard};
+pub use sdimage::{FatKind, SdImage};
 pub use vm::{ResetKind, ResetRecord, Vm, VmConfig, VmError};

@@ -1,7 +1,7 @@
 //! `sim`: run a G-code job on the firmware in the virtual machine.
 //!
 //! ```text
-//! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv] [--png out/toolpath.png]
+//! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv] [--png out/toolpath.png] [--oled out/oled.png]
 //!                               [--checksums] [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]
 //! cargo run -p sim --release -- --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]
 //! ```
@@ -27,6 +27,8 @@ struct Args {
     json: Option<PathBuf>,
     csv: Option<PathBuf>,
     png: Option<PathBuf>,
+    /// `--oled FILE`: the OLED at the end of the job, as a PNG.
+    oled: Option<PathBuf>,
     checksums: bool,
     flow: Flow,
     timeout_s: f64,
@@ -36,7 +38,7 @@ struct Args {
     idle_exit_s: Option<f64>,
 }
 
-const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--png FILE] [--checksums] \
+const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--png FILE] [--oled FILE] [--checksums] \
 [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]\n       \
 sim --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]";
 
@@ -46,6 +48,7 @@ fn parse_args() -> Result<Args, String> {
         json: None,
         csv: None,
         png: None,
+        oled: None,
         checksums: false,
         flow: Flow::PingPong,
         timeout_s: 600.0,
@@ -61,6 +64,7 @@ fn parse_args() -> Result<Args, String> {
             "--json" => a.json = Some(value("--json")?.into()),
             "--csv" => a.csv = Some(value("--csv")?.into()),
             "--png" => a.png = Some(value("--png")?.into()),
+            "--oled" => a.oled = Some(value("--oled")?.into()),
             "--checksums" => a.checksums = true,
             "--flow" => a.flow = value("--flow")?.parse()?,
             "--timeout" => {
@@ -161,6 +165,15 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
         println!("{:<22}{}", "json", p.display());
+    }
+    if let Some(p) = &args.oled {
+        // Let the display catch up with the end of the job (frames are 200 ms apart).
+        let _ = vm.run_for(0.3);
+        if let Err(e) = vm.screenshot(p, 2) {
+            eprintln!("cannot write {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
+        println!("{:<22}{}", "oled", p.display());
     }
     if let Some(p) = &args.csv {
         if let Err(e) = vm.write_trace_csv(p) {

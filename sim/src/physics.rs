@@ -168,7 +168,7 @@ impl ToolSetter {
 #[derive(Clone, Debug)]
 pub struct Physics {
     config: MachineConfig,
-    overrides: [Option<bool>; 8],
+    overrides: [Option<bool>; Input::COUNT],
     atc: AtcModel,
 }
 
@@ -176,7 +176,7 @@ impl Physics {
     /// A machine with the given configuration and no overrides.
     pub fn new(config: MachineConfig) -> Physics {
         let atc = AtcModel::new(config.atc.clone(), &config.initial_position);
-        Physics { config, overrides: [None; 8], atc }
+        Physics { config, overrides: [None; Input::COUNT], atc }
     }
 
     /// The configuration.
@@ -233,7 +233,8 @@ impl Physics {
                 ToolSetter::Optical(b) => b.broken(pos, self.atc.spindle.as_ref()),
                 other => other.triggered(pos),
             },
-            Input::EncoderA | Input::EncoderB | Input::EncoderButton => false,
+            // No card unless the VM inserts one (it overrides SdDetect).
+            Input::EncoderA | Input::EncoderB | Input::EncoderButton | Input::SdDetect => false,
         }
     }
 

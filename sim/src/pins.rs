@@ -158,11 +158,16 @@ pub enum Input {
     EncoderA,
     EncoderB,
     EncoderButton,
+    /// SD card detect switch (D49, PL0): closed to ground while a card is in.
+    SdDetect,
 }
 
 impl Input {
+    /// Number of inputs.
+    pub const COUNT: usize = 9;
+
     /// Every input, in a fixed order (also the index order).
-    pub const ALL: [Input; 8] = [
+    pub const ALL: [Input; Input::COUNT] = [
         Input::HomeX,
         Input::HomeY,
         Input::HomeZ,
@@ -171,6 +176,7 @@ impl Input {
         Input::EncoderA,
         Input::EncoderB,
         Input::EncoderButton,
+        Input::SdDetect,
     ];
 
     /// Position in [`Input::ALL`].
@@ -189,6 +195,7 @@ impl Input {
             Input::EncoderA => Pin::new(b'C', 6),
             Input::EncoderB => Pin::new(b'C', 4),
             Input::EncoderButton => Pin::new(b'C', 2),
+            Input::SdDetect => Pin::new(b'L', 0),
         }
     }
 

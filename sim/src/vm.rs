@@ -64,7 +64,9 @@
 use crate::elf::ElfSymbols;
 use crate::host::{is_ok_line, StreamOptions, StreamReport, Streamer};
 use crate::isr::{IsrStats, IsrTracker, STEPPER_VECTOR};
+use crate::oled::Sh1106;
 use crate::physics::{MachineConfig, Physics, ToolSetter};
+use crate::sdcard::SdCard;
 use crate::pins::{Axis, Input, Pin, SignalKind, SPINDLE_PWM};
 use crate::recorder::{Recorder, RecorderConfig, Violation};
 use crate::report::{AxisReport, Report, UartReport};
@@ -92,6 +94,12 @@ const fn ioctl_uart_getirq(name: u8) -> u32 {
 const fn ioctl_uart_set_flags(name: u8) -> u32 {
     ioctl_def(b'u', b'a', b's', name)
 }
+/// simavr's `AVR_IOCTL_TWI_GETIRQ(0)` / `AVR_IOCTL_SPI_GETIRQ(0)`: the
+/// ATmega2560 declares its TWI and SPI without a name (name 0).
+const IOCTL_TWI_GETIRQ: u32 = ioctl_def(b't', b'w', b'i', 0);
+const IOCTL_SPI_GETIRQ: u32 = ioctl_def(b's', b'p', b'i', 0);
+/// SD card chip select: PB0 (D53).
+const SD_CS: Pin = Pin::new(b'B', 0);
 const IOCTL_EEPROM_GET: u32 = ioctl_def(b'e', b'e', b'g', b'p');
 const IOCTL_EEPROM_SET: u32 = ioctl_def(b'e', b'e', b's', b'p');
 
@@ -258,8 +266,8 @@ struct Inner {
     isr: IsrTracker,
     host: UartHost,
     /// Levels last driven per input.
-    levels: [Option<bool>; 8],
-    input_irqs: [*mut ffi::avr_irq_t; 8],
+    levels: [Option<bool>; Input::COUNT],
+    input_irqs: [*mut ffi::avr_irq_t; Input::COUNT],
     output_irqs: Vec<*mut ffi::avr_irq_t>,
     orig_reset: Option<unsafe extern "C" fn(*mut ffi::avr_t)>,
     reset_seen: bool,
@@ -271,6 +279,14 @@ struct Inner {
     log: Vec<String>,
     spindle_duty: f64,
     spindle_history: Vec<(u64, f64)>,
+    /// The SH1106 on the TWI bus, and whether the current transfer is for it.
+    oled: Sh1106,
+    oled_selected: bool,
+    twi_input: *mut ffi::avr_irq_t,
+    /// The SD card in the socket (None: empty socket).
+    sd: Option<SdCard>,
+    sd_selected: bool,
+    spi_input: *mut ffi::avr_irq_t,
 }
 
 impl Inner {
@@ -594,6 +610,77 @@ fn update_spindle(inner: &mut Inner) {
     }
 }
 
+/// The TWI master put a condition or byte on the bus: the SH1106 at 0x3C
+/// acknowledges its address and every byte written to it.
+// SAFETY (contract): only simavr calls this, from inside `avr_run` on the VM's
+// thread, with our `Inner` as `param` (registered in `Vm::new`).
+unsafe extern "C" fn twi_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    let inner_p = param as *mut Inner;
+    let msg = (value >> 8) as u8;
+    let addr = (value >> 16) as u8;
+    let data = (value >> 24) as u8;
+    let (ack, input) = {
+        // SAFETY: param is our Inner; no other borrow of it is live here.
+        let inner = unsafe { &mut *inner_p };
+        let now = inner.now();
+        let mut ack = false;
+        if msg & ffi::TWI_COND_STOP as u8 != 0 {
+            if inner.oled_selected {
+                inner.oled.stop();
+            }
+            inner.oled_selected = false;
+        }
+        if msg & ffi::TWI_COND_START as u8 != 0 {
+            inner.oled_selected = addr >> 1 == crate::oled::I2C_ADDRESS && addr & 1 == 0;
+            if inner.oled_selected {
+                inner.oled.start();
+                ack = true;
+            }
+        } else if msg & ffi::TWI_COND_WRITE as u8 != 0 && inner.oled_selected {
+            inner.oled.write(data, now);
+            ack = true;
+        }
+        (ack, inner.twi_input)
+    };
+    if ack && !input.is_null() {
+        // SAFETY: the TWI's input IRQ; simavr's handler does not call back into Inner.
+        unsafe { ffi::avr_raise_irq(input, ffi::avr_twi_irq_msg(ffi::TWI_COND_ACK as u8, addr, 1)) };
+    }
+}
+
+/// The SPI master finished a byte: the SD card (if selected) answers with
+/// the byte it drove on MISO during that transfer.
+// SAFETY (contract): as `twi_notify`.
+unsafe extern "C" fn spi_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    let inner_p = param as *mut Inner;
+    let (miso, input) = {
+        // SAFETY: param is our Inner; no other borrow of it is live here.
+        let inner = unsafe { &mut *inner_p };
+        let selected = inner.sd_selected;
+        let miso = match inner.sd.as_mut() {
+            Some(card) if selected => card.exchange(value as u8),
+            _ => 0xFF, // MISO pulled up
+        };
+        (miso, inner.spi_input)
+    };
+    if !input.is_null() {
+        // SAFETY: the SPI's input IRQ sets SPDR; in master mode it does not call back.
+        unsafe { ffi::avr_raise_irq(input, miso as u32) };
+    }
+}
+
+/// PB0 (SD chip select) changed.
+// SAFETY (contract): as `twi_notify`.
+unsafe extern "C" fn sd_cs_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: param is our Inner.
+    let inner = unsafe { &mut *(param as *mut Inner) };
+    inner.sd_selected = value & 1 == 0;
+    let sel = inner.sd_selected;
+    if let Some(card) = inner.sd.as_mut() {
+        card.select(sel);
+    }
+}
+
 fn regbit_get(inner: &Inner, rb: ffi::avr_regbit_t) -> u8 {
     let reg = rb.reg() as u16;
     if reg == 0 {
@@ -731,8 +818,8 @@ impl Vm {
             physics,
             isr: IsrTracker::default(),
             host: UartHost::default(),
-            levels: [None; 8],
-            input_irqs: [std::ptr::null_mut(); 8],
+            levels: [None; Input::COUNT],
+            input_irqs: [std::ptr::null_mut(); Input::COUNT],
             output_irqs: Vec::new(),
             orig_reset: None,
             reset_seen: false,
@@ -743,6 +830,12 @@ impl Vm {
             log: Vec::new(),
             spindle_duty: 0.0,
             spindle_history: Vec::new(),
+            oled: Sh1106::new(),
+            oled_selected: false,
+            twi_input: std::ptr::null_mut(),
+            sd: None,
+            sd_selected: false,
+            spi_input: std::ptr::null_mut(),
         }));
         let param = inner as *mut c_void;
 
@@ -824,6 +917,23 @@ impl Vm {
             let pb4 = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(SPINDLE_PWM.port), SPINDLE_PWM.bit as c_int);
             if !pb4.is_null() {
                 ffi::avr_irq_register_notify(pb4, Some(spindle_notify), param);
+            }
+
+            // OLED on the TWI bus.
+            let twi_out = ffi::avr_io_getirq(avr, IOCTL_TWI_GETIRQ, ffi::TWI_IRQ_OUTPUT as c_int);
+            (*inner).twi_input = ffi::avr_io_getirq(avr, IOCTL_TWI_GETIRQ, ffi::TWI_IRQ_INPUT as c_int);
+            if !twi_out.is_null() {
+                ffi::avr_irq_register_notify(twi_out, Some(twi_notify), param);
+            }
+            // SD card on the SPI bus, selected by PB0.
+            let spi_out = ffi::avr_io_getirq(avr, IOCTL_SPI_GETIRQ, ffi::SPI_IRQ_OUTPUT as c_int);
+            (*inner).spi_input = ffi::avr_io_getirq(avr, IOCTL_SPI_GETIRQ, ffi::SPI_IRQ_INPUT as c_int);
+            if !spi_out.is_null() {
+                ffi::avr_irq_register_notify(spi_out, Some(spi_notify), param);
+            }
+            let cs = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(SD_CS.port), SD_CS.bit as c_int);
+            if !cs.is_null() {
+                ffi::avr_irq_register_notify(cs, Some(sd_cs_notify), param);
             }
             hooks
         };
@@ -1448,6 +1558,54 @@ impl Vm {
         self.run_for(hold_s)?;
         self.set_input(Input::EncoderButton, None);
         Ok(())
+    }
+
+    // ----------------------------------------------------- OLED, SD card
+
+    /// The SH1106 model (display RAM, what the panel shows, write counters).
+    pub fn oled(&self) -> &Sh1106 {
+        &self.inner().oled
+    }
+
+    /// The SH1106 model, mutable (e.g. to turn its write log on).
+    pub fn oled_mut(&mut self) -> &mut Sh1106 {
+        &mut self.inner_mut().oled
+    }
+
+    /// Writes what the OLED shows as a PNG (`scale` pixels per pixel).
+    pub fn screenshot(&self, path: impl AsRef<Path>, scale: usize) -> std::io::Result<()> {
+        self.oled().write_png(path, scale)
+    }
+
+    /// Puts a card into the socket: the detect switch closes.
+    pub fn insert_sd(&mut self, card: SdCard) {
+        let inner = self.inner_mut();
+        let mut card = card;
+        card.set_present(true);
+        card.select(inner.sd_selected);
+        inner.sd = Some(card);
+        self.set_input(Input::SdDetect, Some(true));
+    }
+
+    /// Pulls the card out: it stops answering at once and the detect switch
+    /// opens. The card (with what was written to it) is returned.
+    pub fn pull_sd(&mut self) -> Option<SdCard> {
+        self.set_input(Input::SdDetect, Some(false));
+        let mut card = self.inner_mut().sd.take();
+        if let Some(c) = card.as_mut() {
+            c.set_present(false);
+        }
+        card
+    }
+
+    /// The card in the socket.
+    pub fn sd(&self) -> Option<&SdCard> {
+        self.inner().sd.as_ref()
+    }
+
+    /// The card in the socket, mutable (to corrupt its image mid-test).
+    pub fn sd_mut(&mut self) -> Option<&mut SdCard> {
+        self.inner_mut().sd.as_mut()
     }
 
     // ------------------------------------------------------- ISR, spindle

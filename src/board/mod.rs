@@ -7,11 +7,13 @@
 //! - [`stepper`]: Timer1, the step ISR (Bresenham over X, Y, Z, E0);
 //! - the millisecond clock (Timer0) and spindle PWM (Timer2) in this file;
 //! - [`twi`] and [`spi`]: bus masters implementing the `embedded-hal` 1.0 traits;
+//! - [`oled`]: the SH1106 display on the TWI (its command set, page writes);
 //! - [`eeprom`] and [`wdt`].
 //!
 //! Everything above this layer (the `mill` library) sees values, never pins.
 
 pub mod eeprom;
+pub mod oled;
 pub mod pins;
 pub mod serial;
 pub mod spi;
@@ -107,13 +109,40 @@ pub fn millis() -> u32 {
     avr_device::interrupt::free(|cs| MILLIS.borrow(cs).get())
 }
 
-// 1 kHz tick: the millisecond clock. About 40 cycles.
+/// The encoder decoder, sampled by the 1 kHz tick (see `mill::ui::encoder`).
+static ENCODER: Mutex<Cell<mill::ui::encoder::Decoder>> = Mutex::new(Cell::new(mill::ui::encoder::Decoder::new()));
+
+// 1 kHz tick: the millisecond clock, and one sample of the encoder and its
+// button (PC6 A, PC4 B, PC2 button; closed contact = low). About 40 cycles
+// for the clock plus about 60 for the decoder.
 #[avr_device::interrupt(atmega2560)]
 fn TIMER0_COMPA() {
     avr_device::interrupt::free(|cs| {
         let c = MILLIS.borrow(cs);
         c.set(c.get().wrapping_add(1));
+        // SAFETY: reading PINC has no side effects.
+        let pinc = unsafe { core::ptr::read_volatile(pins::ENC_A.port.pin) };
+        let e = ENCODER.borrow(cs);
+        let mut d = e.get();
+        d.sample(pinc & pins::ENC_A.mask == 0, pinc & pins::ENC_B.mask == 0, pinc & pins::ENC_BUTTON.mask == 0);
+        e.set(d);
     });
+}
+
+/// Encoder detents (+ = clockwise) and button presses since the last call.
+pub fn take_encoder() -> (i8, u8) {
+    avr_device::interrupt::free(|cs| {
+        let e = ENCODER.borrow(cs);
+        let mut d = e.get();
+        let r = d.take();
+        e.set(d);
+        r
+    })
+}
+
+/// The SD socket's detect switch is closed (a card is in; D49 low).
+pub fn sd_detected() -> bool {
+    !pins::SD_DETECT.is_high()
 }
 
 // ---- Spindle PWM (Timer2, OC2A on PB4 = D10) -----------------------------

@@ -334,3 +334,52 @@ impl DelayNs for BusyDelay {
         }
     }
 }
+
+/// The SD card as an embedded-hal 1.0 [`spi::SpiDevice`]: the bus plus its
+/// chip select, asserted for the length of each transaction (what
+/// `embedded-sdmmc`'s `SdCard` needs; a few lines instead of the
+/// `embedded-hal-bus` crate).
+pub struct SdDevice {
+    pub bus: SpiBus,
+    pub cs: ChipSelect,
+}
+
+impl SdDevice {
+    /// The card's power-up: at least 74 clocks with CS high (SD Physical
+    /// Layer spec 6.4.1), here 80, at the current (slow) clock.
+    pub fn wake_card(&mut self) -> Result<(), Error> {
+        use digital::OutputPin;
+        let _ = self.cs.set_high();
+        spi::SpiBus::write(&mut self.bus, &[FILL_BYTE; 10])
+    }
+}
+
+impl spi::ErrorType for SdDevice {
+    type Error = Error;
+}
+
+impl spi::SpiDevice<u8> for SdDevice {
+    fn transaction(&mut self, operations: &mut [spi::Operation<'_, u8>]) -> Result<(), Error> {
+        use digital::OutputPin;
+        use spi::{Operation, SpiBus as _};
+        let _ = self.cs.set_low();
+        let mut r = Ok(());
+        for op in operations.iter_mut() {
+            r = match op {
+                Operation::Read(buf) => self.bus.read(buf),
+                Operation::Write(buf) => self.bus.write(buf),
+                Operation::Transfer(rd, wr) => self.bus.transfer(rd, wr),
+                Operation::TransferInPlace(buf) => self.bus.transfer_in_place(buf),
+                Operation::DelayNs(ns) => {
+                    BusyDelay.delay_ns(*ns);
+                    Ok(())
+                }
+            };
+            if r.is_err() {
+                break;
+            }
+        }
+        let _ = self.cs.set_high();
+        r
+    }
+}

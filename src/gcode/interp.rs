@@ -56,6 +56,12 @@ pub enum Error {
     Atc(crate::atc::Fault),
     /// Tool setter (G37).
     Setter(crate::toolsetter::Fault),
+    /// The line was cut short by an abort (SD job, menu).
+    Aborted,
+    /// An SD job is running: serial lines may only ask for status.
+    JobRunning,
+    /// An SD card error (message in flash).
+    Sd(crate::ui::text::Text),
 }
 
 impl Error {
@@ -76,6 +82,9 @@ impl Error {
             Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
             Error::Atc(f) => f.message(),
             Error::Setter(f) => f.message(),
+            Error::Aborted => F!("aborted"),
+            Error::JobRunning => F!("SD job running: command refused (status only: ?, M27, M114)"),
+            Error::Sd(_) => F!("SD card error"),
         }
     }
 }
@@ -191,6 +200,19 @@ fn axis_words_are_settings(l: &Line) -> bool {
 /// Execute one parsed line (RS274/NGC order of execution).
 #[inline(never)]
 pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
+    // During an SD job the serial line may only ask for status (SPEC §9).
+    if m.sd_job && !m.in_job_line() {
+        let status_only = l.motion.is_none()
+            && !has_axis_words(l)
+            && l.non_modal.is_none()
+            && l.spindle.is_none()
+            && !l.tool_change
+            && l.stopping.is_none()
+            && matches!(l.other_m, Some(114 | 115 | 119 | 220 | 503));
+        if !status_only {
+            return Err(Error::JobRunning);
+        }
+    }
     // Commands that work in any state first.
     if let Some(code) = l.other_m {
         match code {
@@ -518,6 +540,19 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         None => {}
     }
     Ok(())
+}
+
+/// Jog `axis` (0..3) by `delta_mm` at `feed` mm/min from the commanded
+/// position (the menu's jog): soft limits apply, the modal state is untouched.
+#[inline(never)]
+pub fn jog(m: &mut Machine, io: &mut impl Io, axis: usize, delta_mm: f32, feed: f32) -> Result<(), Error> {
+    if m.alarm.is_some() {
+        return Err(Error::Alarm);
+    }
+    let mut target = m.interp.pos_mm;
+    target[axis] += delta_mm;
+    check_soft_limits(m, &target)?;
+    move_to(m, io, target, feed, false)
 }
 
 /// Queue a move to `target` machine mm; updates the commanded position.

@@ -1,4 +1,27 @@
-//! Standalone UI (SPEC §9): SH1106 status screen, encoder menu and SD jobs.
+//! Standalone UI (SPEC §9): SH1106 status screen and menu on the rotary
+//! encoder, and SD card jobs.
 //!
-//! Not implemented yet (its own issue). The menu model and page-by-page
-//! rendering will live here; the I2C/SPI transfers live in `board`.
+//! Everything here is plain logic, unit-tested on the host; `board` does
+//! the I2C/SPI transfers and the encoder sampling, `firmware.rs` wires them:
+//!
+//! ```text
+//!  Timer0 1 kHz tick ─► encoder::Decoder (quadrature → detents, button)
+//!  main loop idle    ─► menu::Ui::step (detents, press) ─► Cmd (hold, abort, jog, run file ...)
+//!                    ─► render one 32-column slice of one page ─► SH1106 over I2C
+//!  SD card           ─► sd::SdJob (lines) ─► Machine::run_job_line
+//! ```
+//!
+//! - [`flash`], [`text`], [`font`]: strings and the 5x7 font, kept in flash;
+//! - [`render`]: 8 text lines of 25 characters, rendered page by page
+//!   (no 1 KiB frame buffer: one 32-byte slice at a time);
+//! - [`menu`]: the menu tree as data and its state machine;
+//! - [`encoder`]: quadrature decoding and button debouncing;
+//! - [`sd`]: SD jobs and M20–M29.
+
+pub mod encoder;
+pub mod flash;
+pub mod font;
+pub mod menu;
+pub mod render;
+pub mod sd;
+pub mod text;

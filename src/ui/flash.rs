@@ -1,0 +1,143 @@
+//! Constant data kept in flash, read with `lpm` (AVR) or directly (host).
+//!
+//! On the AVR every `static` or string literal lives in RAM (`.data`, copied
+//! from flash at boot). Tables placed in `.progmem.data` stay in flash only,
+//! and must be read with the `lpm` instruction, never through a normal
+//! pointer dereference. avr-gcc's linker script puts `.progmem*` at the start
+//! of `.text`, inside the first 64 KiB, where `lpm` (Z pointer) reaches.
+//!
+//! The bytes are read with `avr-progmem`'s `read_byte`, like
+//! [`crate::flash`]'s `F!` messages; this module adds what the UI needs on
+//! top: indexed tables and an enum of strings, so menu entries can be stored
+//! as one byte each. On the host the statics are ordinary memory.
+//!
+//! [`flash_texts!`] builds the UI's strings as one flash blob plus an offset
+//! table and an enum naming each string.
+
+/// Read one byte of a flash-resident static (`lpm` through avr-progmem on
+/// AVR, as `crate::flash` does; a plain load on the host).
+///
+/// `p` must point into a static declared with
+/// `#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]`.
+#[inline(always)]
+pub fn read_byte(p: *const u8) -> u8 {
+    // SAFETY: callers pass an address inside a program-memory static (see above).
+    unsafe { avr_progmem::raw::read_byte(p) }
+}
+
+/// Read a little-endian u16 from a flash-resident `[u16]` at index `i`.
+#[inline(always)]
+pub fn read_u16(table: *const u16, i: usize) -> u16 {
+    // SAFETY: callers index within the table.
+    let p = unsafe { (table as *const u8).add(2 * i) };
+    // SAFETY: as above, p and p+1 are inside the table.
+    u16::from_le_bytes([read_byte(p), read_byte(unsafe { p.add(1) })])
+}
+
+/// Declare the UI's flash strings: `flash_texts! { Name = "text", ... }`
+/// gives `enum Text { Name, ... }` with [`Text::len`], [`Text::byte`] and
+/// [`Text::for_each`], backed by one flash blob and one offset table
+/// (RAM cost: nothing).
+#[macro_export]
+macro_rules! flash_texts {
+    ($($name:ident = $s:literal,)*) => {
+        /// A string kept in flash (see `ui::flash`).
+        #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+        #[repr(u8)]
+        pub enum Text { $($name,)* }
+
+        const TEXT_PARTS: &[&[u8]] = &[$($s.as_bytes(),)*];
+        const TEXT_COUNT: usize = TEXT_PARTS.len();
+        const TEXT_TOTAL: usize = {
+            let mut t = 0;
+            let mut i = 0;
+            while i < TEXT_COUNT {
+                t += TEXT_PARTS[i].len();
+                i += 1;
+            }
+            t
+        };
+        #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+        static TEXT_BLOB: [u8; TEXT_TOTAL] = {
+            let mut b = [0u8; TEXT_TOTAL];
+            let mut at = 0;
+            let mut i = 0;
+            while i < TEXT_COUNT {
+                let p = TEXT_PARTS[i];
+                let mut j = 0;
+                while j < p.len() {
+                    b[at] = p[j];
+                    at += 1;
+                    j += 1;
+                }
+                i += 1;
+            }
+            b
+        };
+        #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+        static TEXT_OFFSETS: [u16; TEXT_COUNT + 1] = {
+            let mut o = [0u16; TEXT_COUNT + 1];
+            let mut i = 0;
+            while i < TEXT_COUNT {
+                o[i + 1] = o[i] + TEXT_PARTS[i].len() as u16;
+                i += 1;
+            }
+            o
+        };
+
+        impl Text {
+            fn range(self) -> (usize, usize) {
+                let i = self as usize;
+                let a = $crate::ui::flash::read_u16(TEXT_OFFSETS.as_ptr(), i) as usize;
+                let b = $crate::ui::flash::read_u16(TEXT_OFFSETS.as_ptr(), i + 1) as usize;
+                (a, b)
+            }
+
+            /// Length in bytes.
+            pub fn len(self) -> usize {
+                let (a, b) = self.range();
+                b - a
+            }
+
+            /// True for the empty string.
+            pub fn is_empty(self) -> bool {
+                self.len() == 0
+            }
+
+            /// Byte `i` (must be < len).
+            pub fn byte(self, i: usize) -> u8 {
+                let (a, _) = self.range();
+                // SAFETY: a + i is inside TEXT_BLOB for i < len.
+                $crate::ui::flash::read_byte(unsafe { TEXT_BLOB.as_ptr().add(a + i) })
+            }
+
+            /// Call `f` with every byte.
+            pub fn for_each(self, mut f: impl FnMut(u8)) {
+                let (a, b) = self.range();
+                for k in a..b {
+                    // SAFETY: k is inside TEXT_BLOB.
+                    f($crate::ui::flash::read_byte(unsafe { TEXT_BLOB.as_ptr().add(k) }));
+                }
+            }
+        }
+
+        impl ufmt::uDisplay for Text {
+            /// Written in chunks through a small stack buffer (ASCII only).
+            fn fmt<W: ufmt::uWrite + ?Sized>(&self, f: &mut ufmt::Formatter<'_, W>) -> Result<(), W::Error> {
+                let mut buf = [0u8; 16];
+                let mut n = 0;
+                let len = self.len();
+                for i in 0..len {
+                    buf[n] = self.byte(i);
+                    n += 1;
+                    if n == buf.len() || i + 1 == len {
+                        // SAFETY: the texts are ASCII (checked by a unit test).
+                        f.write_str(unsafe { core::str::from_utf8_unchecked(&buf[..n]) })?;
+                        n = 0;
+                    }
+                }
+                Ok(())
+            }
+        }
+    };
+}

@@ -1,0 +1,890 @@
+//! SD card jobs and the SD commands M20–M29 (SPEC §5, §9), as plain logic
+//! over a [`Card`] (the firmware's is `embedded-sdmmc` over SPI; tests use a
+//! fake).
+//!
+//! ```text
+//!  Card ─► SdJob::next_line (64-byte read-ahead, line splitting) ─► Machine::run_job_line
+//!                                                                   (the same parser/planner
+//!                                                                    path as serial lines)
+//! ```
+//!
+//! A job reads one line per main-loop turn while the planner has room, so a
+//! job from SD runs through exactly the same pipeline as a streamed one.
+//! What it asks of the machine (hold, resume, abort) goes out as
+//! [`Requests`] bits, which the firmware hands to the machine as realtime
+//! events, like `!`, `~` from the serial line.
+//!
+//! Faults and what they do:
+//! - the card is pulled while a job runs: feed hold, message, the job waits
+//!   for an abort (it cannot go on without its file);
+//! - a read error (or binary garbage, or a line over 96 characters): the job
+//!   stops at once (decelerated abort), spindle off, message;
+//! - a G-code error on line n: nothing after line n is read; the moves
+//!   before it finish, then the spindle is turned off and line n is reported.
+
+use crate::machine::{CmdResult, Machine};
+use crate::protocol::MAX_LINE_LEN;
+use crate::ui::text::Text;
+use ufmt::{uWrite, uwriteln};
+
+/// An 8.3 file name, upper case, as `NAME.EXT` (at most 12 bytes).
+#[derive(Clone, Copy, PartialEq, Eq, Default, Debug)]
+pub struct Name {
+    bytes: [u8; 12],
+    len: u8,
+}
+
+impl Name {
+    /// The empty name.
+    pub const EMPTY: Name = Name { bytes: [0; 12], len: 0 };
+
+    /// Parse a user-given 8.3 name (case-insensitive; leading `/` allowed).
+    pub fn parse(s: &[u8]) -> Option<Name> {
+        let s = s.strip_prefix(b"/").unwrap_or(s);
+        let (base, ext) = match s.iter().position(|&b| b == b'.') {
+            Some(i) => (&s[..i], &s[i + 1..]),
+            None => (s, &s[s.len()..]),
+        };
+        let ok = |p: &[u8], max: usize| {
+            p.len() <= max && p.iter().all(|&b| b.is_ascii_alphanumeric() || b"_-~!#$%&'()@^{}".contains(&b))
+        };
+        if base.is_empty() || !ok(base, 8) || !ok(ext, 3) {
+            return None;
+        }
+        let mut n = Name::default();
+        for &b in base {
+            n.push(b.to_ascii_uppercase());
+        }
+        if !ext.is_empty() {
+            n.push(b'.');
+            for &b in ext {
+                n.push(b.to_ascii_uppercase());
+            }
+        }
+        Some(n)
+    }
+
+    /// From a directory entry's base name and extension (space padded or not).
+    pub fn from_parts(base: &[u8], ext: &[u8]) -> Name {
+        let mut n = Name::default();
+        for &b in base.iter().take(8).filter(|&&b| b != b' ') {
+            n.push(b);
+        }
+        let ext = ext.iter().take(3).filter(|&&b| b != b' ');
+        let mut first = true;
+        for &b in ext {
+            if first {
+                n.push(b'.');
+                first = false;
+            }
+            n.push(b);
+        }
+        n
+    }
+
+    fn push(&mut self, b: u8) {
+        // Only printable ASCII is kept, so `as_str` needs no UTF-8 check.
+        let b = if (0x21..0x7F).contains(&b) { b } else { b'?' };
+        if (self.len as usize) < self.bytes.len() {
+            self.bytes[self.len as usize] = b;
+            self.len += 1;
+        }
+    }
+
+    /// The name as bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.bytes[..self.len as usize]
+    }
+
+    /// The name as text (always ASCII).
+    pub fn as_str(&self) -> &str {
+        // SAFETY: `push` stores printable ASCII only. (`from_utf8` would put
+        // core's 256-byte UTF-8 width table in RAM on the AVR.)
+        unsafe { core::str::from_utf8_unchecked(self.as_bytes()) }
+    }
+
+    /// True for the empty name.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+impl ufmt::uDisplay for Name {
+    fn fmt<W: uWrite + ?Sized>(&self, f: &mut ufmt::Formatter<'_, W>) -> Result<(), W::Error> {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What can go wrong with the card. Small and `Copy`.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum SdError {
+    /// No card in the socket, or it does not answer.
+    NoCard,
+    /// No FAT16/FAT32 volume on the card.
+    NoFilesystem,
+    /// No such file.
+    NotFound,
+    /// Reading failed (card error or a broken FAT chain).
+    ReadFailed,
+    /// Writing failed (card error, full, or read-only).
+    WriteFailed,
+    /// Not an 8.3 file name.
+    BadName,
+}
+
+impl SdError {
+    /// Text for `Error:` lines and the display.
+    pub fn text(self) -> Text {
+        match self {
+            SdError::NoCard => Text::ErrNoCard,
+            SdError::NoFilesystem => Text::ErrNoFs,
+            SdError::NotFound => Text::ErrNotFound,
+            SdError::ReadFailed => Text::ErrRead,
+            SdError::WriteFailed => Text::ErrWrite,
+            SdError::BadName => Text::ErrBadName,
+        }
+    }
+}
+
+/// The card as the job sees it. One file is open at a time.
+pub trait Card {
+    /// The detect switch says a card is in.
+    fn detected(&self) -> bool;
+    /// Initialise the card and open its first FAT volume (no-op when done).
+    fn mount(&mut self) -> Result<(), SdError>;
+    /// Forget the card (it was pulled, or M22): handles are dropped.
+    fn unmount(&mut self);
+    /// Call `f(name, size)` for every file of the root directory, in directory order.
+    fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError>;
+    /// Open a file for reading (returns its size) or, with `write`, create or
+    /// truncate it for writing (returns 0). Closes any other open file.
+    fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError>;
+    /// Read from the open file; 0 at the end.
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError>;
+    /// Move the read position of the open file.
+    fn seek(&mut self, pos: u32) -> Result<(), SdError>;
+    /// Append to the open file.
+    fn write(&mut self, data: &[u8]) -> Result<(), SdError>;
+    /// Close the open file (flushing writes).
+    fn close(&mut self) -> Result<(), SdError>;
+}
+
+/// Requests to the machine, as realtime bits (see the module docs).
+pub mod req {
+    /// Feed hold.
+    pub const HOLD: u8 = 1 << 0;
+    /// Resume from hold.
+    pub const RESUME: u8 = 1 << 1;
+    /// Decelerate, then drop the queue (abort).
+    pub const ABORT: u8 = 1 << 2;
+}
+
+/// How a job ended, for the display and M27.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Outcome {
+    /// Ran to its end.
+    Done,
+    /// Aborted by the operator.
+    Aborted,
+    /// A G-code error on this line; nothing after it ran.
+    BadLine(u32),
+    /// The file could not be read (at this byte); the job stopped.
+    ReadError(u32),
+    /// The card was pulled mid-job.
+    CardRemoved,
+}
+
+/// Where the job is.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Phase {
+    /// No file selected.
+    Idle,
+    /// A file is selected (M23 or the menu) and not started.
+    Selected,
+    /// Lines are being read and run.
+    Running,
+    /// Paused (M25 or the menu): held, nothing read.
+    Paused,
+    /// No more lines will be read; waiting for the queued moves to finish.
+    Draining(Outcome),
+    /// Waiting for the machine to finish an abort (decelerate and flush).
+    Aborting(Outcome),
+    /// The card was pulled mid-job: held; only an abort gets out.
+    CardLost,
+    /// Finished (the outcome stays for the display).
+    Ended(Outcome),
+    /// M28: serial lines are written to the open file until M29.
+    Writing,
+}
+
+/// What the main loop should do after [`SdJob::poll`].
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Turn {
+    /// Nothing this turn.
+    Idle,
+    /// Run the line now in the caller's buffer (this many bytes).
+    Run(usize),
+    /// The job is over: turn the spindle off.
+    SpindleOff,
+}
+
+/// Bytes of read-ahead.
+const CHUNK: usize = 64;
+
+/// An SD job: the selected file, its read position and the line splitter.
+/// RAM: about 100 bytes.
+pub struct SdJob {
+    pub phase: Phase,
+    /// Selected file.
+    pub name: Name,
+    /// Its size, bytes.
+    pub size: u32,
+    /// Bytes consumed (start of the next unread line), for M27 and the %.
+    pub pos: u32,
+    /// Line number of the last line handed out (1-based).
+    pub line: u32,
+    chunk: [u8; CHUNK],
+    head: u8,
+    fill: u8,
+    eof: bool,
+    /// [`req`] bits for the machine, taken by the firmware's poll.
+    requests: u8,
+    /// `Machine::aborts` when the job last looked.
+    seen_aborts: u8,
+}
+
+impl Default for SdJob {
+    fn default() -> Self {
+        SdJob::new()
+    }
+}
+
+impl SdJob {
+    pub const fn new() -> SdJob {
+        SdJob {
+            phase: Phase::Idle,
+            name: Name { bytes: [0; 12], len: 0 },
+            size: 0,
+            pos: 0,
+            line: 0,
+            chunk: [0; CHUNK],
+            head: 0,
+            fill: 0,
+            eof: false,
+            requests: 0,
+            seen_aborts: 0,
+        }
+    }
+
+    /// A job is under way (serial motion is refused meanwhile).
+    pub fn active(&self) -> bool {
+        matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_) | Phase::CardLost)
+    }
+
+    /// Progress in percent of the file's bytes.
+    pub fn percent(&self) -> u8 {
+        if self.size == 0 {
+            return 0;
+        }
+        // u32 only (a u64 division costs 2.8 KB of flash on the AVR):
+        // scale both down until pos * 100 cannot overflow.
+        let (mut p, mut s) = (self.pos.min(self.size), self.size);
+        while s > u32::MAX / 100 {
+            p >>= 8;
+            s >>= 8;
+        }
+        (p * 100 / s.max(1)) as u8
+    }
+
+    /// Take the pending [`req`] bits.
+    pub fn take_requests(&mut self) -> u8 {
+        core::mem::take(&mut self.requests)
+    }
+
+    /// Ask the machine for something (hold, resume, abort).
+    pub fn request(&mut self, bits: u8) {
+        self.requests |= bits;
+    }
+
+    /// Select `name` for a job (M23, or the menu).
+    #[inline(never)]
+    pub fn select(&mut self, card: &mut impl Card, name: &Name) -> Result<(), SdError> {
+        if self.active() || self.phase == Phase::Writing {
+            card.close().ok();
+        }
+        self.phase = Phase::Idle;
+        card.mount()?;
+        let size = card.open(name, false)?;
+        self.name = *name;
+        self.size = size;
+        self.rewind();
+        self.phase = Phase::Selected;
+        Ok(())
+    }
+
+    fn rewind(&mut self) {
+        self.pos = 0;
+        self.line = 0;
+        self.head = 0;
+        self.fill = 0;
+        self.eof = false;
+    }
+
+    /// Start the selected file, or resume a paused job (M24, the menu).
+    pub fn start(&mut self, m: &mut Machine) -> Result<(), Text> {
+        match self.phase {
+            Phase::Selected => {
+                self.seen_aborts = m.aborts;
+                self.phase = Phase::Running;
+                m.sd_job = true;
+                Ok(())
+            }
+            Phase::Paused => {
+                self.resume();
+                Ok(())
+            }
+            Phase::Running => Ok(()),
+            Phase::CardLost => Err(Text::ErrCardGone),
+            _ => Err(Text::ErrNoFileSelected),
+        }
+    }
+
+    /// Resume a paused job (M24, the menu).
+    pub fn resume(&mut self) {
+        if self.phase == Phase::Paused {
+            self.request(req::RESUME);
+            self.phase = Phase::Running;
+        }
+    }
+
+    /// Pause a running job (M25, the menu): feed hold, nothing more is read.
+    pub fn pause(&mut self) {
+        if self.phase == Phase::Running {
+            self.request(req::HOLD);
+            self.phase = Phase::Paused;
+        }
+    }
+
+    /// Abort the job: decelerate, drop the queue, spindle off.
+    pub fn abort(&mut self) {
+        if matches!(self.phase, Phase::Running | Phase::Paused | Phase::CardLost | Phase::Draining(_)) {
+            self.request(req::ABORT);
+            self.phase = Phase::Aborting(Outcome::Aborted);
+        }
+    }
+
+    /// Set the read position (M26 S), only before start or while paused.
+    pub fn seek(&mut self, card: &mut impl Card, pos: u32) -> Result<(), Text> {
+        if !matches!(self.phase, Phase::Selected | Phase::Paused) {
+            return Err(Text::ErrNoFileSelected);
+        }
+        if pos > self.size {
+            return Err(Text::ErrSeek);
+        }
+        card.seek(pos).map_err(SdError::text)?;
+        self.head = 0;
+        self.fill = 0;
+        self.eof = false;
+        self.pos = pos;
+        Ok(())
+    }
+
+    /// One main-loop turn. `motion_done`: nothing planned or stepping.
+    /// May fill `line` with the next line to run (see [`Turn`]).
+    #[inline(never)]
+    pub fn poll(
+        &mut self,
+        card: &mut impl Card,
+        m: &mut Machine,
+        motion_done: bool,
+        line: &mut [u8; MAX_LINE_LEN],
+        out: &mut impl uWrite,
+    ) -> Turn {
+        // An abort finished by the machine (from here, the menu or M112-less
+        // serial) ends the job.
+        if m.aborts != self.seen_aborts {
+            self.seen_aborts = m.aborts;
+            if self.active() {
+                let outcome = match self.phase {
+                    Phase::Aborting(o) => o,
+                    Phase::CardLost => Outcome::CardRemoved,
+                    _ => Outcome::Aborted,
+                };
+                return self.end(card, m, outcome, out);
+            }
+        }
+        if self.active() && m.alarm.is_some() {
+            // An alarm (M112, limit) dropped everything already.
+            return self.end(card, m, Outcome::Aborted, out);
+        }
+        if matches!(self.phase, Phase::Running | Phase::Paused) && !card.detected() {
+            self.request(req::HOLD);
+            self.phase = Phase::CardLost;
+            card.unmount();
+            uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardRemoved).ok();
+            return Turn::Idle;
+        }
+        match self.phase {
+            Phase::Running => {
+                if m.planner.free() == 0 {
+                    return Turn::Idle;
+                }
+                match self.next_line(card, line) {
+                    Ok(Some(n)) => Turn::Run(n),
+                    Ok(None) => {
+                        self.phase = Phase::Draining(Outcome::Done);
+                        Turn::Idle
+                    }
+                    Err(e) => {
+                        uwriteln!(out, "{}{}{}{}{}{}", Text::Error, e, Text::AtSdByte, self.pos, Text::JobStopped, self.line + 1).ok();
+                        self.request(req::ABORT);
+                        self.phase = Phase::Aborting(Outcome::ReadError(self.pos));
+                        Turn::Idle
+                    }
+                }
+            }
+            Phase::Draining(o) if motion_done => self.end(card, m, o, out),
+            _ => Turn::Idle,
+        }
+    }
+
+    /// After a line ran: on an error, stop reading (the moves before it finish).
+    #[inline(never)]
+    pub fn line_done(&mut self, r: CmdResult, m: &mut Machine, out: &mut impl uWrite) {
+        if let Err(e) = r {
+            if self.phase == Phase::Running || self.phase == Phase::Paused {
+                if e == crate::gcode::interp::Error::Aborted {
+                    return; // the abort path ends the job
+                }
+                m.report_error(out, e);
+                uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgStoppedAtLine, self.line).ok();
+                self.phase = Phase::Draining(Outcome::BadLine(self.line));
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn end(&mut self, card: &mut impl Card, m: &mut Machine, o: Outcome, out: &mut impl uWrite) -> Turn {
+        card.close().ok();
+        m.sd_job = false;
+        self.phase = Phase::Ended(o);
+        match o {
+            Outcome::Done => uwriteln!(out, "{}", Text::MsgDonePrinting).ok(),
+            Outcome::Aborted => uwriteln!(out, "{}{}", Text::Echo, Text::MsgAborted).ok(),
+            Outcome::BadLine(n) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgEndedAtLine, n).ok(),
+            Outcome::ReadError(p) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgReadErrorAt, p).ok(),
+            Outcome::CardRemoved => uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardRemoved).ok(),
+        };
+        Turn::SpindleOff
+    }
+
+    /// Next line of the file into `line`: `Ok(None)` at the end. Blank lines
+    /// are skipped. Errors: the card failed, a byte that is not text, or a
+    /// line over `MAX_LINE_LEN`.
+    #[inline(never)]
+    fn next_line(&mut self, card: &mut impl Card, line: &mut [u8; MAX_LINE_LEN]) -> Result<Option<usize>, Text> {
+        loop {
+            let mut n = 0usize;
+            let mut consumed = 0u32;
+            let mut ended = false;
+            loop {
+                if self.head == self.fill {
+                    if self.eof {
+                        break;
+                    }
+                    let got = card.read(&mut self.chunk).map_err(SdError::text)?;
+                    self.head = 0;
+                    self.fill = got as u8;
+                    if got == 0 {
+                        self.eof = true;
+                        break;
+                    }
+                }
+                let b = self.chunk[self.head as usize];
+                self.head += 1;
+                consumed += 1;
+                match b {
+                    b'\n' => {
+                        ended = true;
+                        break;
+                    }
+                    b'\r' => {}
+                    b'\t' | 0x20..=0x7E => {
+                        if n == MAX_LINE_LEN {
+                            return Err(Text::ErrLineTooLong);
+                        }
+                        line[n] = b;
+                        n += 1;
+                    }
+                    _ => return Err(Text::ErrBinary),
+                }
+            }
+            if consumed == 0 {
+                return Ok(None);
+            }
+            self.pos += consumed;
+            self.line += 1;
+            let blank = line[..n].iter().all(|&b| b == b' ' || b == b'\t');
+            if !blank {
+                return Ok(Some(n));
+            }
+            if !ended && self.eof {
+                return Ok(None);
+            }
+        }
+    }
+
+    /// M27: progress report.
+    #[inline(never)]
+    pub fn report(&self, out: &mut impl uWrite) {
+        if self.active() {
+            uwriteln!(out, "{}{}/{}", Text::SdPrintingByte, self.pos, self.size).ok();
+        } else {
+            uwriteln!(out, "{}", Text::NotSdPrinting).ok();
+        }
+    }
+}
+
+#[inline(never)]
+/// Run one SD command (M20–M29, M524) from the serial line. `arg` is the
+/// text after the code (file name, or `S<pos>` for M26).
+pub fn command(
+    job: &mut SdJob,
+    card: &mut impl Card,
+    m: &mut Machine,
+    out: &mut impl uWrite,
+    code: u16,
+    arg: &[u8],
+) -> Result<(), Text> {
+    let busy = job.active();
+    match code {
+        20 => {
+            card.mount().map_err(SdError::text)?;
+            uwriteln!(out, "{}", Text::BeginFileList).ok();
+            let r = card.list(&mut |n, size| {
+                uwriteln!(out, "{} {}", n, size).ok();
+            });
+            uwriteln!(out, "{}", Text::EndFileList).ok();
+            r.map_err(SdError::text)?;
+        }
+        21 => {
+            if !busy {
+                card.unmount();
+            }
+            card.mount().map_err(SdError::text)?;
+            uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardOk).ok();
+        }
+        22 => {
+            if busy {
+                return Err(Text::ErrJobRunning);
+            }
+            job.phase = Phase::Idle;
+            card.unmount();
+            uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardReleased).ok();
+        }
+        23 => {
+            if busy {
+                return Err(Text::ErrJobRunning);
+            }
+            let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
+            if let Err(e) = job.select(card, &name) {
+                uwriteln!(out, "{}{}.", Text::OpenFailed, name).ok();
+                return Err(e.text());
+            }
+            uwriteln!(out, "{}{}{}{}", Text::FileOpened, name, Text::SizeWord, job.size).ok();
+            uwriteln!(out, "{}", Text::FileSelected).ok();
+        }
+        24 => job.start(m)?,
+        25 => job.pause(),
+        26 => {
+            let pos = parse_s(arg).ok_or(Text::ErrSeek)?;
+            job.seek(card, pos)?;
+        }
+        27 => job.report(out),
+        28 => {
+            if busy {
+                return Err(Text::ErrJobRunning);
+            }
+            let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
+            job.phase = Phase::Idle;
+            card.mount().map_err(SdError::text)?;
+            card.open(&name, true).map_err(SdError::text)?;
+            job.name = name;
+            job.phase = Phase::Writing;
+            uwriteln!(out, "{}{}", Text::WritingToFile, name).ok();
+        }
+        29 => {
+            if job.phase == Phase::Writing {
+                job.phase = Phase::Idle;
+                card.close().map_err(SdError::text)?;
+                uwriteln!(out, "{}", Text::DoneSaving).ok();
+            }
+        }
+        524 => job.abort(),
+        _ => return Err(Text::ErrNoFileSelected),
+    }
+    Ok(())
+}
+
+/// While M28 writes a file: store `line` (+ newline). False when not writing.
+pub fn capture(job: &mut SdJob, card: &mut impl Card, line: &[u8], out: &mut impl uWrite) -> bool {
+    if job.phase != Phase::Writing {
+        return false;
+    }
+    if card.write(line).and_then(|_| card.write(b"\n")).is_err() {
+        uwriteln!(out, "{}{}", Text::Error, Text::ErrWrite).ok();
+        card.close().ok();
+        job.phase = Phase::Idle;
+    }
+    true
+}
+
+/// `S<digits>` → the number.
+fn parse_s(arg: &[u8]) -> Option<u32> {
+    let t = arg.strip_prefix(b"S").or_else(|| arg.strip_prefix(b"s"))?;
+    let t = t.strip_prefix(b" ").unwrap_or(t);
+    if t.is_empty() || t.len() > 9 {
+        return None;
+    }
+    let mut v = 0u32;
+    for &b in t {
+        if !b.is_ascii_digit() {
+            return None;
+        }
+        v = v * 10 + (b - b'0') as u32;
+    }
+    Some(v)
+}
+
+/// If `text` is an SD command (M20–M29 or M524), its code and argument
+/// (trimmed, without a `;` comment).
+pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
+    let t = trim(text);
+    let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;
+    let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
+    if digits == 0 || digits > 4 {
+        return None;
+    }
+    let mut code = 0u16;
+    for &b in &rest[..digits] {
+        code = code * 10 + (b - b'0') as u16;
+    }
+    if !(20..=29).contains(&code) && code != 524 {
+        return None;
+    }
+    let mut arg = &rest[digits..];
+    if let Some(i) = arg.iter().position(|&b| b == b';') {
+        arg = &arg[..i];
+    }
+    Some((code, trim(arg)))
+}
+
+fn trim(mut s: &[u8]) -> &[u8] {
+    while let [b' ' | b'\t', r @ ..] = s {
+        s = r;
+    }
+    while let [r @ .., b' ' | b'\t'] = s {
+        s = r;
+    }
+    s
+}
+
+/// Write `Error:<text>` (used by the machine for SD command errors).
+pub fn write_error(out: &mut impl uWrite, t: Text) {
+    uwriteln!(out, "{}{}", Text::Error, t).ok();
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A card in RAM: files as (name, bytes).
+    pub struct FakeCard {
+        pub present: bool,
+        pub mounted: bool,
+        pub files: Vec<(Name, Vec<u8>)>,
+        open: Option<(usize, usize, bool)>,
+        /// Reads fail from this byte offset on.
+        pub fail_at: Option<usize>,
+    }
+
+    impl FakeCard {
+        pub fn new(files: &[(&str, &str)]) -> FakeCard {
+            FakeCard {
+                present: true,
+                mounted: false,
+                files: files.iter().map(|(n, d)| (Name::parse(n.as_bytes()).unwrap(), d.as_bytes().to_vec())).collect(),
+                open: None,
+                fail_at: None,
+            }
+        }
+    }
+
+    impl Card for FakeCard {
+        fn detected(&self) -> bool {
+            self.present
+        }
+        fn mount(&mut self) -> Result<(), SdError> {
+            if !self.present {
+                return Err(SdError::NoCard);
+            }
+            self.mounted = true;
+            Ok(())
+        }
+        fn unmount(&mut self) {
+            self.mounted = false;
+            self.open = None;
+        }
+        fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError> {
+            for (n, d) in &self.files {
+                f(n, d.len() as u32);
+            }
+            Ok(())
+        }
+        fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError> {
+            let i = match self.files.iter().position(|(n, _)| n == name) {
+                Some(i) => i,
+                None if write => {
+                    self.files.push((*name, Vec::new()));
+                    self.files.len() - 1
+                }
+                None => return Err(SdError::NotFound),
+            };
+            if write {
+                self.files[i].1.clear();
+            }
+            self.open = Some((i, 0, write));
+            Ok(self.files[i].1.len() as u32)
+        }
+        fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError> {
+            if !self.present || !self.mounted {
+                return Err(SdError::NoCard);
+            }
+            let (i, pos, _) = self.open.as_mut().ok_or(SdError::NotFound)?;
+            if let Some(f) = self.fail_at {
+                if *pos >= f {
+                    return Err(SdError::ReadFailed);
+                }
+            }
+            let d = &self.files[*i].1;
+            let n = buf.len().min(d.len() - *pos).min(17); // odd chunks
+            buf[..n].copy_from_slice(&d[*pos..*pos + n]);
+            *pos += n;
+            Ok(n)
+        }
+        fn seek(&mut self, p: u32) -> Result<(), SdError> {
+            let (_, pos, _) = self.open.as_mut().ok_or(SdError::NotFound)?;
+            *pos = p as usize;
+            Ok(())
+        }
+        fn write(&mut self, data: &[u8]) -> Result<(), SdError> {
+            let (i, _, w) = self.open.ok_or(SdError::NotFound)?;
+            if !w {
+                return Err(SdError::WriteFailed);
+            }
+            self.files[i].1.extend_from_slice(data);
+            Ok(())
+        }
+        fn close(&mut self) -> Result<(), SdError> {
+            self.open = None;
+            Ok(())
+        }
+    }
+
+    /// Serial output collected as a String.
+    #[derive(Default)]
+    pub struct Out(pub String);
+    impl uWrite for Out {
+        type Error = core::convert::Infallible;
+        fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
+            self.0.push_str(s);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn names_are_8_3_upper_case() {
+        assert_eq!(Name::parse(b"job.gco").unwrap().as_str(), "JOB.GCO");
+        assert_eq!(Name::parse(b"/PART1").unwrap().as_str(), "PART1");
+        assert!(Name::parse(b"TOOLONGNAME.G").is_none());
+        assert!(Name::parse(b"A.GCODE").is_none());
+        assert!(Name::parse(b"").is_none());
+        assert_eq!(Name::from_parts(b"JOB     ", b"NC ").as_str(), "JOB.NC");
+        assert_eq!(Name::from_parts(b"README", b"").as_str(), "README");
+    }
+
+    #[test]
+    fn sd_codes_are_recognised_with_their_argument() {
+        assert_eq!(sd_code(b"M23 job.gco"), Some((23, &b"job.gco"[..])));
+        assert_eq!(sd_code(b" m20 ; list"), Some((20, &b""[..])));
+        assert_eq!(sd_code(b"M26 S100"), Some((26, &b"S100"[..])));
+        assert_eq!(sd_code(b"M524"), Some((524, &b""[..])));
+        assert_eq!(sd_code(b"M2"), None);
+        assert_eq!(sd_code(b"M30"), None);
+        assert_eq!(sd_code(b"G1 X1"), None);
+        assert_eq!(parse_s(b"S1234"), Some(1234));
+        assert_eq!(parse_s(b"S"), None);
+    }
+
+    fn lines_of(text: &str) -> Result<Vec<String>, Text> {
+        let mut card = FakeCard::new(&[("A.G", text)]);
+        let mut job = SdJob::new();
+        job.select(&mut card, &Name::parse(b"A.G").unwrap()).unwrap();
+        let mut v = Vec::new();
+        let mut buf = [0u8; MAX_LINE_LEN];
+        while let Some(n) = job.next_line(&mut card, &mut buf)? {
+            v.push(String::from_utf8(buf[..n].to_vec()).unwrap());
+        }
+        assert_eq!(job.pos, text.len() as u32);
+        Ok(v)
+    }
+
+    #[test]
+    fn lines_split_across_chunks_and_crlf_and_blanks_are_handled() {
+        let long: String = (0..30).map(|i| format!("G1 X{i}.5 Y{i}\r\n\r\n")).collect();
+        let v = lines_of(&long).unwrap();
+        assert_eq!(v.len(), 30);
+        assert_eq!(v[29], "G1 X29.5 Y29");
+        assert_eq!(lines_of("G0 X1\nG0 X2").unwrap(), ["G0 X1", "G0 X2"]);
+        assert_eq!(lines_of("").unwrap(), Vec::<String>::new());
+    }
+
+    #[test]
+    fn a_binary_byte_or_an_overlong_line_is_an_error() {
+        assert_eq!(lines_of("G0 X1\nG0\u{1} X2\n"), Err(Text::ErrBinary));
+        let long = format!("G1 X{}\n", "1".repeat(120));
+        assert_eq!(lines_of(&long), Err(Text::ErrLineTooLong));
+    }
+
+    #[test]
+    fn m20_lists_and_m23_m27_report_like_marlin() {
+        let mut card = FakeCard::new(&[("A.GCO", "G0 X1\n"), ("B.NC", "G0 X2\nG0 X3\n")]);
+        let mut job = SdJob::new();
+        let mut m = Machine::new();
+        let mut out = Out::default();
+        command(&mut job, &mut card, &mut m, &mut out, 20, b"").unwrap();
+        assert_eq!(out.0, "Begin file list\nA.GCO 6\nB.NC 12\nEnd file list\n");
+        out.0.clear();
+        command(&mut job, &mut card, &mut m, &mut out, 23, b"b.nc").unwrap();
+        assert_eq!(out.0, "File opened: B.NC Size: 12\nFile selected\n");
+        out.0.clear();
+        command(&mut job, &mut card, &mut m, &mut out, 27, b"").unwrap();
+        assert_eq!(out.0, "Not SD printing\n");
+        assert_eq!(command(&mut job, &mut card, &mut m, &mut out, 23, b"nope.g"), Err(Text::ErrNotFound));
+    }
+
+    #[test]
+    fn m28_writes_lines_until_m29() {
+        let mut card = FakeCard::new(&[]);
+        let mut job = SdJob::new();
+        let mut m = Machine::new();
+        let mut out = Out::default();
+        command(&mut job, &mut card, &mut m, &mut out, 28, b"new.gco").unwrap();
+        assert!(capture(&mut job, &mut card, b"G1 X1 F600", &mut out));
+        assert!(capture(&mut job, &mut card, b"M2", &mut out));
+        command(&mut job, &mut card, &mut m, &mut out, 29, b"").unwrap();
+        assert!(!capture(&mut job, &mut card, b"G0 X0", &mut out));
+        assert_eq!(card.files[0].1, b"G1 X1 F600\nM2\n");
+        assert!(out.0.contains("Writing to file: NEW.GCO") && out.0.ends_with("Done saving file.\n"));
+    }
+}

@@ -1,0 +1,130 @@
+//! Every string of the UI and of the SD commands, in flash (see
+//! [`super::flash`]): display labels, menu entries and serial messages.
+
+crate::flash_texts! {
+    // Serial prefixes and messages (Marlin's wording where Marlin has one).
+    Echo = "echo:",
+    Error = "Error:",
+    BeginFileList = "Begin file list",
+    EndFileList = "End file list",
+    FileOpened = "File opened: ",
+    SizeWord = " Size: ",
+    FileSelected = "File selected",
+    OpenFailed = "open failed, File: ",
+    WritingToFile = "Writing to file: ",
+    DoneSaving = "Done saving file.",
+    SdPrintingByte = "SD printing byte ",
+    NotSdPrinting = "Not SD printing",
+    AtSdByte = " at SD byte ",
+    JobStopped = "; job stopped at line ",
+    MsgCardOk = "SD card ok",
+    MsgCardReleased = "SD card released",
+    MsgCardRemoved = "SD card removed: job held; abort to end it",
+    MsgAborted = "SD job aborted",
+    MsgStoppedAtLine = "SD job stopped at line ",
+    MsgEndedAtLine = "SD job ended with an error at line ",
+    MsgReadErrorAt = "SD job ended: read error at byte ",
+    MsgDonePrinting = "Done printing file",
+    // Errors.
+    ErrNoCard = "no SD card",
+    ErrNoFs = "no FAT16/FAT32 volume on the SD card",
+    ErrNotFound = "file not found",
+    ErrRead = "SD read error",
+    ErrWrite = "SD write error",
+    ErrBadName = "not an 8.3 file name",
+    ErrCardGone = "SD card removed; abort the job",
+    ErrNoFileSelected = "no SD file selected",
+    ErrSeek = "M26 needs S<byte> within the file",
+    ErrJobRunning = "SD job running",
+    ErrLineTooLong = "line too long (max 96 characters)",
+    ErrBinary = "binary data in file",
+    // Machine states on the display.
+    StIdle = "Idle",
+    StRun = "Run",
+    StHold = "Hold",
+    StAlarm = "ALARM",
+    StHoming = "Homing",
+    StTool = "Tool change",
+    StProbe = "Probing",
+    // Status screen.
+    MmMin = "mm/min",
+    Rpm = "rpm",
+    Off = "off",
+    NoJob = "No job",
+    JobDone = "Done",
+    JobPaused = "Paused",
+    JobAborted = "Aborted",
+    JobCardOut = "Card removed!",
+    JobLine = "Stopped: line ",
+    JobReadErr = "Read error",
+    JobStopping = "Stopping",
+    HintMenu = "Press for menu",
+    HintResume = "Press to resume",
+    HintJog = "Turn to jog, press: done",
+    HintEdit = "Turn to set, press: ok",
+    // Menus.
+    MainMenu = "Menu",
+    Back = "< Back",
+    Status = "Status",
+    RunFromSd = "Run from SD",
+    Job = "Job",
+    Jog = "Jog",
+    Home = "Home",
+    Settings = "Settings",
+    Info = "Info",
+    Pause = "Pause",
+    Resume = "Resume",
+    Abort = "Abort",
+    FeedOverride = "Feed override",
+    Axis = "Axis",
+    Step = "Step",
+    JogNow = "Jog now",
+    HomeAll = "Home all",
+    HomeZ = "Home Z",
+    HomeY = "Home Y",
+    HomeX = "Home X",
+    RunQ = "Run ",
+    AbortQ = "Abort the job?",
+    Yes = "Yes",
+    No = "No",
+    NoCard = "No card",
+    NoFiles = "No files",
+    Files = "Files",
+    Version = "Version ",
+    FreeRam = "Free RAM ",
+    Bytes = " B",
+    SdCard = "SD ",
+    CardIn = "card in",
+    CardOut = "no card",
+    StepsMm = " steps/mm",
+    MaxFeed = " mm/min max",
+    Accel = " mm/s2",
+    Travel = " mm travel",
+    Mm = " mm",
+    Pct = "%",
+    NotIdle = "Machine busy",
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn s(t: Text) -> String {
+        let mut v = Vec::new();
+        t.for_each(|b| v.push(b));
+        String::from_utf8(v).unwrap()
+    }
+
+    #[test]
+    fn texts_come_back_whole_and_ascii() {
+        assert_eq!(s(Text::Echo), "echo:");
+        assert_eq!(s(Text::NotIdle), "Machine busy");
+        assert_eq!(Text::Yes.len(), 3);
+        assert_eq!(Text::Yes.byte(1), b'e');
+        for i in 0..TEXT_COUNT as u8 {
+            // SAFETY: Text is repr(u8) with TEXT_COUNT variants.
+            let t: Text = unsafe { core::mem::transmute(i) };
+            assert!(s(t).bytes().all(|b| (0x20..0x7F).contains(&b)), "{t:?}");
+        }
+    }
+}
