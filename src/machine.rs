@@ -509,7 +509,13 @@ impl Machine {
 
     /// Top up the segment ring from the planner.
     pub fn fill_segments(&mut self, io: &mut impl Io) {
-        while io.segment_space() > 0 {
+        // At most one ring's worth per call: after an emergency stop the ISR
+        // throws segments away as fast as they come, and an unbounded loop
+        // would prep the whole planner queue before the next poll (0.7 s
+        // before the alarm was even reported).
+        let mut room = io.segment_space();
+        while room > 0 {
+            room -= 1;
             match self.prep.next_segment(&mut self.planner, &self.settings) {
                 Some(cmd) => {
                     if !io.push_segment(cmd) {
