@@ -140,6 +140,7 @@ pub fn spindle_set(duty: u8) {
 }
 
 /// Spindle off; callers hold a critical section (or run in an ISR).
+#[inline(always)]
 pub(crate) fn spindle_off_raw() {
     // SAFETY: Timer2 is owned by the spindle; callers hold a critical section.
     let tc2 = unsafe { &*TC2::ptr() };

@@ -398,8 +398,17 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         }
     }
     let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
+    // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
+    // offsets (Repetier's E0 motor), so all four motors can move at once.
+    let e_word = if axis_words_are_settings(l) { None } else { l.word(Word::E) };
+    if let Some(v) = e_word {
+        if !matches!(motion, Motion::Rapid | Motion::Linear) {
+            return Err(Error::BadWord(F!("E only with G0/G1")));
+        }
+        target[3] = if g.incremental { m.interp.pos_mm[3] + v } else { v };
+    }
     let mut do_motion = None;
-    if any_axis || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
+    if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
         match motion {
             Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active)"))),
             Motion::Rapid => {}

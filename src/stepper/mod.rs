@@ -28,6 +28,7 @@
 
 pub mod bresenham;
 pub mod prep;
+pub mod queue;
 
 pub use bresenham::Bresenham;
 pub use prep::{Prep, CRUISE_SEGMENT_TIME_S, SEGMENT_TIME_S};
