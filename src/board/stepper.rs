@@ -17,8 +17,8 @@
 //!    on a new chunk: its pointer and the direction pins);
 //! 4. compute the next event (16-bit Bresenham over the chunk's partial axes);
 //! 5. toggle the same step pins **low**. Steps 2–4 keep the pulse high for at
-//!    least [`MIN_HIGH_CYCLES`] (DRV8825: 1.9 µs = 31 cycles), padded if
-//!    needed; the low time is the rest of the period. The direction pins
+//!    least 39 cycles (the shortest path, measured by `tools/bench`; DRV8825:
+//!    1.9 µs = 31 cycles); the low time is the rest of the period. The direction pins
 //!    change in step 3, ≥ 11 cycles after the rising edge and a whole period
 //!    before the next one (DRV8825: 650 ns setup and hold).
 //!
@@ -58,8 +58,6 @@ const _: () = assert!(core::mem::size_of::<Seg>() == 8 && core::mem::size_of::<C
 const IDLE_PERIOD: u16 = 16_000;
 /// TCCR1B at clk/1 (CTC).
 const TCCR_DIV1: u8 = tccr1b(Prescale::Div1);
-/// Shortest step-high time produced, cycles (DRV8825 1.9 µs = 30.4 cycles).
-pub const MIN_HIGH_CYCLES: u8 = 32;
 /// `armed` bit: the probe input is watched.
 const PROBE_BIT: u8 = 1 << 3;
 
@@ -466,6 +464,10 @@ unsafe fn load_segment(st: &mut Isr) {
             st.running = 0;
             let u = addr_of_mut!(MILL_STEP_UNDERRUNS);
             *u = (*u).wrapping_add(1);
+            // Nothing moves now: hard limits are for axes moving toward
+            // their switch (an axis may rest on its switch).
+            st.limit = 0;
+            st.armed = st.homing | st.probe;
         }
         set_idle_timer(st);
         return;
@@ -482,9 +484,12 @@ unsafe fn load_segment(st: &mut Isr) {
         write_volatile(TCCR1B, tccr);
     }
     if s.new_chunk != 0 {
-        let cur = (st.cur + 1) & CHUNK_MASK;
-        st.cur = cur;
-        let c = addr_of_mut!(CHUNKS[cur as usize]);
+        st.cur = (st.cur + 1) & CHUNK_MASK;
+        // The next slot (a pointer step, not an index multiply).
+        let mut c = st.chunk.add(1);
+        if c == addr_of_mut!(CHUNKS).cast::<Chunk>().add(CHUNK_RING_LEN) {
+            c = addr_of_mut!(CHUNKS).cast::<Chunk>();
+        }
         st.chunk = c;
         let c = &*c;
         let pf = pins::PF.port;
@@ -500,34 +505,89 @@ unsafe fn load_segment(st: &mut Isr) {
     write_volatile(addr_of_mut!(st.seg_tail), (tail + 1) & SEG_MASK);
 }
 
-/// One Bresenham event of the chunk: step-output bits.
+/// One Bresenham event of the chunk: step-output bits. The same arithmetic
+/// as `mill::stepper::queue::Chunk::tick` (host-tested), in hand-written
+/// assembly because LLVM's AVR code for it was ~30 cycles per partial axis
+/// (`mov`/`andi`/`cpi` per mask test, the pointer re-copied per field);
+/// here an axis costs 18–20 cycles, an axis that is not partial 3.
 #[inline(always)]
 unsafe fn tick(c: *mut Chunk) -> u8 {
-    let c = &mut *c;
-    let mut bits = c.every;
-    let partial = c.partial;
-    if partial != 0 {
-        let n = c.events;
-        macro_rules! axis {
-            ($i:expr, $out:expr) => {
-                if partial & (1 << $i) != 0 {
-                    let e = c.error[$i].wrapping_add(c.steps[$i]);
-                    if e >= 0 {
-                        c.error[$i] = e.wrapping_sub(n);
-                        bits |= $out;
-                    } else {
-                        c.error[$i] = e;
-                    }
-                }
-            };
-        }
-        axis!(0, pins::X_STEP.mask);
-        axis!(1, pins::Y_STEP.mask);
-        axis!(2, pins::Z_STEP.mask);
-        axis!(3, pins::E_STEP.mask);
-    }
+    let bits: u8;
+    // SAFETY: `c` points to the running chunk slot, which only the ISR uses
+    // while it runs; the offsets are checked against the layout below.
+    core::arch::asm!(
+        "ldd {bits}, Z+{every}",
+        "ldd {p}, Z+{partial}",
+        "tst {p}",
+        "breq 9f",
+        "ldd {nl}, Z+{events}",
+        "ldd {nh}, Z+{events}+1",
+        // Axis i: e += s; if e >= 0 { e -= n; step }.
+        "sbrs {p}, 0",
+        "rjmp 3f",
+        "ldd {el}, Z+0", "ldd {eh}, Z+1", "ldd {sl}, Z+8", "ldd {sh}, Z+9",
+        "add {el}, {sl}", "adc {eh}, {sh}",
+        "brmi 2f",
+        "sub {el}, {nl}", "sbc {eh}, {nh}",
+        "ori {bits}, {x}",
+        "2:", "std Z+0, {el}", "std Z+1, {eh}",
+        "3:",
+        "sbrs {p}, 1",
+        "rjmp 5f",
+        "ldd {el}, Z+2", "ldd {eh}, Z+3", "ldd {sl}, Z+10", "ldd {sh}, Z+11",
+        "add {el}, {sl}", "adc {eh}, {sh}",
+        "brmi 4f",
+        "sub {el}, {nl}", "sbc {eh}, {nh}",
+        "ori {bits}, {y}",
+        "4:", "std Z+2, {el}", "std Z+3, {eh}",
+        "5:",
+        "sbrs {p}, 2",
+        "rjmp 7f",
+        "ldd {el}, Z+4", "ldd {eh}, Z+5", "ldd {sl}, Z+12", "ldd {sh}, Z+13",
+        "add {el}, {sl}", "adc {eh}, {sh}",
+        "brmi 6f",
+        "sub {el}, {nl}", "sbc {eh}, {nh}",
+        "ori {bits}, {z}",
+        "6:", "std Z+4, {el}", "std Z+5, {eh}",
+        "7:",
+        "sbrs {p}, 3",
+        "rjmp 9f",
+        "ldd {el}, Z+6", "ldd {eh}, Z+7", "ldd {sl}, Z+14", "ldd {sh}, Z+15",
+        "add {el}, {sl}", "adc {eh}, {sh}",
+        "brmi 8f",
+        "sub {el}, {nl}", "sbc {eh}, {nh}",
+        "ori {bits}, {e}",
+        "8:", "std Z+6, {el}", "std Z+7, {eh}",
+        "9:",
+        in("Z") c,
+        bits = out(reg_upper) bits,
+        p = out(reg) _,
+        nl = out(reg) _,
+        nh = out(reg) _,
+        el = out(reg) _,
+        eh = out(reg) _,
+        sl = out(reg) _,
+        sh = out(reg) _,
+        every = const core::mem::offset_of!(Chunk, every),
+        partial = const core::mem::offset_of!(Chunk, partial),
+        events = const core::mem::offset_of!(Chunk, events),
+        x = const pins::X_STEP.mask,
+        y = const pins::Y_STEP.mask,
+        z = const pins::Z_STEP.mask,
+        e = const pins::E_STEP.mask,
+        options(nostack),
+    );
     bits
 }
+
+// The assembly above addresses the chunk by these offsets.
+const _: () = {
+    assert!(core::mem::offset_of!(Chunk, error) == 0);
+    assert!(core::mem::offset_of!(Chunk, steps) == 8);
+    assert!(core::mem::offset_of!(Chunk, events) == 16);
+    assert!(core::mem::offset_of!(Chunk, every) == 18);
+    assert!(core::mem::offset_of!(Chunk, partial) == 19);
+};
 
 #[inline(always)]
 unsafe fn toggle_steps(p: u8) {
@@ -566,6 +626,9 @@ fn TIMER1_COMPA() {
             st.ticks_left -= 1;
             next = tick(st.chunk);
         }
+        // The work above keeps the step high ≥ 31 cycles (DRV8825; measured
+        // minimum: 39 cycles, `tools/bench`); keep it before the falling edge.
+        compiler_fence(FenceOrdering::SeqCst);
         toggle_steps(p);
         st.pending = next;
     }

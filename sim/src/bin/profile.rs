@@ -75,7 +75,7 @@ fn main() {
         None => {
             let (cx, cy, r) = (22.5f64, 22.5f64, 20.0f64);
             let dth = 2.0 * (0.05 / r).asin();
-            let mut v = vec!["G1 X42.500 Y22.500 F3000".to_string(), "M400".to_string()];
+            let mut v = vec!["M999".to_string(), "G1 X42.500 Y22.500 F3000".to_string(), "M400".to_string()];
             for k in 1..=2000 {
                 let th = k as f64 * dth;
                 v.push(format!("G1 X{:.3} Y{:.3}", cx + r * th.cos(), cy + r * th.sin()));
