@@ -489,7 +489,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
 
     if let Some(mo) = do_motion {
         let rapid = mo == Motion::Rapid;
-        let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 / 100.0;
+        let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 * 0.01;
         match mo {
             Motion::ArcCw | Motion::ArcCcw => {
                 if let Some(mut plan) = arc_plan {
@@ -561,9 +561,11 @@ fn check_soft_limits(m: &Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
         return Ok(());
     }
     for a in 0..3 {
-        // Half a step of slack for rounding.
-        let eps = 0.5 / m.settings.steps_per_mm[a];
-        if !(t[a] >= -eps && t[a] <= m.settings.travel_mm[a] + eps) {
+        // Half a step of slack for rounding; compared in steps (a multiply
+        // instead of a ~500-cycle division on the AVR).
+        let spm = m.settings.steps_per_mm[a];
+        let st = t[a] * spm;
+        if !(st >= -0.5 && st <= m.settings.travel_mm[a] * spm + 0.5) {
             return Err(Error::SoftLimit);
         }
     }

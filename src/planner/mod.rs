@@ -341,7 +341,7 @@ impl Planner {
             }
             let bits = feed_mm_per_min.to_bits();
             if self.feed_cache.0 != bits {
-                self.feed_cache = (bits, 60.0 / feed_mm_per_min);
+                self.feed_cache = (bits, crate::math::div_cold(60.0, feed_mm_per_min));
             }
             self.feed_cache.1
         };
@@ -503,7 +503,7 @@ impl Planner {
         }
         // t is usually the same as for the last block (the feed is modal).
         if self.nominal_cache.0 != t.to_bits() {
-            let v = 1.0 / t;
+            let v = crate::math::div_cold(1.0, t);
             self.nominal_cache = (t.to_bits(), v * v);
         }
         let nominal_speed_sqr = self.nominal_cache.1;

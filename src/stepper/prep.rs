@@ -376,7 +376,7 @@ impl Prep {
         if self.nominal_cache.0 != nominal_sqr.to_bits() {
             let v = sqrtf(nominal_sqr);
             self.nominal_cache = (nominal_sqr.to_bits(), v);
-            let cycles_per_mm = if v > 0.0 { F_CPU / v } else { 0.0 };
+            let cycles_per_mm = if v > 0.0 { crate::math::div_cold(F_CPU, v) } else { 0.0 };
             self.cruise_cache = (cycles_per_mm, CRUISE_SEGMENT_TIME_S * v);
         }
         self.nominal_cache.1
@@ -485,7 +485,7 @@ impl Prep {
         let mm = b.millimeters;
         let a = self.acceleration;
         if self.inv_2_accel_cache.0 != a.to_bits() {
-            self.inv_2_accel_cache = (a.to_bits(), 0.5 / a);
+            self.inv_2_accel_cache = (a.to_bits(), crate::math::div_cold(0.5, a));
         }
         let inv_2_accel = self.inv_2_accel_cache.1;
         self.mm_complete = 0.0;

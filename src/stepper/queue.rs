@@ -252,7 +252,9 @@ impl Splitter {
                 // usual case of a short block).
                 self.chunk_len = if n <= MAX_CHUNK_EVENTS { n } else { n.div_ceil(n.div_ceil(MAX_CHUNK_EVENTS)) };
                 self.chunk_end = 0;
-                self.f_end = [0; N_AXES];
+                if n > MAX_CHUNK_EVENTS {
+                    self.f_end = [0; N_AXES];
+                }
                 self.next_chunk(map, w, sink);
             }
             StepperCmd::Run(s) => self.run(s, map, w, sink),
@@ -287,47 +289,58 @@ impl Splitter {
 
     /// Emit the chunk that starts at the current chunk end.
     fn next_chunk(&mut self, map: &StepMap, w: &ChunkWatch, sink: &mut impl Sink) {
-        let b = &self.block;
-        let n = b.step_event_count;
+        let n = self.block.step_event_count;
         let start = self.chunk_end;
-        let end = (start + self.chunk_len).min(n);
+        let end = if n <= MAX_CHUNK_EVENTS { n } else { (start + self.chunk_len).min(n) };
+        // A block of one chunk (the usual case) needs none of the F(k) arithmetic.
+        let whole = start == 0 && end == n;
         let events = (end - start) as i16;
-        let mut c = Chunk { events, axis_dir: b.direction_bits & 0x0F, take_up: b.take_up, ..Chunk::EMPTY };
-        let mut f_end = [0u32; N_AXES];
-        let mut ends_at_zero = 0u8;
+        let dir = self.block.direction_bits & 0x0F;
+        let mut c = Chunk { events, axis_dir: dir, take_up: self.block.take_up, ..Chunk::EMPTY };
+        let error0 = (events >> 1) - events;
         let mut moving = 0u8;
+        let mut ends_at_zero = 0u8;
+        // Pin high = positive, unless the axis is inverted.
+        let high = !dir ^ w.invert_dir;
         for i in 0..N_AXES {
-            f_end[i] = if end == n { b.steps[i] } else { mul_add_div(end, b.steps[i], n / 2, n) };
-            let s = (f_end[i] - self.f_end[i]) as i16;
+            let bit = 1u8 << i;
+            let s = if whole {
+                self.block.steps[i]
+            } else {
+                let f = if end == n { self.block.steps[i] } else { mul_add_div(end, self.block.steps[i], n / 2, n) };
+                let s = f - self.f_end[i];
+                self.f_end[i] = f;
+                s
+            } as i16;
             c.steps[i] = s;
-            c.error[i] = (events >> 1) - events;
-            if s == events {
-                c.every |= map.step[i];
-            } else if s > 0 {
-                c.partial |= 1 << i;
-            }
-            if s > 0 {
-                moving |= 1 << i;
-            }
-            if !b.take_up {
-                let d = if c.axis_dir & (1 << i) != 0 { -(s as i32) } else { s as i32 };
-                self.plan_pos[i] += d;
+            c.error[i] = error0;
+            if s != 0 {
+                moving |= bit;
+                if s == events {
+                    c.every |= map.step[i];
+                } else {
+                    c.partial |= bit;
+                }
+                if !self.block.take_up {
+                    if dir & bit != 0 {
+                        self.plan_pos[i] -= s as i32;
+                    } else {
+                        self.plan_pos[i] += s as i32;
+                    }
+                }
             }
             if self.plan_pos[i] == 0 {
-                ends_at_zero |= 1 << i;
+                ends_at_zero |= bit;
             }
-            // Pin high = positive, unless the axis is inverted.
-            let high = (c.axis_dir & (1 << i) == 0) != (w.invert_dir & (1 << i) != 0);
-            let (port, mask) = map.dir[i];
-            if high {
+            if high & bit != 0 {
+                let (port, mask) = map.dir[i];
                 c.dir_out[port as usize] |= mask;
             }
         }
-        c.limit = w.limits & c.axis_dir & moving & !(w.homed & ends_at_zero);
+        c.limit = w.limits & dir & moving & !(w.homed & ends_at_zero);
         sink.chunk(&c);
         self.chunk_start = start;
         self.chunk_end = end;
-        self.f_end = f_end;
         self.new_chunk = true;
     }
 }
