@@ -73,11 +73,11 @@ pub struct Chunk {
 }
 
 impl Chunk {
-    /// An empty chunk (no steps).
+    /// An empty chunk (no steps; all zero, so a ring of them lives in `.bss`).
     pub const EMPTY: Chunk = Chunk {
-        error: [-1; N_AXES],
+        error: [0; N_AXES],
         steps: [0; N_AXES],
-        events: 1,
+        events: 0,
         every: 0,
         partial: 0,
         dir_out: [0; 3],
