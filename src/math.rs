@@ -49,9 +49,12 @@ pub fn round_i32(x: f32) -> i32 {
             i32::MAX
         }
     } else if b & 0x8000_0000 == 0 {
-        (x + 0.5) as i32
+        // SAFETY: 0 ≤ x + 0.5 < 2³¹ (checked above): in range, not NaN. The
+        // saturating `as` would add three soft-float compares (~300 cycles).
+        unsafe { (x + 0.5).to_int_unchecked::<i32>() }
     } else {
-        (x - 0.5) as i32
+        // SAFETY: −2³¹ < x − 0.5 ≤ 0, as above.
+        unsafe { (x - 0.5).to_int_unchecked::<i32>() }
     }
 }
 

@@ -34,7 +34,7 @@
 //! (simavr loses those).
 //!
 //! Cycle budget (simavr, 16 MHz, interrupt response and RETI included,
-//! measured by `tools/bench` over all its runs): min 135, mean 170, max 340
+//! measured by `tools/bench` over all its runs): min 135, mean 168, max 340
 //! (SPEC §11: 400). One tick: 149 cycles with no partial axis (one axis, or
 //! equal-step diagonals), 195 / 218 / 241 with one / two / three partial
 //! axes; a segment load adds ~60, a new chunk ~50, armed switch checks ~30.
@@ -91,7 +91,8 @@ pub static MOTION: AtomicU8 = AtomicU8::new(0);
 /// What the ISR watches (written by main through [`set_watch`]).
 #[derive(Clone, Copy, Default)]
 pub struct Watch {
-    /// Axes being homed: a closed home switch on one of them latches and stops.
+    /// Axes being homed: a closed home switch on one of them latches and
+    /// stops (bit 3, E0: the carousel home switch).
     pub homing: u8,
     /// Probe active: the tool-setter input latches and stops.
     pub probe: bool,
@@ -122,7 +123,7 @@ struct Isr {
     tccr: u8,
     /// Check switches on every tick when non-zero: homing | limit | PROBE_BIT.
     armed: u8,
-    /// Axes being homed.
+    /// Axes being homed (bit 3: the carousel switch).
     homing: u8,
     /// PROBE_BIT when the probe is watched, else 0.
     probe: u8,
@@ -367,7 +368,7 @@ pub fn set_watch(w: Watch) {
     unsafe { (*addr_of_mut!(MAIN)).watch = w };
     avr_device::interrupt::free(|_| unsafe {
         let st = &mut *addr_of_mut!(ST);
-        st.homing = w.homing & 0x07;
+        st.homing = w.homing & 0x0F;
         st.probe = if w.probe { PROBE_BIT } else { 0 };
         st.armed = st.homing | st.probe | st.limit;
     });
@@ -451,9 +452,16 @@ unsafe fn switches_trip(st: &mut Isr) -> bool {
         write_volatile(m, read_volatile(m) | motion::LIMIT | motion::STOP);
         return true;
     }
-    if closed & st.homing != 0 {
-        write_volatile(m, read_volatile(m) | motion::HOME_TRIPPED | motion::STOP);
-        return true;
+    if st.homing != 0 {
+        // Bit 3 (E0): the carousel switch, closed at 0° (pulls low).
+        let mut c = closed;
+        if st.homing & (1 << 3) != 0 && !pins::CAROUSEL_HOME.is_high() {
+            c |= 1 << 3;
+        }
+        if c & st.homing != 0 {
+            write_volatile(m, read_volatile(m) | motion::HOME_TRIPPED | motion::STOP);
+            return true;
+        }
     }
     if st.probe != 0 && pins::TOOL_SETTER.is_high() {
         write_volatile(m, read_volatile(m) | motion::PROBE_TRIPPED | motion::STOP);

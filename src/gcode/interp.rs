@@ -236,6 +236,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     }
     let moves = l.motion.is_some()
         || has_axis_words(l)
+        || l.words.contains(Word::E)
         || l.non_modal.is_some()
         || l.spindle == Some(Spindle::Cw)
         || l.tool_change

@@ -167,8 +167,15 @@ fn ceil_u32(x: f32) -> u32 {
 /// Timer setting for `cycles` CPU cycles per step event. Rounds up (by up to
 /// one timer count), so a segment is never faster than planned.
 fn timer_for(cycles: f32) -> (u16, Prescale) {
-    // `as` saturates: huge or NaN values end at the slowest setting.
-    let c = cycles as u32 + 1;
+    // Huge, negative or NaN values end at the slowest setting. The range test
+    // is on the bit pattern: a saturating `as` costs three soft-float compares.
+    let b = cycles.to_bits();
+    let c = if b < 0x4B00_0000 {
+        // SAFETY: 0 ≤ cycles < 2²³ (positive, exponent below 23): in range.
+        (unsafe { cycles.to_int_unchecked::<u32>() }) + 1
+    } else {
+        u32::MAX // ≥ 2²³ cycles, negative or NaN: the slowest setting
+    };
     if c <= 65535 {
         let p = c as u16;
         (if p < MIN_PERIOD_CYCLES { MIN_PERIOD_CYCLES } else { p }, Prescale::Div1)
