@@ -265,12 +265,11 @@ impl Io for Hw {
     }
 
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
-        stepper::producer().enqueue(cmd).is_ok()
+        stepper::push(cmd)
     }
 
     fn segment_space(&self) -> usize {
-        let p = stepper::producer();
-        p.capacity() - p.len()
+        stepper::space()
     }
 
     fn stepper(&self) -> StepperStatus {

@@ -5,7 +5,7 @@
 //!                    ─► gcode (parse, modal state, interpreter)
 //!                    ─► planner (block ring, look-ahead, arcs → chords)
 //!                    ─► stepper::prep (segments, in the main loop)
-//!                    ─► stepper ISR (board, Bresenham tick from stepper::bresenham)
+//!                    ─► stepper ISR (board, Bresenham tick over stepper::queue records)
 //! ```
 //!
 //! Nothing in this crate touches a register: `src/board` (AVR only) does that,

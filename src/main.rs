@@ -10,7 +10,7 @@
 //!
 //! On the host this file compiles to a stub so `cargo test` can build the
 //! package; the firmware is built with `cargo fw`.
-#![cfg_attr(target_arch = "avr", no_std, no_main, feature(abi_avr_interrupt))]
+#![cfg_attr(target_arch = "avr", no_std, no_main, feature(abi_avr_interrupt, asm_experimental_arch))]
 
 #[cfg(not(target_arch = "avr"))]
 fn main() {

@@ -61,6 +61,15 @@ pub fn emergency_stop() {
 
 /// Enable (`true`) or disable all four stepper drivers (enable is active low).
 pub fn drivers_enable(on: bool) {
+    // Every queued move asks for the drivers on: when all four already are,
+    // skip the critical section and the read-modify-writes.
+    let all_on = [pins::X_ENABLE, pins::Y_ENABLE, pins::Z_ENABLE, pins::E_ENABLE]
+        .iter()
+        // SAFETY: reading PORTx has no side effects.
+        .all(|p| unsafe { core::ptr::read_volatile(p.port.port) } & p.mask == 0);
+    if on && all_on {
+        return;
+    }
     avr_device::interrupt::free(|_| drivers_enable_raw(on));
 }
 
@@ -169,6 +178,7 @@ pub fn spindle_set(duty: u8) {
 }
 
 /// Spindle off; callers hold a critical section (or run in an ISR).
+#[inline(always)]
 pub(crate) fn spindle_off_raw() {
     // SAFETY: Timer2 is owned by the spindle; callers hold a critical section.
     let tc2 = unsafe { &*TC2::ptr() };

@@ -111,26 +111,46 @@ pub const SD_DETECT: Pin = pin(PL, 0);
 // MISO D50 = PB3 (SPI): owned by the TWI and SPI drivers.
 // Host serial: USART0 on D0 = PE0 (RX), D1 = PE1 (TX).
 
-/// Masks of the step pins on each of their ports for Bresenham step bits
-/// (bit 0 = X, 1 = Y, 2 = Z, 3 = E0): `(PF mask, PL mask, PA mask)`.
-/// Also used for direction bits (X PF1, Y PF7, Z PL1, E PA6) via [`dir_port_bits`].
-#[inline(always)]
-pub fn port_bits(bits: u8) -> (u8, u8, u8) {
-    // X PF0 (bit0 -> 0), Y PF6 (bit1 -> 6), Z PL3 (bit2 -> 3), E PA4 (bit3 -> 4)
-    let f = (bits & 0x01) | ((bits & 0x02) << 5);
-    let l = (bits & 0x04) << 1;
-    let a = (bits & 0x08) << 1;
-    (f, l, a)
-}
+/// The stepper ISR's view of the step and direction pins (SPEC §2): the step
+/// pins of X and Y sit on PF, Z on PL, E0 on PA, at bits that do not overlap,
+/// so one byte holds the step outputs of all four axes and `byte & STEP_PF`
+/// (…`STEP_PL`, `STEP_PA`) is what to write to each port's PINx register.
+/// Direction pins: port 0 = PF, 1 = PL, 2 = PA.
+pub const STEP_MAP: mill::stepper::queue::StepMap = mill::stepper::queue::StepMap {
+    step: [X_STEP.mask, Y_STEP.mask, Z_STEP.mask, E_STEP.mask],
+    dir: [(0, X_DIR.mask), (0, Y_DIR.mask), (1, Z_DIR.mask), (2, E_DIR.mask)],
+};
+/// Step pins on PF (X, Y).
+pub const STEP_PF: u8 = X_STEP.mask | Y_STEP.mask;
+/// Step pin on PL (Z).
+pub const STEP_PL: u8 = Z_STEP.mask;
+/// Step pin on PA (E0).
+pub const STEP_PA: u8 = E_STEP.mask;
+/// Direction pins on PF, PL, PA.
+pub const DIR_PF: u8 = X_DIR.mask | Y_DIR.mask;
+pub const DIR_PL: u8 = Z_DIR.mask;
+pub const DIR_PA: u8 = E_DIR.mask;
 
-/// Port masks of the direction pins for direction bits (bit i = axis i).
+const _: () = {
+    assert!(X_STEP.mask & Y_STEP.mask == 0);
+    assert!(STEP_PF & STEP_PL == 0 && STEP_PF & STEP_PA == 0 && STEP_PL & STEP_PA == 0);
+};
+
+/// Home switches closed now, as axis bits (bit 0 = X … bit 2 = Z). A closed
+/// switch pulls its pin low.
 #[inline(always)]
-pub fn dir_port_bits(bits: u8) -> (u8, u8, u8) {
-    // X PF1 (bit0 -> 1), Y PF7 (bit1 -> 7), Z PL1 (bit2 -> 1), E PA6 (bit3 -> 6)
-    let f = ((bits & 0x01) << 1) | ((bits & 0x02) << 6);
-    let l = (bits & 0x04) >> 1;
-    let a = (bits & 0x08) << 3;
-    (f, l, a)
+pub fn home_closed() -> u8 {
+    let mut b = 0;
+    if !X_HOME.is_high() {
+        b |= 1;
+    }
+    if !Y_HOME.is_high() {
+        b |= 2;
+    }
+    if !Z_HOME.is_high() {
+        b |= 4;
+    }
+    b
 }
 
 impl Pin {

@@ -258,6 +258,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
     }
     let moves = l.motion.is_some()
         || has_axis_words(l)
+        || l.words.contains(Word::E)
         || l.non_modal.is_some()
         || l.spindle == Some(Spindle::Cw)
         || l.tool_change
@@ -420,8 +421,17 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         }
     }
     let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
+    // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
+    // offsets (Repetier's E0 motor), so all four motors can move at once.
+    let e_word = if axis_words_are_settings(l) { None } else { l.word(Word::E) };
+    if let Some(v) = e_word {
+        if !matches!(motion, Motion::Rapid | Motion::Linear) {
+            return Err(Error::BadWord(F!("E only with G0/G1")));
+        }
+        target[3] = if g.incremental { m.interp.pos_mm[3] + v } else { v };
+    }
     let mut do_motion = None;
-    if any_axis || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
+    if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
         match motion {
             Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active)"))),
             Motion::Rapid => {}
@@ -502,7 +512,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
 
     if let Some(mo) = do_motion {
         let rapid = mo == Motion::Rapid;
-        let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 / 100.0;
+        let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 * 0.01;
         match mo {
             Motion::ArcCw | Motion::ArcCcw => {
                 if let Some(mut plan) = arc_plan {
@@ -587,9 +597,11 @@ fn check_soft_limits(m: &Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
         return Ok(());
     }
     for a in 0..3 {
-        // Half a step of slack for rounding.
-        let eps = 0.5 / m.settings.steps_per_mm[a];
-        if !(t[a] >= -eps && t[a] <= m.settings.travel_mm[a] + eps) {
+        // Half a step of slack for rounding; compared in steps (a multiply
+        // instead of a ~500-cycle division on the AVR).
+        let spm = m.settings.steps_per_mm[a];
+        let st = t[a] * spm;
+        if !(st >= -0.5 && st <= m.settings.travel_mm[a] * spm + 0.5) {
             return Err(Error::SoftLimit);
         }
     }

@@ -357,7 +357,12 @@ fn the_junction_speed_follows_the_deviation_rule_at_every_angle_and_is_capped_by
         let b = blocks(&p);
         // Both blocks accelerate at ≥ 1000 mm/s² along the path, so the
         // junction uses X's 1000 (a diagonal allows more: 1000 / max |u_i|).
-        let want = junction_v2(turn, 1000.0, st.junction_deviation_mm).min(2500.0);
+        let mut want = junction_v2(turn, 1000.0, st.junction_deviation_mm).min(2500.0);
+        if turn > 90.0 {
+            // X reverses: its speed step is capped at REVERSAL_STEP_S × 1000 mm/s².
+            let dv = REVERSAL_STEP_S * 1000.0 / (1.0 - cos);
+            want = want.min(dv * dv);
+        }
         // The integer target bends the direction by up to 0.03°.
         assert_close(b[1].max_entry_speed_sqr, want, 2e-3);
         assert!(b[1].max_entry_speed_sqr <= last, "{turn}°: sharper turns are slower");
@@ -366,6 +371,29 @@ fn the_junction_speed_follows_the_deviation_rule_at_every_angle_and_is_capped_by
             assert_eq!(b[1].max_entry_speed_sqr, 2500.0, "{turn}°: capped at the feed (50 mm/s)");
         }
     }
+}
+
+#[test]
+fn an_axis_reversing_at_a_junction_changes_speed_by_at_most_half_a_millisecond_of_its_acceleration() {
+    let st = s();
+    // The demo job's corner: +X from (10, 10) to (20, 10), then back toward
+    // the origin (a 153° turn).
+    let mut p = Planner::new();
+    p.set_position([1000, 1000, 0, 0]);
+    p.push_line([2000, 1000, 0, 0], 1200.0, false, &st).unwrap();
+    p.push_line([0, 0, 0, 0], 1200.0, false, &st).unwrap();
+    let b = blocks(&p);
+    let (u0, u1) = (1.0f32, 2000.0 / 2000f32.hypot(1000.0));
+    let v = b[1].max_entry_speed_sqr.sqrt();
+    let step = v * (u0 + u1);
+    assert!(step <= 0.5 * 1.0001, "X steps by {step} mm/s at the reversal");
+    assert!(step >= 0.5 * 0.999, "the cap, not something slower: {step} mm/s");
+    // Without a reversal (a 45° turn) the deviation rule alone decides.
+    let mut p = Planner::new();
+    p.push_line([1000, 0, 0, 0], 1200.0, false, &st).unwrap();
+    p.push_line([2000, 1000, 0, 0], 1200.0, false, &st).unwrap();
+    let want = junction_v2(45.0, 1000.0, st.junction_deviation_mm);
+    assert_close(blocks(&p)[1].max_entry_speed_sqr, want, 2e-3);
 }
 
 #[test]

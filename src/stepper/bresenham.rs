@@ -1,20 +1,18 @@
-//! The Bresenham step distributor run by the Timer1 compare ISR (SPEC §6).
+//! The block-level Bresenham step distributor (SPEC §6): the reference the
+//! host tests run prep's segments through.
 //!
-//! Last stage of the pipeline: `board`'s ISR loads a [`StBlock`] when
-//! prep sends one, then calls [`Bresenham::tick`] once per step event and writes
-//! the returned bits to the step pins. Integer only, no division, no float.
+//! The firmware's ISR runs the same arithmetic on 16-bit
+//! [`super::queue::Chunk`]s (a block of ≤ 32767 events is one chunk and steps
+//! exactly like this; a longer one is cut into chunks). Integer only, no
+//! division, no float.
 //!
 //! Each axis counter starts at `step_event_count / 2`, so after event k axis i
 //! has made ⌊(k·steps_i + ⌊N/2⌋) / N⌋ steps: the rounded ideal position, within
 //! ±0.5 step of the straight line, and exactly `steps_i` after N events.
 //!
-//! Cost (simavr, 16 MHz, state in a `static` as in the ISR, call overhead
-//! excluded): ~39 cycles for a single-axis move, ~157 with three axes making
-//! only some of the steps. `load` sorts the axes: those with as many steps as
-//! events step every time and those with none never do, so neither needs
-//! arithmetic; the others cost one i32 add, a sign test and (when they step)
-//! one subtract. Before this split, every tick cost ~255 cycles (LLVM-AVR
-//! turns the 4 compare-and-subtracts into selects).
+//! `load` sorts the axes: those with as many steps as events step every time
+//! and those with none never do, so neither needs arithmetic; the others cost
+//! one add, a sign test and (when they step) one subtract.
 
 use super::StBlock;
 use crate::N_AXES;

@@ -1,4 +1,4 @@
-//! Stepper segment preparation and the Bresenham tick (SPEC §6).
+//! Stepper segment preparation and the step-event records (SPEC §6).
 //!
 //! Where this sits in the pipeline (grbl's `stepper.c` split in two):
 //!
@@ -6,28 +6,36 @@
 //!  planner::Planner (block ring, look-ahead, f32)
 //!      │  current_block(), exec_exit_speed_sqr(), discard_current_block()
 //!      ▼
-//!  prep::Prep::fill   (main loop; f32 speed profile → integer segments)
-//!      │  StepperCmd::{Block(StBlock), Run(Segment)} through a heapless::spsc queue
+//!  prep::Prep::next_segment   (main loop; f32 speed profile → integer segments)
+//!      │  StepperCmd::{Block(StBlock), Run(Segment)}
 //!      ▼
-//!  TIMER1_COMPA ISR   (src/board; integer only: bresenham::Bresenham::tick)
+//!  queue::Splitter            (main loop; → Chunk and Seg records in two rings)
+//!      ▼
+//!  TIMER1_COMPA ISR           (src/board; reads the records in place, 16-bit
+//!                              Bresenham: queue::Chunk::tick)
 //! ```
 //!
 //! This module owns the types that cross the main-loop → ISR boundary. They are
 //! small, `Copy` and integer-only, so the ISR never sees a float:
 //!
-//! - [`StBlock`] is sent once at the start of each planner block. The ISR loads it
-//!   into its [`Bresenham`] and sets the direction pins.
+//! - [`StBlock`] is made once at the start of each planner block; the
+//!   splitter turns it into one [`queue::Chunk`] (or several for a block of
+//!   more than 32767 step events).
 //! - [`Segment`] is a run of `ticks` step events, one every `period` timer counts,
 //!   with Timer1 clocked at F_CPU / `prescale` (ATmega2560 datasheet §17, 16-bit
 //!   Timer/Counter1, CTC mode with OCR1A = `period`). The `ticks` of a block's
 //!   segments add up to its `step_event_count` exactly. Segments last about
 //!   5 ms on ramps and 20 ms at cruise ([`prep::SEGMENT_TIME_S`],
-//!   [`prep::CRUISE_SEGMENT_TIME_S`]).
+//!   [`prep::CRUISE_SEGMENT_TIME_S`]); a short block is one segment.
+//! - [`bresenham::Bresenham`] is the block-level reference of the ISR's
+//!   arithmetic, used by the host tests.
 //!
-//! RAM on AVR: `StepperCmd` 22 B per queue entry, `Bresenham` 36 B, `Prep` 68 B.
+//! RAM on AVR: the ISR's rings are 16 [`queue::Seg`]s (8 B) and 16
+//! [`queue::Chunk`]s (26 B), 544 B (`board::stepper`); `Prep` about 80 B.
 
 pub mod bresenham;
 pub mod prep;
+pub mod queue;
 
 pub use bresenham::Bresenham;
 pub use prep::{Prep, CRUISE_SEGMENT_TIME_S, SEGMENT_TIME_S};

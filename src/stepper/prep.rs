@@ -134,6 +134,12 @@ pub struct Prep {
     /// (bits of a nominal speed², its square root): consecutive blocks at the
     /// same feed share it (saves a 500-cycle sqrt per block on the AVR).
     nominal_cache: (u32, f32),
+    /// For the nominal speed v of `nominal_cache`: (CPU cycles per mm at v,
+    /// the longest block that fits one cruise segment at v, mm).
+    cruise_cache: (f32, f32),
+    /// `step_per_mm` is valid for the active block (computed on first use:
+    /// the cruise fast path does not need it).
+    step_per_mm_valid: bool,
     /// (bits of an acceleration a, 0.5 / a).
     inv_2_accel_cache: (u32, f32),
 }
@@ -161,8 +167,15 @@ fn ceil_u32(x: f32) -> u32 {
 /// Timer setting for `cycles` CPU cycles per step event. Rounds up (by up to
 /// one timer count), so a segment is never faster than planned.
 fn timer_for(cycles: f32) -> (u16, Prescale) {
-    // `as` saturates: huge or NaN values end at the slowest setting.
-    let c = cycles as u32 + 1;
+    // Huge, negative or NaN values end at the slowest setting. The range test
+    // is on the bit pattern: a saturating `as` costs three soft-float compares.
+    let b = cycles.to_bits();
+    let c = if b < 0x4B00_0000 {
+        // SAFETY: 0 ≤ cycles < 2²³ (positive, exponent below 23): in range.
+        (unsafe { cycles.to_int_unchecked::<u32>() }) + 1
+    } else {
+        u32::MAX // ≥ 2²³ cycles, negative or NaN: the slowest setting
+    };
     if c <= 65535 {
         let p = c as u16;
         (if p < MIN_PERIOD_CYCLES { MIN_PERIOD_CYCLES } else { p }, Prescale::Div1)
@@ -197,6 +210,8 @@ impl Prep {
             mm_complete: 0.0,
             exit_speed_sqr_bits: 0,
             nominal_cache: (0, 0.0),
+            cruise_cache: (0.0, 0.0),
+            step_per_mm_valid: false,
             inv_2_accel_cache: (u32::MAX, 0.0),
         }
     }
@@ -308,7 +323,7 @@ impl Prep {
                     return None;
                 };
                 self.steps_remaining = b.step_event_count;
-                self.step_per_mm = b.step_event_count as f32 / b.millimeters;
+                self.step_per_mm_valid = false;
                 self.dt_remainder = 0.0;
                 self.acceleration = b.acceleration;
                 if self.holding || self.decel_override {
@@ -340,9 +355,20 @@ impl Prep {
             if pl.take_exec_replanned() {
                 self.profile_stale = true;
             }
+            if let Some(seg) = self.cruise_block(pl) {
+                return Some(StepperCmd::Run(seg));
+            }
             if self.profile_stale {
                 self.profile_stale = false;
                 self.compute_profile(pl);
+            }
+            if let Some(seg) = self.short_block(pl) {
+                return Some(StepperCmd::Run(seg));
+            }
+            if !self.step_per_mm_valid {
+                let b = pl.current_block()?;
+                self.step_per_mm = b.step_event_count as f32 / b.millimeters;
+                self.step_per_mm_valid = true;
             }
             if let Some(seg) = self.make_segment(pl) {
                 return Some(StepperCmd::Run(seg));
@@ -350,6 +376,110 @@ impl Prep {
             // No segment: either the hold stopped (held), or a zero-step piece
             // was absorbed; loop to continue with the next block.
         }
+    }
+
+    /// The square root of a nominal speed², cached with the cruise figures.
+    fn nominal_speed(&mut self, nominal_sqr: f32) -> f32 {
+        if self.nominal_cache.0 != nominal_sqr.to_bits() {
+            let v = sqrtf(nominal_sqr);
+            self.nominal_cache = (nominal_sqr.to_bits(), v);
+            let cycles_per_mm = if v > 0.0 { crate::math::div_cold(F_CPU, v) } else { 0.0 };
+            self.cruise_cache = (cycles_per_mm, CRUISE_SEGMENT_TIME_S * v);
+        }
+        self.nominal_cache.1
+    }
+
+    /// Fast path for a block that runs entirely at its nominal speed (entry,
+    /// exit and nominal speed² equal, the usual case inside a stream of short
+    /// moves) and is short enough for one cruise segment: the whole block as
+    /// one segment with one division, instead of the profile and the segment
+    /// loop (~1 k instead of ~8 k cycles on the AVR). It produces the segment
+    /// the general path would (same ticks, period within a timer count).
+    fn cruise_block(&mut self, pl: &mut Planner) -> Option<Segment> {
+        if !self.profile_stale || self.holding || self.decel_override {
+            return None;
+        }
+        let exit_sqr = pl.exec_exit_speed_sqr().to_bits();
+        let b = pl.current_block()?;
+        let nominal_bits = b.nominal_speed_sqr.to_bits();
+        if b.entry_speed_sqr.to_bits() != nominal_bits || exit_sqr != nominal_bits || nominal_bits == 0 {
+            return None;
+        }
+        let (mm, n, nominal_sqr) = (b.millimeters, b.step_event_count, b.nominal_speed_sqr);
+        let v = self.nominal_speed(nominal_sqr);
+        let (cycles_per_mm, max_mm) = self.cruise_cache;
+        if !(mm <= max_mm) || n == 0 || n != self.steps_remaining || n > u16::MAX as u32 {
+            return None;
+        }
+        let (period, prescale) = timer_for((mm * cycles_per_mm + self.dt_remainder * F_CPU) / n as f32);
+        self.profile_stale = false;
+        self.current_speed = v;
+        self.exit_speed = v;
+        self.exit_speed_sqr_bits = nominal_bits;
+        self.dt_remainder = 0.0;
+        self.steps_remaining = 0;
+        self.ramp = Ramp::Cruise;
+        if let Some(b) = pl.current_block_mut() {
+            b.millimeters = 0.0;
+            b.entry_speed_sqr = nominal_sqr;
+            b.max_delta_speed_sqr = 0.0;
+        }
+        self.finish_block(pl);
+        Some(Segment { ticks: n as u16, period, prescale })
+    }
+
+    /// Fast path for the rest of a block that takes at most one ramp segment
+    /// ([`SEGMENT_TIME_S`]) in all: one segment for all of it, its duration
+    /// from the profile in closed form (Δv / a on the ramps, distance × the
+    /// cached cycles per mm at cruise), one division. A stream of short moves
+    /// is made of such blocks; the segment loop costs ~3× more on the AVR. The
+    /// ticks are evenly spaced over the block like in any one segment: at most
+    /// a·T²/8 (0.3 step at 1000 mm/s², 100 steps/mm) from the ideal trapezoid.
+    fn short_block(&mut self, pl: &mut Planner) -> Option<Segment> {
+        if self.holding || self.ramp == Ramp::DecelOverride {
+            return None;
+        }
+        let inv_a = 2.0 * self.inv_2_accel_cache.1; // s² / mm
+        let b = pl.current_block()?;
+        let mm = b.millimeters;
+        let v0 = self.current_speed;
+        let (vmax, v1) = (self.maximum_speed, self.exit_speed);
+        let mut t; // s
+        let cruise_mm; // distance at vmax
+        match self.ramp {
+            Ramp::Accel => {
+                t = (vmax - v0) * inv_a + (vmax - v1) * inv_a;
+                cruise_mm = self.accelerate_until - self.decelerate_after;
+            }
+            Ramp::Cruise => {
+                t = (vmax - v1) * inv_a;
+                cruise_mm = mm - self.decelerate_after;
+            }
+            Ramp::Decel => {
+                t = (v0 - v1) * inv_a;
+                cruise_mm = 0.0;
+            }
+            Ramp::DecelOverride => return None,
+        }
+        if cruise_mm > 0.0 {
+            if self.nominal_cache.1.to_bits() != vmax.to_bits() {
+                return None;
+            }
+            t += cruise_mm * self.cruise_cache.0 * (1.0 / F_CPU);
+        }
+        let n = self.steps_remaining;
+        if !(t <= SEGMENT_TIME_S) || !(t > 0.0) || n == 0 || n > u16::MAX as u32 {
+            return None;
+        }
+        let (period, prescale) = timer_for((t + self.dt_remainder) * F_CPU / n as f32);
+        self.current_speed = v1;
+        self.dt_remainder = 0.0;
+        self.steps_remaining = 0;
+        if let Some(b) = pl.current_block_mut() {
+            self.write_back(b, 0.0);
+        }
+        self.finish_block(pl);
+        Some(Segment { ticks: n as u16, period, prescale })
     }
 
     /// The velocity profile of the rest of the executing block (grbl).
@@ -362,7 +492,7 @@ impl Prep {
         let mm = b.millimeters;
         let a = self.acceleration;
         if self.inv_2_accel_cache.0 != a.to_bits() {
-            self.inv_2_accel_cache = (a.to_bits(), 0.5 / a);
+            self.inv_2_accel_cache = (a.to_bits(), crate::math::div_cold(0.5, a));
         }
         let inv_2_accel = self.inv_2_accel_cache.1;
         self.mm_complete = 0.0;
@@ -385,10 +515,7 @@ impl Prep {
         self.ramp = Ramp::Accel;
         self.accelerate_until = mm;
         let nominal_sqr = b.nominal_speed_sqr;
-        if self.nominal_cache.0 != nominal_sqr.to_bits() {
-            self.nominal_cache = (nominal_sqr.to_bits(), sqrtf(nominal_sqr));
-        }
-        let nominal = self.nominal_cache.1;
+        let nominal = self.nominal_speed(nominal_sqr);
         self.exit_speed = if exit_speed_sqr.to_bits() == nominal_sqr.to_bits() {
             nominal
         } else if exit_speed_sqr.to_bits() == 0 {

@@ -1,0 +1,557 @@
+//! The records the stepper ISR executes, and the producer that writes them
+//! (SPEC §6: "the ISR stays integer-only and short").
+//!
+//! Where it sits: prep ([`super::Prep`]) emits [`StepperCmd`]s in the main
+//! loop; [`Splitter`] (also main loop) turns them into two kinds of small,
+//! fixed records that `board::stepper` keeps in two rings and its Timer1 ISR
+//! reads **in place, by index** (nothing is copied per segment):
+//!
+//! - [`Chunk`] (26 B): the Bresenham of one planner block, or of a piece of at
+//!   most [`MAX_CHUNK_EVENTS`] step events of a longer block. Every count fits
+//!   an `i16`, so the ISR's tick is 16-bit. The error counters live in the
+//!   ring slot and the ISR updates them there.
+//! - [`Seg`] (8 B): `ticks` step events, one every `period` timer counts, of
+//!   the current chunk, or of the next one when `new_chunk` is set.
+//!
+//! Position is **not** counted per step in the ISR (it cost ~20 cycles per
+//! stepping axis). The main loop knows every chunk it queued: a finished
+//! chunk adds its `steps`, and the chunk in progress adds
+//! [`Chunk::steps_done`], computed from its error counters. See
+//! `board::stepper::position`.
+//!
+//! Splitting a long block: the pieces are cut at k = j·C events (C ≤ 32767),
+//! and piece j makes `F(k_{j+1}) − F(k_j)` steps on each axis, where
+//! `F(k) = ⌊(k·steps + ⌊N/2⌋) / N⌋` is where the block's own Bresenham is after
+//! k events. Each piece is a Bresenham of its own, so inside a piece a step is
+//! within 0.5 step of the piece's line, whose ends are within 0.5 step of the
+//! block's line: within ±1 step overall (SPEC §11), and the block's total is
+//! exact. A block of ≤ 32767 events is one chunk and steps exactly as one
+//! Bresenham.
+
+use super::{Segment, StBlock, StepperCmd};
+use crate::N_AXES;
+
+/// Most step events in one chunk (the ISR's counters are `i16`).
+pub const MAX_CHUNK_EVENTS: u32 = i16::MAX as u32;
+
+/// Board-specific output bits, supplied by `board` (logic never sees a pin):
+/// what to write for each axis' step pin, and where its direction pin sits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StepMap {
+    /// The step-output bit of each axis, X Y Z E. They must not overlap; the
+    /// ISR's `pending` byte is their OR.
+    pub step: [u8; N_AXES],
+    /// The direction pin of each axis as (port number 0..3, bit mask).
+    pub dir: [(u8, u8); N_AXES],
+}
+
+/// One piece of a planner block as the ISR runs it (`#[repr(C)]`: the ISR
+/// addresses fields by offset from the slot pointer).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+pub struct Chunk {
+    /// Bresenham errors minus `events`: −events ≤ error < 0 between ticks, so
+    /// "step now" is a sign test. Owned by the ISR while the chunk runs.
+    pub error: [i16; N_AXES],
+    /// Steps each axis makes in this chunk.
+    pub steps: [i16; N_AXES],
+    /// Step events in this chunk (the Bresenham denominator), 1..=32767.
+    pub events: i16,
+    /// Step-output bits ([`StepMap::step`]) of the axes that step on every event.
+    pub every: u8,
+    /// Axis bits of the axes that step on some events only (the ISR's work).
+    pub partial: u8,
+    /// Direction pin levels per port (0..3), over the [`StepMap::dir`] masks.
+    pub dir_out: [u8; 3],
+    /// Axis bits whose home switch closing stops with a hard-limit alarm
+    /// (moving toward the switch, and not a homed axis ending at its switch).
+    pub limit: u8,
+    /// Axis bits moving negative.
+    pub axis_dir: u8,
+    /// Backlash take-up: the motors move, the counted position does not.
+    pub take_up: bool,
+}
+
+impl Chunk {
+    /// An empty chunk (no steps; all zero, so a ring of them lives in `.bss`).
+    pub const EMPTY: Chunk = Chunk {
+        error: [0; N_AXES],
+        steps: [0; N_AXES],
+        events: 0,
+        every: 0,
+        partial: 0,
+        dir_out: [0; 3],
+        limit: 0,
+        axis_dir: 0,
+        take_up: false,
+    };
+
+    /// One Bresenham step event, exactly as the ISR does it: bit i of the
+    /// result set = axis i steps (axis bits, not output bits).
+    pub fn tick(&mut self) -> u8 {
+        let n = self.events;
+        let mut bits = 0u8;
+        for i in 0..N_AXES {
+            if self.steps[i] == n {
+                bits |= 1 << i;
+            } else if self.partial & (1 << i) != 0 {
+                let e = self.error[i] + self.steps[i];
+                if e >= 0 {
+                    self.error[i] = e - n;
+                    bits |= 1 << i;
+                } else {
+                    self.error[i] = e;
+                }
+            }
+        }
+        bits
+    }
+
+    /// Steps each axis has made after `k` events (0 ≤ k ≤ `events`), from the
+    /// error counters as they are after those k events. Unsigned counts.
+    pub fn steps_done(&self, k: u16) -> [u16; N_AXES] {
+        let n = self.events as u16;
+        let mut out = [0u16; N_AXES];
+        for i in 0..N_AXES {
+            let s = self.steps[i] as u16;
+            out[i] = if k == 0 || s == 0 {
+                0
+            } else if s == n {
+                k
+            } else if k >= n {
+                s
+            } else {
+                // error + n = (⌊n/2⌋ + k·s) mod n, so the quotient is exact.
+                let r = (self.error[i] as i32 + n as i32) as u32;
+                ((n as u32 / 2 + k as u32 * s as u32 - r) / n as u32) as u16
+            };
+        }
+        out
+    }
+
+    /// Signed steps of `done` (from [`Chunk::steps_done`]) per axis.
+    pub fn signed(&self, done: [u16; N_AXES]) -> [i32; N_AXES] {
+        let mut out = [0i32; N_AXES];
+        for i in 0..N_AXES {
+            let d = done[i] as i32;
+            out[i] = if self.axis_dir & (1 << i) != 0 { -d } else { d };
+        }
+        out
+    }
+
+    /// Signed steps of the whole chunk.
+    pub fn total(&self) -> [i32; N_AXES] {
+        let mut done = [0u16; N_AXES];
+        for i in 0..N_AXES {
+            done[i] = self.steps[i] as u16;
+        }
+        self.signed(done)
+    }
+}
+
+/// A run of step events (`#[repr(C)]`: the ISR reads it by offset).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
+pub struct Seg {
+    /// Step events, ≥ 1.
+    pub ticks: u16,
+    /// OCR1A: timer counts between events.
+    pub period: u16,
+    /// TCCR1B value (CTC mode + clock select of the segment's prescaler).
+    pub tccr: u8,
+    /// Non-zero: this segment starts the next chunk of the ring.
+    pub new_chunk: u8,
+    /// Events of its chunk done at the end of this segment (main loop only:
+    /// the position of a chunk in progress).
+    pub k_end: u16,
+}
+
+/// TCCR1B for CTC mode (WGM12) with the given prescaler.
+pub const fn tccr1b(p: super::Prescale) -> u8 {
+    0x08 | p as u8
+}
+
+/// Where the records go (the board's rings; a `Vec` in tests).
+pub trait Sink {
+    /// Append a chunk (its slot must be free).
+    fn chunk(&mut self, c: &Chunk);
+    /// Append a segment.
+    fn seg(&mut self, s: &Seg);
+}
+
+/// What the ISR should watch on the chunks it is given (from the machine's
+/// `Io::set_watch`), plus the direction inversion.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ChunkWatch {
+    /// Axes whose switch raises a hard-limit alarm when moving toward it.
+    pub limits: u8,
+    /// Homed axes (their switch closing at position 0 is expected).
+    pub homed: u8,
+    /// Direction-pin inversion mask (setting).
+    pub invert_dir: u8,
+}
+
+/// Turns prep's [`StepperCmd`] stream into [`Chunk`]s and [`Seg`]s.
+///
+/// A `Block` costs at most one chunk; a `Run` at most two segments and one
+/// chunk (it may cross one chunk boundary, since a segment is far shorter than
+/// 32767 events).
+#[derive(Clone, Copy, Debug)]
+pub struct Splitter {
+    /// The block being cut.
+    block: StBlock,
+    /// Events of the block put in segments so far.
+    k: u32,
+    /// Events per chunk of this block.
+    chunk_len: u32,
+    /// k at which the current chunk starts / ends.
+    chunk_start: u32,
+    chunk_end: u32,
+    /// F(chunk_end) per axis: steps of the block done at the end of the current chunk.
+    f_end: [u32; N_AXES],
+    /// The next segment is the first of a new chunk.
+    new_chunk: bool,
+    /// Counted position at the end of everything emitted, steps.
+    plan_pos: [i32; N_AXES],
+}
+
+impl Splitter {
+    /// Idle, at position 0.
+    pub const fn new() -> Self {
+        Splitter {
+            block: StBlock { steps: [0; N_AXES], step_event_count: 0, direction_bits: 0, take_up: false },
+            k: 0,
+            chunk_len: 1,
+            chunk_start: 0,
+            chunk_end: 0,
+            f_end: [0; N_AXES],
+            new_chunk: false,
+            plan_pos: [0; N_AXES],
+        }
+    }
+
+    /// Forget the block in progress; everything queued ends at `position`.
+    pub fn reset(&mut self, position: [i32; N_AXES]) {
+        *self = Splitter::new();
+        self.plan_pos = position;
+    }
+
+    /// Counted position at the end of everything emitted.
+    pub fn plan_position(&self) -> [i32; N_AXES] {
+        self.plan_pos
+    }
+
+    /// Feed one command to the sink.
+    pub fn push(&mut self, cmd: &StepperCmd, map: &StepMap, w: &ChunkWatch, sink: &mut impl Sink) {
+        match cmd {
+            StepperCmd::Block(b) => {
+                self.block = *b;
+                self.k = 0;
+                let n = b.step_event_count;
+                // Equal pieces of at most MAX_CHUNK_EVENTS (no division in the
+                // usual case of a short block).
+                self.chunk_len = if n <= MAX_CHUNK_EVENTS { n } else { n.div_ceil(n.div_ceil(MAX_CHUNK_EVENTS)) };
+                self.chunk_end = 0;
+                if n > MAX_CHUNK_EVENTS {
+                    self.f_end = [0; N_AXES];
+                }
+                self.next_chunk(map, w, sink);
+            }
+            StepperCmd::Run(s) => self.run(s, map, w, sink),
+        }
+    }
+
+    fn run(&mut self, s: &Segment, map: &StepMap, w: &ChunkWatch, sink: &mut impl Sink) {
+        let mut left = s.ticks as u32;
+        let tccr = tccr1b(s.prescale);
+        while left > 0 {
+            if self.k == self.chunk_end {
+                if self.k >= self.block.step_event_count {
+                    // More ticks than the block has events: prep never does this.
+                    debug_assert!(false, "segment beyond its block");
+                    return;
+                }
+                self.next_chunk(map, w, sink);
+            }
+            let take = left.min(self.chunk_end - self.k);
+            self.k += take;
+            left -= take;
+            sink.seg(&Seg {
+                ticks: take as u16,
+                period: s.period,
+                tccr,
+                new_chunk: self.new_chunk as u8,
+                k_end: (self.k - self.chunk_start) as u16,
+            });
+            self.new_chunk = false;
+        }
+    }
+
+    /// Emit the chunk that starts at the current chunk end.
+    fn next_chunk(&mut self, map: &StepMap, w: &ChunkWatch, sink: &mut impl Sink) {
+        let n = self.block.step_event_count;
+        let start = self.chunk_end;
+        let end = if n <= MAX_CHUNK_EVENTS { n } else { (start + self.chunk_len).min(n) };
+        // A block of one chunk (the usual case) needs none of the F(k) arithmetic.
+        let whole = start == 0 && end == n;
+        let events = (end - start) as i16;
+        let dir = self.block.direction_bits & 0x0F;
+        let mut c = Chunk { events, axis_dir: dir, take_up: self.block.take_up, ..Chunk::EMPTY };
+        let error0 = (events >> 1) - events;
+        let mut moving = 0u8;
+        let mut ends_at_zero = 0u8;
+        // Pin high = positive, unless the axis is inverted.
+        let high = !dir ^ w.invert_dir;
+        for i in 0..N_AXES {
+            let bit = 1u8 << i;
+            let s = if whole {
+                self.block.steps[i]
+            } else {
+                let f = if end == n { self.block.steps[i] } else { mul_add_div(end, self.block.steps[i], n / 2, n) };
+                let s = f - self.f_end[i];
+                self.f_end[i] = f;
+                s
+            } as i16;
+            c.steps[i] = s;
+            c.error[i] = error0;
+            if s != 0 {
+                moving |= bit;
+                if s == events {
+                    c.every |= map.step[i];
+                } else {
+                    c.partial |= bit;
+                }
+                if !self.block.take_up {
+                    if dir & bit != 0 {
+                        self.plan_pos[i] -= s as i32;
+                    } else {
+                        self.plan_pos[i] += s as i32;
+                    }
+                }
+            }
+            if self.plan_pos[i] == 0 {
+                ends_at_zero |= bit;
+            }
+            if high & bit != 0 {
+                let (port, mask) = map.dir[i];
+                c.dir_out[port as usize] |= mask;
+            }
+        }
+        c.limit = w.limits & dir & moving & !(w.homed & ends_at_zero);
+        sink.chunk(&c);
+        self.chunk_start = start;
+        self.chunk_end = end;
+        self.new_chunk = true;
+    }
+}
+
+impl Default for Splitter {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// ⌊(a·b + c) / d⌋ for a ≤ d, c < d, d > 0 (the result is then ≤ b). A 64-bit
+/// product and a bit-by-bit division: no 64-bit division intrinsic on the AVR.
+/// Used only when a block is longer than [`MAX_CHUNK_EVENTS`].
+pub fn mul_add_div(a: u32, b: u32, c: u32, d: u32) -> u32 {
+    let num = a as u64 * b as u64 + c as u64;
+    let mut rem: u64 = 0;
+    let mut q: u32 = 0;
+    let mut i = 64;
+    while i > 0 {
+        i -= 1;
+        rem = (rem << 1) | ((num >> i) & 1);
+        q <<= 1;
+        if rem >= d as u64 {
+            rem -= d as u64;
+            q |= 1;
+        }
+    }
+    q
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stepper::Prescale;
+    use crate::test_util::XorShift;
+
+    const MAP: StepMap = StepMap { step: [0x01, 0x40, 0x08, 0x10], dir: [(0, 0x02), (0, 0x80), (1, 0x02), (2, 0x40)] };
+
+    #[derive(Default)]
+    struct Rec {
+        chunks: Vec<Chunk>,
+        segs: Vec<Seg>,
+    }
+
+    impl Sink for Rec {
+        fn chunk(&mut self, c: &Chunk) {
+            self.chunks.push(*c);
+        }
+        fn seg(&mut self, s: &Seg) {
+            self.segs.push(*s);
+        }
+    }
+
+    fn block(steps: [u32; N_AXES], dir: u8) -> StBlock {
+        StBlock { steps, step_event_count: *steps.iter().max().unwrap(), direction_bits: dir, take_up: false }
+    }
+
+    fn run(s: u16) -> StepperCmd {
+        StepperCmd::Run(Segment { ticks: s, period: 400, prescale: Prescale::Div1 })
+    }
+
+    /// Executes the records like the ISR; checks every event against the
+    /// block's line (±1 step) and the position reconstruction at every event.
+    fn execute(b: &StBlock, rec: &Rec) -> [i64; N_AXES] {
+        let mut ci = usize::MAX;
+        let mut chunk = Chunk::EMPTY;
+        let mut pos = [0i64; N_AXES];
+        let mut base = [0i64; N_AXES];
+        let mut events = 0u64;
+        let n = b.step_event_count as f64;
+        for s in &rec.segs {
+            if s.new_chunk != 0 {
+                if ci != usize::MAX {
+                    for a in 0..N_AXES {
+                        base[a] += chunk.total()[a] as i64;
+                    }
+                }
+                ci = ci.wrapping_add(1);
+                chunk = rec.chunks[ci];
+            }
+            let k0 = s.k_end - s.ticks;
+            for t in 0..s.ticks {
+                let bits = chunk.tick();
+                events += 1;
+                for a in 0..N_AXES {
+                    if bits & (1 << a) != 0 {
+                        pos[a] += if chunk.axis_dir & (1 << a) != 0 { -1 } else { 1 };
+                    }
+                    let ideal = events as f64 * b.steps[a] as f64 / n;
+                    assert!((pos[a].abs() as f64 - ideal).abs() <= 1.0 + 1e-9, "axis {a} event {events}");
+                }
+                let done = chunk.signed(chunk.steps_done(k0 + t + 1));
+                for a in 0..N_AXES {
+                    assert_eq!(base[a] + done[a] as i64, pos[a], "reconstructed position, axis {a}");
+                }
+            }
+        }
+        assert_eq!(events, b.step_event_count as u64);
+        pos
+    }
+
+    #[test]
+    fn a_short_block_is_one_chunk_and_steps_exactly_like_one_bresenham() {
+        let b = block([1000, 999, 333, 0], 0b0010);
+        let mut sp = Splitter::new();
+        let mut rec = Rec::default();
+        let w = ChunkWatch::default();
+        sp.push(&StepperCmd::Block(b), &MAP, &w, &mut rec);
+        for _ in 0..10 {
+            sp.push(&run(100), &MAP, &w, &mut rec);
+        }
+        assert_eq!(rec.chunks.len(), 1);
+        assert_eq!(rec.segs.len(), 10);
+        let c = rec.chunks[0];
+        assert_eq!((c.every, c.partial), (0x01, 0b0110));
+        // X positive: pin high; Y negative: pin low; Z positive: pin high.
+        assert_eq!(c.dir_out, [0x02, 0x02, 0x40]);
+        let mut br = crate::stepper::Bresenham::new();
+        br.load(&b);
+        let mut ch = c;
+        for _ in 0..1000 {
+            assert_eq!(ch.tick(), br.tick());
+        }
+        assert_eq!(execute(&b, &rec), [1000, -999, 333, 0]);
+        assert_eq!(sp.plan_position(), [1000, -999, 333, 0]);
+    }
+
+    #[test]
+    fn a_long_block_is_cut_into_chunks_with_exact_totals_and_segments_split_at_the_cuts() {
+        let b = block([100_000, 77_777, 3, 99_999], 0b1001);
+        let mut sp = Splitter::new();
+        let mut rec = Rec::default();
+        let w = ChunkWatch::default();
+        sp.push(&StepperCmd::Block(b), &MAP, &w, &mut rec);
+        let mut left = 100_000u32;
+        while left > 0 {
+            let t = left.min(1234);
+            sp.push(&run(t as u16), &MAP, &w, &mut rec);
+            left -= t;
+        }
+        assert_eq!(rec.chunks.len(), 4);
+        assert!(rec.chunks.iter().all(|c| c.events as u32 <= MAX_CHUNK_EVENTS));
+        assert_eq!(rec.segs.iter().filter(|s| s.new_chunk != 0).count(), 4);
+        assert_eq!(execute(&b, &rec), [-100_000, 77_777, 3, -99_999]);
+    }
+
+    #[test]
+    fn random_blocks_step_within_one_step_of_their_line_and_end_exactly() {
+        let mut rng = XorShift(0xC0FFEE);
+        for _ in 0..40 {
+            let mut steps = [0u32; N_AXES];
+            let big = rng.next() % 2 == 0;
+            for v in steps.iter_mut() {
+                *v = rng.next() % if big { 90_000 } else { 3000 };
+            }
+            if steps.iter().all(|&v| v == 0) {
+                continue;
+            }
+            let dir = (rng.next() & 0x0F) as u8;
+            let b = block(steps, dir);
+            let mut sp = Splitter::new();
+            let mut rec = Rec::default();
+            sp.push(&StepperCmd::Block(b), &MAP, &ChunkWatch::default(), &mut rec);
+            let mut left = b.step_event_count;
+            while left > 0 {
+                let t = left.min(1 + rng.next() % 2000);
+                sp.push(&run(t as u16), &MAP, &ChunkWatch::default(), &mut rec);
+                left -= t;
+            }
+            let pos = execute(&b, &rec);
+            for a in 0..N_AXES {
+                let want = if dir & (1 << a) != 0 { -(steps[a] as i64) } else { steps[a] as i64 };
+                assert_eq!(pos[a], want);
+            }
+        }
+    }
+
+    #[test]
+    fn hard_limits_arm_axes_moving_toward_their_switch_except_a_homed_axis_ending_on_it() {
+        let w = ChunkWatch { limits: 0b111, homed: 0b001, invert_dir: 0 };
+        let mut sp = Splitter::new();
+        sp.reset([100, 100, 100, 0]);
+        let mut rec = Rec::default();
+        // X to exactly 0 (homed): not armed. Y toward its switch: armed. Z away: not.
+        sp.push(&StepperCmd::Block(block([100, 50, 10, 0], 0b011)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks[0].limit, 0b010);
+        // X from 0 further negative: armed.
+        sp.push(&StepperCmd::Block(block([5, 0, 0, 0], 0b001)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks[1].limit, 0b001);
+    }
+
+    #[test]
+    fn inverted_axes_flip_their_direction_pin() {
+        let w = ChunkWatch { invert_dir: 0b1000, ..Default::default() };
+        let mut sp = Splitter::new();
+        let mut rec = Rec::default();
+        sp.push(&StepperCmd::Block(block([0, 0, 0, 10], 0)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks[0].dir_out, [0x82, 0x02, 0x00]);
+    }
+
+    #[test]
+    fn mul_add_div_matches_64_bit_arithmetic() {
+        let mut rng = XorShift(7);
+        for _ in 0..10_000 {
+            let d = rng.next() | 1;
+            let a = (rng.next() as u64 % (d as u64 + 1)) as u32;
+            let b = rng.next();
+            let c = rng.next() % d;
+            let want = ((a as u64 * b as u64 + c as u64) / d as u64) as u32;
+            assert_eq!(mul_add_div(a, b, c, d), want);
+        }
+        assert_eq!(mul_add_div(u32::MAX, u32::MAX, u32::MAX - 1, u32::MAX), u32::MAX);
+    }
+}
