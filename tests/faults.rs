@@ -13,7 +13,7 @@ mod motion_util;
 use common::*;
 use motion_util::*;
 use mill::atc::tools::{Journal, ToolState, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR};
-use sim::{Flow, StreamOptions, Vm, VmConfig};
+use sim::{Axis, Flow, Input, StreamOptions, Vm, VmConfig};
 
 fn seed() -> u32 {
     std::env::var("MILL_FAULT_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x5eed_f417)
@@ -85,6 +85,50 @@ fn binary_garbage_and_over_long_lines_between_job_lines_change_nothing() {
     println!("faults injected: {injected} (binary garbage and over-long lines), state lost: {lost}, resets: {resets}, timing violations: {}", vm.violations().len());
     assert_eq!(xyz_now(&vm), expected);
     assert_eq!(resets, 0);
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
+#[test]
+fn limit_trips_at_random_instants_stop_the_machine_and_turn_the_spindle_off() {
+    let mut rng = Rng(seed() ^ 0x1111);
+    let mut vm = boot_homed();
+    let (mut injected, mut unexpected, mut spindle_left_on) = (0, 0, 0);
+    let switches = [(Input::HomeX, Axis::X), (Input::HomeY, Axis::Y), (Input::HomeZ, Axis::Z)];
+    for round in 0..8 {
+        // Run part of the job, then close one switch at a random instant.
+        let t = uniform(&mut rng, 0.05, 1.5);
+        let r = vm.stream(&job(), StreamOptions::new(Flow::CharCount(120)).timeout(t)).unwrap();
+        assert!(r.timed_out, "round {round}: the job ended before the fault at {t:.3} s");
+        let (input, axis) = switches[rng.next() as usize % 3];
+        vm.set_input(input, Some(true));
+        injected += 1;
+        let at = vm.positions();
+        settle(&mut vm, 0.1);
+        vm.take_lines();
+        // Steps after the trip: the ISR stops at once (a step or two in flight).
+        let moved: i64 = (0..3).map(|a| (vm.positions()[a] - at[a]).abs()).sum();
+        if moved > 3 {
+            unexpected += 1;
+            println!("round {round}: {moved} steps after {input:?} closed");
+        }
+        if vm.spindle_on() {
+            spindle_left_on += 1;
+        }
+        let alarms = vm.output().matches("ALARM:hard limit").count();
+        assert_eq!(alarms, round + 1, "round {round}: no alarm when {input:?} ({axis:?}) closed");
+        let e = refused(&mut vm, "G1 X10");
+        assert!(e.starts_with("Error:alarm hard limit"), "round {round}: {e}");
+        // Recover: release the switch, unlock, home, and the next round runs.
+        vm.set_input(input, None);
+        ok(&mut vm, "M999");
+        ok(&mut vm, "G28");
+        assert_eq!(xyz_now(&vm), [100, 100, 100], "round {round}: homing after the trip");
+        vm.clear_tx();
+        vm.take_lines();
+    }
+    println!("faults injected: {injected} (limit trips), unexpected motion: {unexpected}, spindle left on: {spindle_left_on}");
+    assert_eq!(unexpected, 0);
+    assert_eq!(spindle_left_on, 0);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 

@@ -17,7 +17,9 @@ const WARNING: &str = "echo:warning: feed capped to the maximum step rate";
 fn boot_unlocked() -> Vm {
     let mut cfg = VmConfig::default();
     cfg.machine.travel_steps = [None; 4];
-    cfg.machine.initial_position = [0; 4];
+    // Off the switches: an unhomed axis starting on its closed switch would
+    // (rightly) raise a hard-limit alarm on the first move.
+    cfg.machine.initial_position = [100, 100, 100, 0];
     let mut vm = boot_with(cfg);
     ok(&mut vm, "M999");
     vm
@@ -63,10 +65,10 @@ fn a_single_axis_feed_at_twice_the_isr_rate_is_capped_with_a_warning_and_ends_on
     let cap = MAX_STEP_RATE_HZ as f64;
     assert!(rate <= cap * 1.001 && rate >= cap * 0.98, "cruise at {rate:.0} Hz, cap {cap:.0} Hz");
     assert_clean(&vm);
-    // Still answering, still moving (back to 1 mm: physical 0 is the switch).
+    // Still answering, still moving (back to 1 mm from the start).
     ok(&mut vm, "G1 X1 F600");
     ok(&mut vm, "M400");
-    assert_eq!(vm.position(Axis::X), 1000);
+    assert_eq!(vm.position(Axis::X), 100 + 1000);
 }
 
 #[test]
@@ -82,7 +84,7 @@ fn four_axes_at_twice_the_isr_rate_are_capped_and_every_axis_ends_on_the_exact_s
     assert!(reply.iter().any(|l| l == WARNING), "no warning: {reply:?}");
     ok(&mut vm, "M400");
     vm.run_for(0.01).unwrap();
-    assert_eq!(vm.positions(), [12_000, 11_996, 11_992, 11_988]);
+    assert_eq!(vm.positions(), [100 + 12_000, 100 + 11_996, 100 + 11_992, 11_988]);
     let cap = MAX_STEP_RATE_HZ as f64;
     for a in [Axis::X, Axis::Y, Axis::Z, Axis::E] {
         let rate = cruise_rate(&vm, a);

@@ -120,6 +120,11 @@ fn a_flood_that_overruns_the_rx_ring_drops_only_the_damaged_lines() {
     assert_eq!(oks, reports + overruns, "one ok per line, for {reports} reports and {overruns} drops");
     eprintln!("{n} sent: {reports} answered, {overruns} dropped, {} bytes lost by the UART model", vm.uart_rx_dropped());
     assert!(reports > 0 && reports < n);
+    // If the flood's last bytes were lost, the next line is marked damaged
+    // (the loss may have cut it): end that line before asking M115.
+    vm.send(b"\n");
+    vm.run_for(0.1).unwrap();
+    vm.take_lines();
     let r = vm.command("M115").expect("firmware still answers");
     assert!(r.iter().any(|l| l.starts_with("FIRMWARE_NAME:MillFW")), "{r:?}");
     assert_eq!(vm.resets().iter().filter(|r| r.kind != sim::ResetKind::PowerOn).count(), 0);

@@ -64,7 +64,7 @@ pub struct Chunk {
     /// Direction pin levels per port (0..3), over the [`StepMap::dir`] masks.
     pub dir_out: [u8; 3],
     /// Axis bits whose home switch closing stops with a hard-limit alarm
-    /// (moving toward the switch, and not a homed axis ending at its switch).
+    /// (every watched axis but a homed one at 0 at either end of the chunk).
     pub limit: u8,
     /// Axis bits moving negative.
     pub axis_dir: u8,
@@ -183,7 +183,7 @@ pub trait Sink {
 /// `Io::set_watch`), plus the direction inversion.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ChunkWatch {
-    /// Axes whose switch raises a hard-limit alarm when moving toward it.
+    /// Axes whose switch raises a hard-limit alarm (hard limits on, not homing).
     pub limits: u8,
     /// Homed axes (their switch closing at position 0 is expected).
     pub homed: u8,
@@ -300,10 +300,14 @@ impl Splitter {
         let error0 = (events >> 1) - events;
         let mut moving = 0u8;
         let mut ends_at_zero = 0u8;
+        let mut starts_at_zero = 0u8;
         // Pin high = positive, unless the axis is inverted.
         let high = !dir ^ w.invert_dir;
         for i in 0..N_AXES {
             let bit = 1u8 << i;
+            if self.plan_pos[i] == 0 {
+                starts_at_zero |= bit;
+            }
             let s = if whole {
                 self.block.steps[i]
             } else {
@@ -337,7 +341,11 @@ impl Splitter {
                 c.dir_out[port as usize] |= mask;
             }
         }
-        c.limit = w.limits & dir & moving & !(w.homed & ends_at_zero);
+        // SPEC §6: a switch tripping outside homing is an alarm, whether its
+        // axis moves toward it, away from it or not at all. Not armed: a homed
+        // axis that starts or ends this chunk at 0, where its switch is
+        // closed by definition (machine 0 is the trip point).
+        c.limit = w.limits & !(w.homed & (starts_at_zero | ends_at_zero));
         sink.chunk(&c);
         self.chunk_start = start;
         self.chunk_end = end;
@@ -519,17 +527,31 @@ mod tests {
     }
 
     #[test]
-    fn hard_limits_arm_axes_moving_toward_their_switch_except_a_homed_axis_ending_on_it() {
+    fn hard_limits_arm_every_axis_but_a_homed_one_at_its_switch() {
         let w = ChunkWatch { limits: 0b111, homed: 0b001, invert_dir: 0 };
         let mut sp = Splitter::new();
         sp.reset([100, 100, 100, 0]);
         let mut rec = Rec::default();
-        // X to exactly 0 (homed): not armed. Y toward its switch: armed. Z away: not.
+        // X to exactly 0 (homed): not armed. Y toward its switch, Z away: armed.
         sp.push(&StepperCmd::Block(block([100, 50, 10, 0], 0b011)), &MAP, &w, &mut rec);
-        assert_eq!(rec.chunks[0].limit, 0b010);
-        // X from 0 further negative: armed.
+        assert_eq!(rec.chunks[0].limit, 0b110);
+        // X from 0 further negative (starts at its switch): not armed; Y, Z idle: armed.
         sp.push(&StepperCmd::Block(block([5, 0, 0, 0], 0b001)), &MAP, &w, &mut rec);
-        assert_eq!(rec.chunks[1].limit, 0b001);
+        assert_eq!(rec.chunks[1].limit, 0b110);
+        // X back through 0 to +5, then Y alone: X is off its switch: armed again.
+        sp.push(&StepperCmd::Block(block([10, 0, 0, 0], 0)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks[2].limit, 0b111);
+        sp.push(&StepperCmd::Block(block([0, 10, 0, 0], 0)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks[3].limit, 0b111);
+        // An unhomed axis at 0 is armed (its position is not known).
+        let unhomed = ChunkWatch { homed: 0, ..w };
+        sp.reset([0, 100, 100, 0]);
+        sp.push(&StepperCmd::Block(block([10, 0, 0, 0], 0)), &MAP, &unhomed, &mut rec);
+        assert_eq!(rec.chunks[4].limit, 0b111);
+        // Hard limits off (or homing): nothing armed.
+        let off = ChunkWatch { limits: 0, ..w };
+        sp.push(&StepperCmd::Block(block([0, 10, 0, 0], 0b010)), &MAP, &off, &mut rec);
+        assert_eq!(rec.chunks[5].limit, 0);
     }
 
     #[test]

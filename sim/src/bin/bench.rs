@@ -100,13 +100,18 @@ struct Bench {
     isr_total: u64,
 }
 
+/// Physical start, steps: off the switches (an unhomed axis resting on its
+/// closed switch raises a hard-limit alarm on the first move).
+const START: [i64; 4] = [100, 100, 100, 0];
+
 impl Bench {
     fn boot(&mut self) -> Result<Vm, String> {
         let mut cfg = VmConfig::new(&self.elf);
         // Settings change steps/mm here: no travel check in the VM (the
         // firmware's soft limits still apply, in mm).
         cfg.machine.travel_steps = [None; 4];
-        cfg.machine.initial_position = [0; 4];
+        // Off the switches (an unhomed axis on its closed switch is a hard limit).
+        cfg.machine.initial_position = START;
         let mut vm = Vm::new(cfg).map_err(|e| e.to_string())?;
         vm.wait_for_start(3.0).map_err(|e| e.to_string())?;
         vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).map_err(|e| e.to_string())?;
@@ -164,7 +169,7 @@ impl Bench {
         self.cmd(&mut vm, "M400")?;
         vm.run_for(0.01).map_err(|e| e.to_string())?;
         let times = step_times(&vm, Axis::X);
-        self.r.single_steps = vm.position(Axis::X);
+        self.r.single_steps = vm.position(Axis::X) - START[0];
         self.r.single_steps_wanted = 40_000;
         self.r.single_rate_hz = cruise_rate(&times);
         self.r.single_violations = vm.recorder().violation_count();
@@ -184,7 +189,7 @@ impl Bench {
         self.cmd(&mut vm, "G1 X30 Y29.99 Z29.98 E29.97 F120000")?;
         self.cmd(&mut vm, "M400")?;
         vm.run_for(0.01).map_err(|e| e.to_string())?;
-        let want = [12_000, 11_996, 11_992, 11_988];
+        let want = [START[0] + 12_000, START[1] + 11_996, START[2] + 11_992, START[3] + 11_988];
         self.r.four_steps_ok = vm.positions() == want;
         for (i, a) in [Axis::X, Axis::Y, Axis::Z, Axis::E].into_iter().enumerate() {
             self.r.four_rate_hz[i] = cruise_rate(&step_times(&vm, a));
