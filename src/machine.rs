@@ -512,9 +512,11 @@ impl Machine {
         // At most one ring's worth per call: after an emergency stop the ISR
         // throws segments away as fast as they come, and an unbounded loop
         // would prep the whole planner queue before the next poll (0.7 s
-        // before the alarm was even reported).
+        // before the alarm was even reported). The space is asked again for
+        // each segment: the board caps the queued motion time, not only the
+        // slots.
         let mut room = io.segment_space();
-        while room > 0 {
+        while room > 0 && io.segment_space() > 0 {
             room -= 1;
             match self.prep.next_segment(&mut self.planner, &self.settings) {
                 Some(cmd) => {

@@ -223,6 +223,36 @@ fn retire_to(m: &mut Main, cur: u8) {
 
 /// Free (segment, chunk) slots. Finished chunks are retired only when the
 /// chunk ring looks short of room (retiring costs ~130 cycles per call).
+/// At most this much motion (CPU cycles: 40 ms) waits in the segment ring.
+/// A feed hold or an abort decelerates from the end of what is queued, so
+/// this bounds their latency (16 segments of up to 20 ms queued made it
+/// 320 ms); 40 ms still covers the longest main-loop turn (a line's parse
+/// and plan, ~3 ms; an SD block read; an OLED slice).
+const MAX_QUEUED_CYCLES: u32 = 16_000_000 / 25;
+
+/// CPU cycles of each segment slot, written with the slot (main only).
+static mut SEG_CYCLES: [u32; SEG_RING_LEN] = [0; SEG_RING_LEN];
+/// Running total of `SEG_CYCLES` over the slots from `SEG_DONE` to the head.
+static mut SEG_QUEUED: u32 = 0;
+/// First slot whose cycles are still in `SEG_QUEUED` (trails the ISR's tail).
+static mut SEG_DONE: u8 = 0;
+
+/// CPU cycles of motion in the segments waiting in the ring (not counting
+/// the one the ISR is running). Main loop only; O(1) amortised.
+fn queued_cycles() -> u32 {
+    // SAFETY: main only; seg_tail is a single-byte read of what the ISR writes.
+    unsafe {
+        let tail = read_volatile(addr_of!(ST.seg_tail));
+        let done = &mut *addr_of_mut!(SEG_DONE);
+        let total = &mut *addr_of_mut!(SEG_QUEUED);
+        while *done != tail {
+            *total = total.wrapping_sub(SEG_CYCLES[*done as usize]);
+            *done = (*done + 1) & SEG_MASK;
+        }
+        *total
+    }
+}
+
 fn free_slots(m: &mut Main) -> (u8, u8) {
     // SAFETY: single-byte reads of indices the ISR writes; SEG_HEAD is
     // written by main only.
@@ -241,6 +271,9 @@ fn free_slots(m: &mut Main) -> (u8, u8) {
 pub fn space() -> usize {
     // SAFETY: MAIN is used by the main loop only.
     let m = unsafe { &mut *addr_of_mut!(MAIN) };
+    if queued_cycles() >= MAX_QUEUED_CYCLES {
+        return 0;
+    }
     let (s, c) = free_slots(m);
     if s >= 2 && c >= 1 {
         (s / 2).min(c) as usize
@@ -267,6 +300,10 @@ impl Sink for Rings {
         unsafe {
             let h = *addr_of!(SEG_HEAD);
             *addr_of_mut!(SEGS[h as usize]) = *s;
+            let prescale = if s.tccr & 0x07 == 1 { 1 } else { 8 };
+            let cycles = (s.ticks as u32).saturating_mul(s.period as u32).saturating_mul(prescale).min(u32::MAX / 32);
+            *addr_of_mut!(SEG_CYCLES[h as usize]) = cycles;
+            *addr_of_mut!(SEG_QUEUED) += cycles;
             compiler_fence(FenceOrdering::SeqCst);
             write_volatile(addr_of_mut!(SEG_HEAD), (h + 1) & SEG_MASK);
         }
