@@ -178,20 +178,24 @@ impl Settings {
 
     /// True when every value is one the planner can work with.
     pub fn is_sane(&self) -> bool {
-        let pos = |v: f32| v.is_finite() && v > 0.0;
-        let non_neg = |v: f32| v.is_finite() && v >= 0.0;
-        self.steps_per_mm.iter().all(|&v| pos(v) && v <= 10_000.0)
-            && self.max_feed_mm_per_min.iter().all(|&v| pos(v))
-            && self.accel_mm_per_s2.iter().all(|&v| pos(v))
-            && self.travel_mm.iter().all(|&v| pos(v))
-            && pos(self.junction_deviation_mm)
-            && pos(self.arc_tolerance_mm)
-            && self.backlash_mm.iter().all(|&v| non_neg(v) && v <= 5.0)
-            && pos(self.homing_seek_mm_per_min)
-            && pos(self.homing_feed_mm_per_min)
-            && non_neg(self.homing_pulloff_mm)
-            && pos(self.spindle_max_rpm)
-            && self.wcs_mm.iter().flatten().all(|v| v.is_finite())
+        const MAX: f32 = f32::MAX;
+        let singles_pos = [
+            self.junction_deviation_mm,
+            self.arc_tolerance_mm,
+            self.homing_seek_mm_per_min,
+            self.homing_feed_mm_per_min,
+            self.spindle_max_rpm,
+        ];
+        // One table, one (non-inlined) check: each f32 range check inlined
+        // costs about 60 bytes of AVR code.
+        all_within(&self.steps_per_mm, 0.0, false, 10_000.0)
+            && all_within(&self.max_feed_mm_per_min, 0.0, false, MAX)
+            && all_within(&self.accel_mm_per_s2, 0.0, false, MAX)
+            && all_within(&self.travel_mm, 0.0, false, MAX)
+            && all_within(&singles_pos, 0.0, false, MAX)
+            && all_within(&self.backlash_mm, 0.0, true, 5.0)
+            && all_within(&[self.homing_pulloff_mm], 0.0, true, MAX)
+            && all_within(self.wcs_mm.as_flattened(), f32::NEG_INFINITY, true, MAX)
     }
 
     /// Travel of an axis in steps (X, Y, Z).
@@ -218,6 +222,13 @@ impl Default for Settings {
     fn default() -> Self {
         Settings::defaults()
     }
+}
+
+/// True when every value of `v` is finite, above `lo` (or equal to it when
+/// `lo_incl`) and at most `hi`.
+#[inline(never)]
+fn all_within(v: &[f32], lo: f32, lo_incl: bool, hi: f32) -> bool {
+    v.iter().all(|&x| x.is_finite() && (x > lo || (lo_incl && x == lo)) && x <= hi)
 }
 
 /// Additive checksum of the EEPROM image, seeded so an all-0xFF blank fails.
