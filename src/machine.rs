@@ -819,7 +819,8 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
             continue;
         }
         m.homed &= !(1 << axis);
-        let pulloff = s.homing_pulloff_mm.max(0.1);
+        // `max` without f32::max (compiler-builtins' fmaximum_numf, 142 bytes).
+        let pulloff = if s.homing_pulloff_mm >= 0.1 { s.homing_pulloff_mm } else { 0.1 };
         if io.switches().home & (1 << axis) != 0 {
             // Starting on the switch: move off it first.
             m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
