@@ -751,6 +751,7 @@ impl Machine {
     }
 
     /// M0/M1: wait for `~` (resume).
+    #[inline(never)]
     pub fn pause_until_resume(&mut self, io: &mut impl Io) -> CmdResult {
         let prev = self.state;
         self.state = State::Hold;
