@@ -649,8 +649,8 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         _ => Ok(()),
     };
     if let Err(e) = r {
-        uwriteln!(SerialOut, "echo:menu:").ok();
-        m.report_error(&mut SerialOut, e);
+        uwriteln!(hw, "echo:menu:").ok();
+        m.report_error(hw, e);
     }
 }
 
