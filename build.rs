@@ -8,6 +8,7 @@ fn main() {
         let dir = env::var("CARGO_MANIFEST_DIR").unwrap();
         // Keep the budget symbols even though nothing references them.
         println!("cargo:rustc-link-arg-bins=-Wl,--undefined=__mill_ram_budget");
+        println!("cargo:rustc-link-arg-bins=-Wl,--relax");
         println!("cargo:rustc-link-arg-bins={dir}/memory.x");
     }
 }

@@ -90,33 +90,51 @@ impl Settings {
     /// Size of the EEPROM image in bytes: version, fields, checksum.
     pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 4 + 1;
 
-    /// Serialise to the EEPROM image.
+    /// The f32 fields in EEPROM image order.
+    fn f32_fields(&self) -> [&[f32]; 12] {
+        use core::slice::from_ref;
+        [
+            &self.steps_per_mm,
+            &self.max_feed_mm_per_min,
+            &self.accel_mm_per_s2,
+            &self.travel_mm,
+            from_ref(&self.junction_deviation_mm),
+            from_ref(&self.arc_tolerance_mm),
+            &self.backlash_mm,
+            from_ref(&self.homing_seek_mm_per_min),
+            from_ref(&self.homing_feed_mm_per_min),
+            from_ref(&self.homing_pulloff_mm),
+            from_ref(&self.spindle_max_rpm),
+            self.wcs_mm.as_flattened(),
+        ]
+    }
+
+    /// [`Settings::f32_fields`], writable.
+    fn f32_fields_mut(&mut self) -> [&mut [f32]; 12] {
+        use core::slice::from_mut;
+        [
+            &mut self.steps_per_mm,
+            &mut self.max_feed_mm_per_min,
+            &mut self.accel_mm_per_s2,
+            &mut self.travel_mm,
+            from_mut(&mut self.junction_deviation_mm),
+            from_mut(&mut self.arc_tolerance_mm),
+            &mut self.backlash_mm,
+            from_mut(&mut self.homing_seek_mm_per_min),
+            from_mut(&mut self.homing_feed_mm_per_min),
+            from_mut(&mut self.homing_pulloff_mm),
+            from_mut(&mut self.spindle_max_rpm),
+            self.wcs_mm.as_flattened_mut(),
+        ]
+    }
+
+    /// Serialise to the EEPROM image: version, the f32 fields (little
+    /// endian, in [`Settings::f32_fields`] order), the flags, checksum.
     pub fn to_bytes(&self) -> [u8; Self::IMAGE_LEN] {
         let mut w = Writer { buf: [0; Self::IMAGE_LEN], at: 0 };
         w.u8(SETTINGS_VERSION);
-        for a in 0..N_AXES {
-            w.f32(self.steps_per_mm[a]);
-        }
-        for a in 0..N_AXES {
-            w.f32(self.max_feed_mm_per_min[a]);
-        }
-        for a in 0..N_AXES {
-            w.f32(self.accel_mm_per_s2[a]);
-        }
-        for t in self.travel_mm {
-            w.f32(t);
-        }
-        w.f32(self.junction_deviation_mm);
-        w.f32(self.arc_tolerance_mm);
-        for b in self.backlash_mm {
-            w.f32(b);
-        }
-        w.f32(self.homing_seek_mm_per_min);
-        w.f32(self.homing_feed_mm_per_min);
-        w.f32(self.homing_pulloff_mm);
-        w.f32(self.spindle_max_rpm);
-        for wcs in self.wcs_mm {
-            for v in wcs {
+        for part in self.f32_fields() {
+            for &v in part {
                 w.f32(v);
             }
         }
@@ -134,68 +152,55 @@ impl Settings {
     /// Parse an EEPROM image. `None` if blank, of another version, corrupt,
     /// or holding values no machine could use (NaN, zero steps/mm, …).
     pub fn from_bytes(b: &[u8]) -> Option<Settings> {
+        let mut s = Settings::defaults();
+        s.read_image(b).then_some(s)
+    }
+
+    /// [`Settings::from_bytes`] into `self`; false (and `self` partly
+    /// overwritten) when the image is not valid. Not inlined: it works on
+    /// the settings through a pointer, within AVR's `ldd` reach.
+    #[inline(never)]
+    fn read_image(&mut self, b: &[u8]) -> bool {
         if b.len() < Self::IMAGE_LEN || b[0] != SETTINGS_VERSION {
-            return None;
+            return false;
         }
         if checksum(&b[..Self::IMAGE_LEN - 1]) != b[Self::IMAGE_LEN - 1] {
-            return None;
+            return false;
         }
         let mut r = Reader { buf: b, at: 1 };
-        let mut s = Settings::defaults();
-        for a in 0..N_AXES {
-            s.steps_per_mm[a] = r.f32();
-        }
-        for a in 0..N_AXES {
-            s.max_feed_mm_per_min[a] = r.f32();
-        }
-        for a in 0..N_AXES {
-            s.accel_mm_per_s2[a] = r.f32();
-        }
-        for t in s.travel_mm.iter_mut() {
-            *t = r.f32();
-        }
-        s.junction_deviation_mm = r.f32();
-        s.arc_tolerance_mm = r.f32();
-        for v in s.backlash_mm.iter_mut() {
-            *v = r.f32();
-        }
-        s.homing_seek_mm_per_min = r.f32();
-        s.homing_feed_mm_per_min = r.f32();
-        s.homing_pulloff_mm = r.f32();
-        s.spindle_max_rpm = r.f32();
-        for wcs in s.wcs_mm.iter_mut() {
-            for v in wcs.iter_mut() {
+        for part in self.f32_fields_mut() {
+            for v in part.iter_mut() {
                 *v = r.f32();
             }
         }
-        s.invert_dir_mask = r.u8();
-        s.soft_limits = r.u8() != 0;
-        s.hard_limits = r.u8() != 0;
-        s.auto_tool_offset = r.u8() != 0;
-        s.homing_lock = r.u8() != 0;
-        if s.is_sane() {
-            Some(s)
-        } else {
-            None
-        }
+        self.invert_dir_mask = r.u8();
+        self.soft_limits = r.u8() != 0;
+        self.hard_limits = r.u8() != 0;
+        self.auto_tool_offset = r.u8() != 0;
+        self.homing_lock = r.u8() != 0;
+        self.is_sane()
     }
 
     /// True when every value is one the planner can work with.
     pub fn is_sane(&self) -> bool {
-        let pos = |v: f32| v.is_finite() && v > 0.0;
-        let non_neg = |v: f32| v.is_finite() && v >= 0.0;
-        self.steps_per_mm.iter().all(|&v| pos(v) && v <= 10_000.0)
-            && self.max_feed_mm_per_min.iter().all(|&v| pos(v))
-            && self.accel_mm_per_s2.iter().all(|&v| pos(v))
-            && self.travel_mm.iter().all(|&v| pos(v))
-            && pos(self.junction_deviation_mm)
-            && pos(self.arc_tolerance_mm)
-            && self.backlash_mm.iter().all(|&v| non_neg(v) && v <= 5.0)
-            && pos(self.homing_seek_mm_per_min)
-            && pos(self.homing_feed_mm_per_min)
-            && non_neg(self.homing_pulloff_mm)
-            && pos(self.spindle_max_rpm)
-            && self.wcs_mm.iter().flatten().all(|v| v.is_finite())
+        const MAX: f32 = f32::MAX;
+        let singles_pos = [
+            self.junction_deviation_mm,
+            self.arc_tolerance_mm,
+            self.homing_seek_mm_per_min,
+            self.homing_feed_mm_per_min,
+            self.spindle_max_rpm,
+        ];
+        // One table, one (non-inlined) check: each f32 range check inlined
+        // costs about 60 bytes of AVR code.
+        all_within(&self.steps_per_mm, 0.0, false, 10_000.0)
+            && all_within(&self.max_feed_mm_per_min, 0.0, false, MAX)
+            && all_within(&self.accel_mm_per_s2, 0.0, false, MAX)
+            && all_within(&self.travel_mm, 0.0, false, MAX)
+            && all_within(&singles_pos, 0.0, false, MAX)
+            && all_within(&self.backlash_mm, 0.0, true, 5.0)
+            && all_within(&[self.homing_pulloff_mm], 0.0, true, MAX)
+            && all_within(self.wcs_mm.as_flattened(), f32::NEG_INFINITY, true, MAX)
     }
 
     /// Travel of an axis in steps (X, Y, Z).
@@ -222,6 +227,13 @@ impl Default for Settings {
     fn default() -> Self {
         Settings::defaults()
     }
+}
+
+/// True when every value of `v` is finite, above `lo` (or equal to it when
+/// `lo_incl`) and at most `hi`.
+#[inline(never)]
+fn all_within(v: &[f32], lo: f32, lo_incl: bool, hi: f32) -> bool {
+    v.iter().all(|&x| x.is_finite() && (x > lo || (lo_incl && x == lo)) && x <= hi)
 }
 
 /// Additive checksum of the EEPROM image, seeded so an all-0xFF blank fails.

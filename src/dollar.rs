@@ -20,7 +20,7 @@
 use crate::config::Settings;
 use crate::fixed::Micros;
 use crate::flash::FStr;
-use ufmt::{uWrite, uwriteln};
+use ufmt::{uWrite, uwrite, uwriteln};
 
 /// One setting, borrowed out of [`Settings`].
 pub enum Field<'a> {
@@ -169,12 +169,14 @@ pub fn list(s: &Settings, w: &mut impl uWrite) {
     // The match in `field` is the table: no list to keep in step with it.
     for n in 0..=255u8 {
         if let Some((f, what)) = field(&mut copy, n) {
+            uwrite!(w, "${}=", n).ok();
             match f {
-                Field::Num(x) => uwriteln!(w, "${}={} ({})", n, Micros::from_mm(*x), what),
-                Field::Flag(x) => uwriteln!(w, "${}={} ({})", n, *x as u8, what),
-                Field::Mask(x) => uwriteln!(w, "${}={} ({})", n, *x, what),
+                Field::Num(x) => uwrite!(w, "{}", Micros::from_mm(*x)),
+                Field::Flag(x) => uwrite!(w, "{}", *x as u8),
+                Field::Mask(x) => uwrite!(w, "{}", *x),
             }
             .ok();
+            uwriteln!(w, " ({})", what).ok();
         }
     }
 }

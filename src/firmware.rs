@@ -531,7 +531,8 @@ impl Hw {
     }
 }
 
-static mut MACHINE: Machine = Machine::new();
+/// Zero-initialised (in .bss, no flash image); written once in `run`.
+static mut MACHINE: core::mem::MaybeUninit<Machine> = core::mem::MaybeUninit::uninit();
 /// Zero-initialised (in .bss, no flash image); written once in `run`.
 static mut HW: core::mem::MaybeUninit<Hw> = core::mem::MaybeUninit::uninit();
 
@@ -580,7 +581,7 @@ pub fn run() -> ! {
         })
     };
     // SAFETY: as above.
-    let m = unsafe { &mut *core::ptr::addr_of_mut!(MACHINE) };
+    let m = Machine::init(unsafe { &mut *core::ptr::addr_of_mut!(MACHINE) });
     serial::set_tx_wait_hook(tx_wait);
     // SAFETY: all shared state is initialised; ISRs may run from here on.
     unsafe { avr_device::interrupt::enable() };
@@ -647,8 +648,8 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         _ => Ok(()),
     };
     if let Err(e) = r {
-        uwriteln!(SerialOut, "echo:menu:").ok();
-        m.report_error(&mut SerialOut, e);
+        uwriteln!(hw, "echo:menu:").ok();
+        m.report_error(hw, e);
     }
 }
 

@@ -355,28 +355,30 @@ fn parse_i32(s: &[u8]) -> Option<(i32, usize)> {
         _ => false,
     };
     let start = i;
-    // At most 10 digits accumulated in an i64, then range-checked: no
-    // overflow-checked multiply (i32::checked_mul hung on AVR, through
-    // compiler-builtins' __mulosi4).
-    let mut v: i64 = 0;
+    // At most 10 digits, accumulated in a u32 with the range checked before
+    // each digit: no overflow-checked multiply (i32::checked_mul hung on AVR,
+    // through compiler-builtins' __mulosi4) and no 64-bit arithmetic.
+    let mut v: u32 = 0;
     while let Some(&d) = s.get(i) {
         if !d.is_ascii_digit() {
             break;
         }
-        if i - start >= 10 {
+        if i - start >= 10 || v > 214_748_364 {
+            // Too long, or the next digit takes it past i32 either way.
             return None;
         }
-        v = v * 10 + (d - b'0') as i64;
+        v = v * 10 + (d - b'0') as u32;
         i += 1;
     }
     if i == start {
         return None;
     }
-    let v = if negative { -v } else { v };
-    if v < i32::MIN as i64 || v > i32::MAX as i64 {
+    let limit = if negative { 1u32 << 31 } else { i32::MAX as u32 };
+    if v > limit {
         return None;
     }
-    Some((v as i32, i))
+    let v = v as i32;
+    Some((if negative { v.wrapping_neg() } else { v }, i))
 }
 
 /// The checksum after `*`: decimal 0..=255, blanks around it allowed.

@@ -112,6 +112,24 @@ fn m28_m29_upload_a_file_that_m23_m24_then_run() {
 }
 
 #[test]
+fn m28_over_an_existing_file_replaces_it() {
+    // The truncate path of open_file_in_dir (patched in vendor/).
+    let mut vm = boot_with_card(&[("UP.GCO", b"G21 G90\nG1 X5 F600\nG1 X0\n")]);
+    assert_eq!(ok(&mut vm, "M28 up.gco")[0], "Writing to file: UP.GCO");
+    for l in ["G1 X1 F600", "G1 X0"] {
+        assert_eq!(ok(&mut vm, l), ["ok"]);
+    }
+    assert_eq!(ok(&mut vm, "M29")[0], "Done saving file.");
+    let r = ok(&mut vm, "M20");
+    assert!(r.contains(&"UP.GCO 17".to_string()), "{r:?}");
+    ok(&mut vm, "M23 UP.GCO");
+    ok(&mut vm, "M24");
+    wait_for(&mut vm, |l| l == "Done printing file", 10.0);
+    let s = vm.recorder().axis_stats(Axis::X);
+    assert_eq!((s.steps_pos, s.steps_neg), (100, 100));
+}
+
+#[test]
 fn a_job_from_sd_steps_exactly_like_the_same_file_streamed_over_serial() {
     let job: String = (0..40).map(|i| format!("G1 X{:.1} Y{:.1} F2400\n", 5.0 + (i % 7) as f32 * 1.3, 5.0 + (i % 5) as f32 * 2.1)).collect();
     let mut a = boot_with_card(&[("JOB.GCO", job.as_bytes())]);

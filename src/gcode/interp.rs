@@ -198,8 +198,32 @@ fn axis_words_are_settings(l: &Line) -> bool {
 }
 
 /// Execute one parsed line (RS274/NGC order of execution).
+///
+/// The work is split over small non-inlined steps on purpose: AVR loads and
+/// stores reach only 63 bytes into a stack frame, and in one function with
+/// all of this inlined (a 445-byte frame) every access beyond that cost
+/// 10 extra bytes of code (about 6 KB in all).
 #[inline(never)]
 pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
+    if let Some(done) = execute_early(m, l, io) {
+        return done;
+    }
+    // Work on a copy of the modal state; commit only when the line is valid.
+    let mut g = ModalCopy::from(&m.interp);
+    modal_words(m, l, &mut g)?;
+    if l.non_modal.is_some() {
+        if let Some(done) = non_modal(m, &g, l, io) {
+            return done;
+        }
+    }
+    motion_line(m, &g, l, text, io)
+}
+
+/// The checks and commands before the modal state: the SD-job filter, the
+/// codes that work in any state, the alarm and interrupted-change locks and
+/// the validation of words that need no modal state. `Some` ends the line.
+#[inline(never)]
+fn execute_early(m: &mut Machine, l: &Line, io: &mut impl Io) -> Option<Result<(), Error>> {
     // During an SD job the serial line may only ask for status (SPEC §9).
     if m.sd_job && !m.in_job_line() {
         let status_only = l.motion.is_none()
@@ -210,7 +234,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             && l.stopping.is_none()
             && matches!(l.other_m, Some(114 | 115 | 119 | 220 | 503));
         if !status_only {
-            return Err(Error::JobRunning);
+            return Some(Err(Error::JobRunning));
         }
     }
     // Commands that work in any state first.
@@ -218,40 +242,40 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         match code {
             115 => {
                 m.firmware_line(io);
-                return Ok(());
+                return Some(Ok(()));
             }
             114 => {
                 report_position(m, io);
-                return Ok(());
+                return Some(Ok(()));
             }
             105 => {
                 // Senders (printcore, Pronterface, OctoPrint) poll M105 for
                 // temperatures; a mill has no heaters, so it reports none
                 // rather than an error every few seconds.
                 uwriteln!(io, "T:0.0 /0.0").ok();
-                return Ok(());
+                return Some(Ok(()));
             }
             119 => {
                 report_switches(m, io);
-                return Ok(());
+                return Some(Ok(()));
             }
             503 => {
                 report_settings(m, io);
-                return Ok(());
+                return Some(Ok(()));
             }
-            61 => return crate::atc::run::m61(m, io, l),
+            61 => return Some(crate::atc::run::m61(m, io, l)),
             999 => {
                 m.clear_alarm(io);
                 uwriteln!(io, "{}", F!("echo:alarm cleared; position unknown until homed (G28)")).ok();
-                return Ok(());
+                return Some(Ok(()));
             }
-            110 => return Ok(()), // handled by the line checker
+            110 => return Some(Ok(())), // handled by the line checker
             112 => {
                 // The RX interrupt's scanner has usually raised it already.
                 if m.alarm != Some(Alarm::EmergencyStop) {
                     m.raise(io, Alarm::EmergencyStop);
                 }
-                return Ok(());
+                return Some(Ok(()));
             }
             _ => {}
         }
@@ -267,51 +291,58 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         || l.stopping.is_some();
     if l.non_modal == Some(NonModal::AuxReport) {
         crate::atc::carousel::report(m, io);
-        return Ok(());
+        return Some(Ok(()));
     }
     let harmless = matches!(l.other_m, Some(500..=502) | Some(17) | Some(18) | Some(84)) || l.spindle == Some(Spindle::Off);
     if m.alarm.is_some() && moves {
         let homing_allowed = l.non_modal == Some(NonModal::Home) && m.alarm != Some(Alarm::EmergencyStop);
         if !homing_allowed && !harmless {
-            return Err(Error::Alarm);
+            return Some(Err(Error::Alarm));
         }
     }
     // After an interrupted tool change nothing moves until M61 confirms the spindle.
     if m.atc.interrupted.is_some() && moves && !harmless {
-        return Err(Error::Atc(crate::atc::Fault::Interrupted));
+        return Some(Err(Error::Atc(crate::atc::Fault::Interrupted)));
     }
 
     // ---- Validate everything before changing anything -----------------
     if l.spindle == Some(Spindle::Ccw) {
-        return Err(Error::SpindleCcw);
+        return Some(Err(Error::SpindleCcw));
     }
-    let tool_change = l.tool_change || l.words.contains(Word::T);
-    if tool_change {
+    if is_tool_change(l) {
         if l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some() {
-            return Err(Error::Atc(crate::atc::Fault::WithMotion));
+            return Some(Err(Error::Atc(crate::atc::Fault::WithMotion)));
         }
         if l.tool().is_some_and(|t| t as usize >= N_TOOLS) {
-            return Err(Error::Atc(crate::atc::Fault::ToolRange));
+            return Some(Err(Error::Atc(crate::atc::Fault::ToolRange)));
         }
     }
     if let Some(code) = l.other_m {
         if (20..=29).contains(&code) {
-            return Err(Error::NotAvailable(F!("SD card not available in this build")));
+            return Some(Err(Error::NotAvailable(F!("SD card not available in this build"))));
         }
     }
     if let Some(f) = l.word(Word::F) {
         if !(f > 0.0) {
-            return Err(Error::BadFeed);
+            return Some(Err(Error::BadFeed));
         }
     }
     if let Some(s) = l.word(Word::S) {
         if s < 0.0 && l.non_modal != Some(NonModal::Dwell) {
-            return Err(Error::BadWord(F!("S must not be negative")));
+            return Some(Err(Error::BadWord(F!("S must not be negative"))));
         }
     }
+    None
+}
 
-    // Work on a copy of the modal state; commit only when the line is valid.
-    let mut g = ModalCopy::from(&m.interp);
+/// True when the line changes tools (M6, or a T word).
+fn is_tool_change(l: &Line) -> bool {
+    l.tool_change || l.words.contains(Word::T)
+}
+
+/// The line's modal words into the copy `g` (nothing is committed yet).
+#[inline(never)]
+fn modal_words(m: &Machine, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
     if let Some(u) = l.units {
         g.inches = u == Units::Inch;
     }
@@ -342,29 +373,16 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             }
         };
     }
+    Ok(())
+}
 
-    // ---- Non-modal codes that do not move ------------------------------
-    match l.non_modal {
-        Some(NonModal::Dwell) => {
-            let ms = match (l.word(Word::P), l.word(Word::S)) {
-                (Some(p), None) if p >= 0.0 => p,
-                (None, Some(s)) if s >= 0.0 => s * 1000.0,
-                _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
-            };
-            g.commit(&mut m.interp);
-            m.wait_idle(io)?;
-            let start = io.millis();
-            while (io.millis().wrapping_sub(start) as f32) < ms {
-                m.keepalive(io);
-                m.wait_step(io)?;
-            }
-            return Ok(());
-        }
-        Some(NonModal::SetOffsets) => {
-            set_offsets(m, &g, l, io)?;
-            g.commit(&mut m.interp);
-            return Ok(());
-        }
+/// Non-modal codes that end the line (G4, G10, G92, G28, G37, G201–G205);
+/// `None` for the others (G53), which go on to the motion.
+#[inline(never)]
+fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Option<Result<(), Error>> {
+    Some(match l.non_modal {
+        Some(NonModal::Dwell) => dwell(m, g, l, io),
+        Some(NonModal::SetOffsets) => set_offsets(m, g, l, io).map(|_| g.commit(&mut m.interp)),
         Some(NonModal::SetPosition) => {
             let mut off = m.interp.g92_mm;
             for (a, &w) in AXIS_WORDS.iter().enumerate() {
@@ -377,7 +395,7 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             }
             g.commit(&mut m.interp);
             m.interp.g92_mm = off;
-            return Ok(());
+            Ok(())
         }
         Some(NonModal::Home) => {
             g.commit(&mut m.interp);
@@ -390,20 +408,41 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
             if mask == 0 {
                 mask = 0b111;
             }
-            return crate::machine::home(m, io, mask);
+            crate::machine::home(m, io, mask)
         }
         Some(NonModal::MeasureTool) => {
             g.commit(&mut m.interp);
-            return crate::toolsetter::run::g37(m, io, l);
+            crate::toolsetter::run::g37(m, io, l)
         }
         Some(nm @ (NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxEnable | NonModal::AuxHome)) => {
             g.commit(&mut m.interp);
-            return crate::atc::carousel::command(m, io, l, nm);
+            crate::atc::carousel::command(m, io, l, nm)
         }
-        _ => {}
-    }
+        _ => return None,
+    })
+}
 
-    // ---- Motion -------------------------------------------------------------
+/// G4: wait for the queue to drain, then dwell P ms or S seconds.
+fn dwell(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
+    let ms = match (l.word(Word::P), l.word(Word::S)) {
+        (Some(p), None) if p >= 0.0 => p,
+        (None, Some(s)) if s >= 0.0 => s * 1000.0,
+        _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
+    };
+    g.commit(&mut m.interp);
+    m.wait_idle(io)?;
+    let start = io.millis();
+    while (io.millis().wrapping_sub(start) as f32) < ms {
+        m.keepalive(io);
+        m.wait_step(io)?;
+    }
+    Ok(())
+}
+
+/// The motion part of a line: target, checks, then (through [`arc_line`]
+/// for arcs) [`finish_line`].
+#[inline(never)]
+fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
     let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
     let mut target = m.interp.pos_mm;
     let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
@@ -444,48 +483,104 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         check_soft_limits(m, &target)?;
         do_motion = Some(motion);
     }
-    // Arcs: compute the chord plan before committing anything.
-    let mut arc_plan = None;
-    if let Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) = do_motion {
-        let (a0, a1, a2) = match g.plane {
-            Plane::Xy => (0, 1, 2),
-            Plane::Zx => (2, 0, 1),
-            Plane::Yz => (1, 2, 0),
-        };
-        let off_words = [Word::I, Word::J, Word::K];
-        let r = l.word(Word::R).map(|r| if g.inches { r * MM_PER_INCH } else { r });
-        let mut centre_off = [0.0f32; 3];
-        let mut any_off = false;
-        for (a, &w) in off_words.iter().enumerate() {
-            if let Some(v) = l.word(w) {
-                centre_off[a] = if g.inches { v * MM_PER_INCH } else { v };
-                any_off = true;
-            }
-        }
-        let start = [m.interp.pos_mm[0], m.interp.pos_mm[1], m.interp.pos_mm[2]];
-        let end = [target[0], target[1], target[2]];
-        let spec = match (r, any_off) {
-            (Some(r), false) => arc::Centre::Radius(r),
-            (None, true) => arc::Centre::Offset(centre_off),
-            (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
-            (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
-        };
-        let plan = arc::Arc::new(start, end, spec, (a0, a1, a2), mo == Motion::ArcCw, m.settings.arc_tolerance_mm)
-            .map_err(Error::Arc)?;
-        // Every chord end stays inside the arc's bounding box; check it.
-        let (lo, hi) = plan.bounds();
-        let mut lo4 = m.interp.pos_mm;
-        let mut hi4 = m.interp.pos_mm;
-        lo4[..3].copy_from_slice(&lo);
-        hi4[..3].copy_from_slice(&hi);
-        check_soft_limits(m, &lo4)?;
-        check_soft_limits(m, &hi4)?;
-        arc_plan = Some(plan);
+    match do_motion {
+        Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) => arc_line(m, g, l, text, io, &target, mo),
+        _ => finish_line(m, g, l, text, io, &target, do_motion, None),
     }
+}
 
-    // ---- Commit modal state, then act -------------------------------------
+/// Arcs: compute the chord plan before committing anything, then finish the
+/// line with it.
+#[inline(never)]
+fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl Io, target: &[f32; N_AXES], mo: Motion) -> Result<(), Error> {
+    let (a0, a1, a2) = match g.plane {
+        Plane::Xy => (0, 1, 2),
+        Plane::Zx => (2, 0, 1),
+        Plane::Yz => (1, 2, 0),
+    };
+    let off_words = [Word::I, Word::J, Word::K];
+    let r = l.word(Word::R).map(|r| if g.inches { r * MM_PER_INCH } else { r });
+    let mut centre_off = [0.0f32; 3];
+    let mut any_off = false;
+    for (a, &w) in off_words.iter().enumerate() {
+        if let Some(v) = l.word(w) {
+            centre_off[a] = if g.inches { v * MM_PER_INCH } else { v };
+            any_off = true;
+        }
+    }
+    let start = [m.interp.pos_mm[0], m.interp.pos_mm[1], m.interp.pos_mm[2]];
+    let end = [target[0], target[1], target[2]];
+    let spec = match (r, any_off) {
+        (Some(r), false) => arc::Centre::Radius(r),
+        (None, true) => arc::Centre::Offset(centre_off),
+        (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
+        (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
+    };
+    let mut plan = new_arc(start, end, spec, (a0, a1, a2), mo == Motion::ArcCw, m.settings.arc_tolerance_mm)?;
+    check_arc_limits(m, &plan)?;
+    finish_line(m, g, l, text, io, target, Some(mo), Some(&mut plan))
+}
+
+/// Every chord end stays inside the arc's bounding box; check it.
+#[inline(never)]
+fn check_arc_limits(m: &Machine, plan: &arc::Arc) -> Result<(), Error> {
+    let (lo, hi) = plan.bounds();
+    let mut lo4 = m.interp.pos_mm;
+    let mut hi4 = m.interp.pos_mm;
+    lo4[..3].copy_from_slice(&lo);
+    hi4[..3].copy_from_slice(&hi);
+    check_soft_limits(m, &lo4)?;
+    check_soft_limits(m, &hi4)
+}
+
+/// Queue the chords of `plan`, then the programmed end `target`.
+#[inline(never)]
+fn arc_chords(m: &mut Machine, io: &mut impl Io, plan: &mut arc::Arc, target: [f32; N_AXES], feed: f32) -> Result<(), Error> {
+    while let Some(p) = next_chord(plan) {
+        let mut t = target;
+        t[..3].copy_from_slice(&p);
+        move_to(m, io, t, feed, false)?;
+    }
+    move_to(m, io, target, feed, false)
+}
+
+/// The next chord end of `plan`, in a frame of its own (see [`new_arc`]).
+#[inline(never)]
+fn next_chord(plan: &mut arc::Arc) -> Option<[f32; 3]> {
+    plan.next()
+}
+
+/// [`arc::Arc::new`] in a frame of its own (its many f32 temporaries
+/// would otherwise push [`arc_line`]'s locals out of `ldd` reach).
+#[inline(never)]
+fn new_arc(
+    start: [f32; 3],
+    end: [f32; 3],
+    spec: arc::Centre,
+    axes: (usize, usize, usize),
+    clockwise: bool,
+    tolerance_mm: f32,
+) -> Result<arc::Arc, Error> {
+    arc::Arc::new(start, end, spec, axes, clockwise, tolerance_mm).map_err(Error::Arc)
+}
+
+/// Commit the modal state, then act: tool change, spindle, the motion (the
+/// arc's chords when `arc` is given), other M codes, program stops.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn finish_line(
+    m: &mut Machine,
+    g: &ModalCopy,
+    l: &Line,
+    text: &[u8],
+    io: &mut impl Io,
+    target: &[f32; N_AXES],
+    do_motion: Option<Motion>,
+    arc: Option<&mut arc::Arc>,
+) -> Result<(), Error> {
+    let target = *target;
     g.commit(&mut m.interp);
-    if tool_change {
+    if is_tool_change(l) {
         crate::atc::run::select(m, io, l.tool().map(u16::from))?;
     }
     if let Some(s) = l.word(Word::S) {
@@ -514,16 +609,10 @@ pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Resu
         let rapid = mo == Motion::Rapid;
         let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 * 0.01;
         match mo {
-            Motion::ArcCw | Motion::ArcCcw => {
-                if let Some(mut plan) = arc_plan {
-                    while let Some(p) = plan.next() {
-                        let mut t = target;
-                        t[..3].copy_from_slice(&p);
-                        move_to(m, io, t, feed, false)?;
-                    }
-                }
-                move_to(m, io, target, feed, false)?;
-            }
+            Motion::ArcCw | Motion::ArcCcw => match arc {
+                Some(plan) => arc_chords(m, io, plan, target, feed)?,
+                None => move_to(m, io, target, feed, false)?,
+            },
             Motion::ProbeToward | Motion::ProbeTowardNoError => {
                 probe(m, io, target, feed, mo == Motion::ProbeToward)?;
             }

@@ -25,6 +25,7 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
 }
 
 /// Read G37's words into a mode (and the setter position for calibration).
+#[inline(never)]
 fn mode_of(m: &Machine, l: &Line) -> Result<(Mode, Option<f32>, Option<f32>), Error> {
     let bad = Error::Setter(Fault::Words);
     let k = if m.interp.inches { 25.4 } else { 1.0 };
@@ -75,6 +76,22 @@ pub fn g37(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
     }
     let prev = m.state;
     m.state = State::Probe;
+    let (out, failure) = run_actions(m, io, &mut meas);
+    if m.state == State::Probe {
+        m.state = if prev == State::Run { State::Idle } else { prev };
+    }
+    match out {
+        Some(Ok(o)) => store(m, io, tool, o),
+        Some(Err(f)) => Err(failure.unwrap_or(Error::Setter(f))),
+        None => Err(Error::Setter(Fault::Stopped)),
+    }
+}
+
+/// Perform the measurement's actions until it ends: its result, and the
+/// error of the first action that failed. Not inlined: the loop works on
+/// `meas` through a pointer, within `ldd` reach (see `gcode::interp::execute`).
+#[inline(never)]
+fn run_actions(m: &mut Machine, io: &mut impl Io, meas: &mut Measure) -> (Option<Result<Outcome, Fault>>, Option<Error>) {
     let mut failure = None;
     let mut a = meas.start();
     let out = loop {
@@ -97,17 +114,11 @@ pub fn g37(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
         };
         a = meas.step(ev);
     };
-    if m.state == State::Probe {
-        m.state = if prev == State::Run { State::Idle } else { prev };
-    }
-    match out {
-        Some(Ok(o)) => store(m, io, tool, o),
-        Some(Err(f)) => Err(failure.unwrap_or(Error::Setter(f))),
-        None => Err(Error::Setter(Fault::Stopped)),
-    }
+    (out, failure)
 }
 
 /// Keep a measurement's result and report it in one line.
+#[inline(never)]
 fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), Error> {
     let before = m.atc.table;
     match o {
@@ -148,6 +159,7 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
 }
 
 /// Rapid to machine mm (`None` keeps the axis) and wait.
+#[inline(never)]
 fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(), Error> {
     let mut t = m.interp.pos_mm;
     for (i, v) in xyz.iter().enumerate() {
@@ -160,6 +172,7 @@ fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(),
 }
 
 /// One seek (fast, back off, slow) on `axis`; the latched step of the slow trip.
+#[inline(never)]
 fn seek(m: &mut Machine, io: &mut impl Io, axis: usize, dir: i8, max_mm: f32) -> Result<i32, Error> {
     let (mut s, mut a) = Seek::start(max_mm, dir);
     loop {
@@ -183,6 +196,7 @@ fn seek(m: &mut Machine, io: &mut impl Io, axis: usize, dir: i8, max_mm: f32) ->
 /// Move `axis` by `mm`. With a feed, the ISR watches the beam and stops on
 /// the step that breaks it: returns that step. Without, a plain move at the
 /// slow-seek feed.
+#[inline(never)]
 fn probe(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: Option<f32>) -> Result<Option<i32>, Error> {
     let watch = feed.is_some();
     let mut target: [i32; N_AXES] = io.stepper().position;

@@ -111,6 +111,14 @@ macro_rules! flash_texts {
                 $crate::ui::flash::read_byte(unsafe { TEXT_BLOB.as_ptr().add(a + i) })
             }
 
+            /// The text as an [`FStr`]($crate::flash::FStr) (both live in flash).
+            pub fn as_fstr(self) -> $crate::flash::FStr {
+                let (a, b) = self.range();
+                // SAFETY: a..b is the text's range in TEXT_BLOB, valid UTF-8
+                // (it came from a string literal), in program memory on AVR.
+                unsafe { $crate::flash::FStr::from_raw(TEXT_BLOB.as_ptr().add(a), (b - a) as u16) }
+            }
+
             /// Call `f` with every byte.
             pub fn for_each(self, mut f: impl FnMut(u8)) {
                 let (a, b) = self.range();
@@ -122,21 +130,10 @@ macro_rules! flash_texts {
         }
 
         impl ufmt::uDisplay for Text {
-            /// Written in chunks through a small stack buffer (ASCII only).
+            #[inline(never)]
             fn fmt<W: ufmt::uWrite + ?Sized>(&self, f: &mut ufmt::Formatter<'_, W>) -> Result<(), W::Error> {
-                let mut buf = [0u8; 16];
-                let mut n = 0;
-                let len = self.len();
-                for i in 0..len {
-                    buf[n] = self.byte(i);
-                    n += 1;
-                    if n == buf.len() || i + 1 == len {
-                        // SAFETY: the texts are ASCII (checked by a unit test).
-                        f.write_str(unsafe { core::str::from_utf8_unchecked(&buf[..n]) })?;
-                        n = 0;
-                    }
-                }
-                Ok(())
+                // Through FStr: one chunking loop for every writer type.
+                ufmt::uDisplay::fmt(&self.as_fstr(), f)
             }
         }
     };

@@ -604,7 +604,10 @@ where
 
         let mode = solve_mode_variant(mode, dir_entry.is_some());
 
-        match mode {
+        // MillFW patch: flash size (vendor/README.md). Both ways (create, or
+        // open the entry found) end in one FileInfo and one push, instead of
+        // one FileInfo literal per mode.
+        let (raw_file, mode, entry) = match mode {
             Mode::ReadWriteCreate => {
                 if dir_entry.is_some() {
                     return Err(Error::FileAlreadyExists);
@@ -623,23 +626,7 @@ where
                 };
 
                 let file_id = RawFile(data.id_generator.generate());
-
-                let file = FileInfo {
-                    raw_file: file_id,
-                    raw_volume: volume_id,
-                    current_cluster: (0, entry.cluster),
-                    current_offset: 0,
-                    mode,
-                    entry,
-                    dirty: false,
-                };
-
-                // Remember this open file - can't be full as we checked already
-                unsafe {
-                    data.open_files.push_unchecked(file);
-                }
-
-                Ok(file_id)
+                (file_id, mode, entry)
             }
             _ => {
                 // Safe to unwrap, since we actually have an entry if we got here
@@ -660,68 +647,49 @@ where
 
                 let mode = solve_mode_variant(mode, true);
                 let raw_file = RawFile(data.id_generator.generate());
-
-                let file = match mode {
-                    Mode::ReadOnly => FileInfo {
-                        raw_file,
-                        raw_volume: volume_id,
-                        current_cluster: (0, dir_entry.cluster),
-                        current_offset: 0,
-                        mode,
-                        entry: dir_entry,
-                        dirty: false,
-                    },
-                    Mode::ReadWriteAppend => {
-                        let mut file = FileInfo {
-                            raw_file,
-                            raw_volume: volume_id,
-                            current_cluster: (0, dir_entry.cluster),
-                            current_offset: 0,
-                            mode,
-                            entry: dir_entry,
-                            dirty: false,
-                        };
-                        // seek_from_end with 0 can't fail
-                        file.seek_from_end(0).ok();
-                        file
-                    }
-                    Mode::ReadWriteTruncate => {
-                        let mut file = FileInfo {
-                            raw_file,
-                            raw_volume: volume_id,
-                            current_cluster: (0, dir_entry.cluster),
-                            current_offset: 0,
-                            mode,
-                            entry: dir_entry,
-                            dirty: false,
-                        };
-                        match &mut data.open_volumes[volume_idx].volume_type {
-                            VolumeType::Fat(fat) => fat.truncate_cluster_chain(
-                                &mut data.block_cache,
-                                file.entry.cluster,
-                            )?,
-                        };
-                        file.update_length(0);
-                        match &data.open_volumes[volume_idx].volume_type {
-                            VolumeType::Fat(fat) => {
-                                file.entry.mtime = self.time_source.get_timestamp();
-                                fat.write_entry_to_disk(&mut data.block_cache, &file.entry)?;
-                            }
-                        };
-
-                        file
-                    }
-                    _ => return Err(Error::Unsupported),
-                };
-
-                // Remember this open file - can't be full as we checked already
-                unsafe {
-                    data.open_files.push_unchecked(file);
-                }
-
-                Ok(raw_file)
+                (raw_file, mode, dir_entry)
             }
+        };
+
+        let mut file = FileInfo {
+            raw_file,
+            raw_volume: volume_id,
+            current_cluster: (0, entry.cluster),
+            current_offset: 0,
+            mode,
+            entry,
+            dirty: false,
+        };
+        match mode {
+            Mode::ReadWriteCreate | Mode::ReadOnly => {}
+            Mode::ReadWriteAppend => {
+                // seek_from_end with 0 can't fail
+                file.seek_from_end(0).ok();
+            }
+            Mode::ReadWriteTruncate => {
+                match &mut data.open_volumes[volume_idx].volume_type {
+                    VolumeType::Fat(fat) => fat.truncate_cluster_chain(
+                        &mut data.block_cache,
+                        file.entry.cluster,
+                    )?,
+                };
+                file.update_length(0);
+                match &data.open_volumes[volume_idx].volume_type {
+                    VolumeType::Fat(fat) => {
+                        file.entry.mtime = self.time_source.get_timestamp();
+                        fat.write_entry_to_disk(&mut data.block_cache, &file.entry)?;
+                    }
+                };
+            }
+            _ => return Err(Error::Unsupported),
         }
+
+        // Remember this open file - can't be full as we checked already
+        unsafe {
+            data.open_files.push_unchecked(file);
+        }
+
+        Ok(raw_file)
     }
 
     /// Open a file with the given Unicode long file name, in the given directory.
@@ -811,40 +779,24 @@ where
                 let mode = solve_mode_variant(mode, true);
                 let raw_file = RawFile(data.id_generator.generate());
 
-                let file = match mode {
-                    Mode::ReadOnly => FileInfo {
-                        raw_file,
-                        raw_volume: volume_id,
-                        current_cluster: (0, dir_entry.cluster),
-                        current_offset: 0,
-                        mode,
-                        entry: dir_entry,
-                        dirty: false,
-                    },
+                // MillFW patch: flash size (vendor/README.md). One FileInfo
+                // for the three modes instead of one literal per mode.
+                let mut file = FileInfo {
+                    raw_file,
+                    raw_volume: volume_id,
+                    current_cluster: (0, dir_entry.cluster),
+                    current_offset: 0,
+                    mode,
+                    entry: dir_entry,
+                    dirty: false,
+                };
+                match mode {
+                    Mode::ReadOnly => {}
                     Mode::ReadWriteAppend => {
-                        let mut file = FileInfo {
-                            raw_file,
-                            raw_volume: volume_id,
-                            current_cluster: (0, dir_entry.cluster),
-                            current_offset: 0,
-                            mode,
-                            entry: dir_entry,
-                            dirty: false,
-                        };
                         // seek_from_end with 0 can't fail
                         file.seek_from_end(0).ok();
-                        file
                     }
                     Mode::ReadWriteTruncate => {
-                        let mut file = FileInfo {
-                            raw_file,
-                            raw_volume: volume_id,
-                            current_cluster: (0, dir_entry.cluster),
-                            current_offset: 0,
-                            mode,
-                            entry: dir_entry,
-                            dirty: false,
-                        };
                         match &mut data.open_volumes[volume_idx].volume_type {
                             VolumeType::Fat(fat) => fat.truncate_cluster_chain(
                                 &mut data.block_cache,
@@ -858,11 +810,9 @@ where
                                 fat.write_entry_to_disk(&mut data.block_cache, &file.entry)?;
                             }
                         };
-
-                        file
                     }
                     _ => return Err(Error::Unsupported),
-                };
+                }
 
                 // Remember this open file - can't be full as we checked already
                 unsafe {

@@ -393,6 +393,7 @@ impl FatVolume {
 
     /// Finds a empty entry space and writes the new entry to it, allocates a new cluster if it's
     /// needed
+    #[inline(never)] // MillFW patch: flash size (vendor/README.md)
     pub(crate) fn write_new_directory_entry<D, T>(
         &mut self,
         block_cache: &mut BlockCache<D>,
@@ -552,12 +553,29 @@ impl FatVolume {
         F: FnMut(&DirEntry) -> ControlFlow<()>,
         D: BlockDevice,
     {
+        // MillFW patch: flash size (vendor/README.md). Every caller goes
+        // through one `dyn` callback, so the FAT16 and FAT32 directory walkers
+        // are compiled once instead of once per caller's closure.
+        self.iterate_dir_dyn(block_cache, dir_info, &mut |de, _| func(de))
+    }
+
+    /// [`Self::iterate_dir`] with the callback behind `dyn` (MillFW patch).
+    #[inline(never)]
+    fn iterate_dir_dyn<D>(
+        &self,
+        block_cache: &mut BlockCache<D>,
+        dir_info: &DirectoryInfo,
+        func: &mut dyn for<'odde> FnMut(&DirEntry, &OnDiskDirEntry<'odde>) -> ControlFlow<()>,
+    ) -> Result<(), Error<D::Error>>
+    where
+        D: BlockDevice,
+    {
         match &self.fat_specific_info {
             FatSpecificInfo::Fat16(fat16_info) => {
-                self.iterate_fat16(dir_info, fat16_info, block_cache, |de, _| func(de))
+                self.iterate_fat16(dir_info, fat16_info, block_cache, func)
             }
             FatSpecificInfo::Fat32(fat32_info) => {
-                self.iterate_fat32(dir_info, fat32_info, block_cache, |de, _| func(de))
+                self.iterate_fat32(dir_info, fat32_info, block_cache, func)
             }
         }
     }
@@ -788,6 +806,7 @@ impl FatVolume {
     }
 
     /// Get an entry from the given directory
+    #[inline(never)] // MillFW patch: flash size (vendor/README.md)
     pub(crate) fn find_directory_entry<D>(
         &self,
         block_cache: &mut BlockCache<D>,
@@ -1241,6 +1260,7 @@ impl FatVolume {
     }
 
     /// Marks the input cluster as an EOF and all the subsequent clusters in the chain as free
+    #[inline(never)] // MillFW patch: flash size (vendor/README.md)
     pub(crate) fn truncate_cluster_chain<D>(
         &mut self,
         block_cache: &mut BlockCache<D>,
