@@ -67,9 +67,16 @@ M400
         }
         assert!(started.elapsed() < Duration::from_secs(90), "printcore did not finish");
     };
-    // Let the last bytes reach the machine and the motion finish.
-    for _ in 0..200 {
+    // Let the last bytes reach the machine and the motion finish: pump until
+    // no step has been recorded for 0.5 s of simulated time (at most 20 s).
+    let mut quiet = 0;
+    for _ in 0..4000 {
+        let before = vm.recorder().trace().len();
         bridge.pump(&mut vm, 0.005).unwrap();
+        quiet = if vm.recorder().trace().len() == before { quiet + 1 } else { 0 };
+        if quiet >= 100 {
+            break;
+        }
     }
     let out = child.wait_with_output().unwrap();
     let log = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
