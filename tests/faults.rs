@@ -13,7 +13,7 @@ mod motion_util;
 use common::*;
 use motion_util::*;
 use mill::atc::tools::{Journal, ToolState, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR};
-use sim::{Axis, Flow, Input, StreamOptions, Vm, VmConfig};
+use sim::{Axis, CardKind, FatKind, Flow, Input, SdCard, SdImage, StreamOptions, Vm, VmConfig};
 
 fn seed() -> u32 {
     std::env::var("MILL_FAULT_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x5eed_f417)
@@ -254,4 +254,53 @@ fn power_loss_during_tool_changes_leaves_a_record_the_operator_can_confirm() {
     assert!(mid_change >= 5, "too few cuts landed inside a change ({mid_change}) to prove anything");
     assert_eq!(lost, 0);
     assert_eq!(moved, 0);
+}
+
+#[test]
+fn card_pulls_at_random_instants_hold_the_machine_and_run_no_garbage() {
+    let mut rng = Rng(seed() ^ 0x4444);
+    let mut job = String::from("G21 G90\nM3 S8000\nG1 F2400\n");
+    for i in 0..120 {
+        job += &format!("G1 X{} Y{}\n", 5 + (i * 7) % 30, 5 + (i * 11) % 30);
+    }
+    job += "M5\nM2\n";
+    let mut vm = boot_homed();
+    let (mut injected, mut moved_after_hold, mut garbage, mut spindle_left_on) = (0, 0, 0, 0);
+    for round in 0..10 {
+        vm.insert_sd(SdCard::new(SdImage::new(FatKind::Fat16).file("JOB.NC", job.as_bytes()).build(), CardKind::Sdhc));
+        ok(&mut vm, "M23 JOB.NC");
+        vm.send_line("M24");
+        let t = uniform(&mut rng, 0.1, 3.0);
+        vm.run_for(t).unwrap();
+        vm.pull_sd();
+        injected += 1;
+        vm.wait_line(|l| l.contains("SD card removed"), 1.0).unwrap_or_else(|e| panic!("round {round}: {e}"));
+        // The hold decelerates (~0.1 s), then nothing moves: no garbage runs.
+        vm.run_for(0.4).unwrap();
+        let held = vm.positions();
+        vm.run_for(1.0).unwrap();
+        if vm.positions() != held {
+            moved_after_hold += 1;
+        }
+        let lines = vm.take_lines();
+        if lines.iter().any(|l| l.starts_with("Error:") && !l.contains("SD card removed")) {
+            garbage += 1;
+            println!("round {round}: {lines:?}");
+        }
+        // Abort ends the job with the spindle off; the machine takes commands.
+        ok(&mut vm, "M524");
+        vm.run_for(0.5).unwrap();
+        if vm.spindle_on() {
+            spindle_left_on += 1;
+        }
+        vm.take_lines();
+        ok(&mut vm, "G1 X10 Y10 F3000");
+        ok(&mut vm, "M400");
+        assert_eq!(xyz_now(&vm)[..2], [1000, 1000], "round {round}");
+    }
+    println!("faults injected: {injected} (SD card pulls), moved after the hold: {moved_after_hold}, errors other than the removal: {garbage}, spindle left on: {spindle_left_on}");
+    assert_eq!(moved_after_hold, 0);
+    assert_eq!(garbage, 0);
+    assert_eq!(spindle_left_on, 0);
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
