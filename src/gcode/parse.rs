@@ -726,10 +726,19 @@ fn text_arg(s: &[u8], pos: usize, col: u8) -> Result<(u8, u8), ParseError> {
 /// A malformed line is rejected whole with the column of the first problem;
 /// a blank or comment-only line gives an empty [`Line`].
 pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
+    let mut line = Line::default();
+    parse_into(s, &mut line)?;
+    Ok(line)
+}
+
+/// [`parse`] into `line` (reset first), for callers that keep the line in
+/// place: a `Result<Line, _>` is one more 100-byte copy on AVR.
+#[inline(never)]
+pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
+    *line = Line::default();
     if s.len() > MAX_PARSE_LEN {
         return err(ParseErrorKind::LineTooLong, col_of(MAX_PARSE_LEN));
     }
-    let mut line = Line::default();
     let mut pos = 0;
     let mut seen_word = false;
     // Column of a `%` program delimiter, 0 if none.
@@ -766,7 +775,7 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                             kind: ParseErrorKind::UnsupportedCode,
                             col,
                         })?;
-                        apply_g(&mut line, code, col)?;
+                        apply_g(line, code, col)?;
                     }
                     b'M' => {
                         let (n, next) = lex_number(s, pos, col)?;
@@ -775,7 +784,7 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                             Some(c) if c % 10 == 0 => c / 10,
                             _ => return err(ParseErrorKind::UnsupportedCode, col),
                         };
-                        apply_m(&mut line, code, col)?;
+                        apply_m(line, code, col)?;
                         if TEXT_ARG_M_CODES.contains(&code) {
                             line.text_arg = Some(text_arg(s, pos, col)?);
                             break;
@@ -818,7 +827,7 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
     if bare_axis_col != 0 && line.non_modal != Some(NonModal::Home) {
         return err(ParseErrorKind::BadNumber, bare_axis_col);
     }
-    Ok(line)
+    Ok(())
 }
 
 /// True when the word whose letter ends at `pos` has no number at all: the
