@@ -160,6 +160,49 @@ macro_rules! F {
     }};
 }
 
+/// A fieldless enum whose variants each carry a message: the messages are
+/// one table of [`F!`] strings in flash, so `message()` is one indexed read
+/// instead of a compare chain of some 16 bytes per variant (jump tables are
+/// off on this target). The enum and its table come from the same list, so
+/// they cannot get out of step.
+///
+/// ```ignore
+/// flash_messages! {
+///     /// Why it failed.
+///     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+///     pub enum Fault {
+///         /// The doc of the variant.
+///         Stopped => "stopped",
+///     }
+/// }
+/// ```
+#[macro_export]
+macro_rules! flash_messages {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $name:ident {
+            $( $(#[$vmeta:meta])* $variant:ident => $text:literal, )+
+        }
+    ) => {
+        $(#[$meta])*
+        $vis enum $name {
+            $( $(#[$vmeta])* $variant, )+
+        }
+
+        impl $name {
+            /// The message of this variant, in flash.
+            pub fn message(self) -> $crate::flash::FStr {
+                #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+                static TABLE: [$crate::flash::FStr; [$($text),+].len()] = [$( $crate::F!($text) ),+];
+                // SAFETY: TABLE is an immutable static in program memory
+                // (plain memory on the host); FStr is Copy, and a variant's
+                // index is below the number of variants, the table's length.
+                unsafe { avr_progmem::raw::read_value(&TABLE[self as usize]) }
+            }
+        }
+    };
+}
+
 #[cfg(test)]
 mod tests {
     use crate::flash::FStr;

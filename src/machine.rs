@@ -16,7 +16,6 @@
 
 use crate::config::Settings;
 use crate::dollar;
-use crate::flash::FStr;
 use crate::fixed::Micros;
 use crate::gcode::interp::{self, Interp};
 use crate::planner::{PlanError, Planner};
@@ -140,39 +139,28 @@ impl State {
     }
 }
 
-/// Why the machine is in alarm (SPEC §10).
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub enum Alarm {
-    /// M112 received.
-    EmergencyStop,
-    /// A home switch closed outside homing.
-    HardLimit,
-    /// G28 did not find a switch within travel + 10 %.
-    HomingFailed,
-    /// The probe input did not trip (G38.2).
-    ProbeFailed,
-    /// Booted after a watchdog reset.
-    WatchdogReset,
-    /// G205 / a tool change did not find the carousel switch.
-    CarouselHome,
-    /// G37 B: the tool's length is off by more than the tolerance.
-    BrokenTool,
-}
-
-impl Alarm {
-    /// Text after `Error:alarm ` / `ALARM:`.
-    pub fn message(self) -> FStr {
-        match self {
-            Alarm::EmergencyStop => F!("emergency stop"),
-            Alarm::HardLimit => F!("hard limit"),
-            Alarm::HomingFailed => F!("homing failed"),
-            Alarm::ProbeFailed => F!("probe failed"),
-            Alarm::WatchdogReset => F!("watchdog reset"),
-            Alarm::CarouselHome => F!("carousel home switch not found"),
-            Alarm::BrokenTool => F!("broken tool"),
-        }
+crate::flash_messages! {
+    /// Why the machine is in alarm (SPEC §10); `message`: the text after
+    /// `Error:alarm ` / `ALARM:`.
+    #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+    pub enum Alarm {
+        /// M112 received.
+        EmergencyStop => "emergency stop",
+        /// A home switch closed outside homing.
+        HardLimit => "hard limit",
+        /// G28 did not find a switch within travel + 10 %.
+        HomingFailed => "homing failed",
+        /// The probe input did not trip (G38.2).
+        ProbeFailed => "probe failed",
+        /// Booted after a watchdog reset.
+        WatchdogReset => "watchdog reset",
+        /// G205 / a tool change did not find the carousel switch.
+        CarouselHome => "carousel home switch not found",
+        /// G37 B: the tool's length is off by more than the tolerance.
+        BrokenTool => "broken tool",
     }
 }
+
 
 /// Interpreter-level error shown to the host as `Error:<text>`.
 pub type CmdResult = Result<(), interp::Error>;

@@ -390,52 +390,35 @@ impl Line {
     }
 }
 
-/// What is wrong with a rejected line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ParseErrorKind {
-    /// Not a number: `X`, `X-`, `X.`, `X+.`, `X1.2.3`, `X1-2`.
-    BadNumber,
-    /// A number directly followed by `E`, read as an exponent: `X1e99`.
-    Exponent,
-    /// |value| ≥ 1e6, or more than 9 significant digits.
-    NumberOutOfRange,
-    /// A letter that is no word of the dialect (`A`, `C`, `O`, …).
-    UnknownWord,
-    /// A character where a word should start (`X1 0`, `#`, `)`).
-    Unexpected,
-    /// A G or M number that is not supported (`G93`, `G1.5`, `M7`).
-    UnsupportedCode,
-    /// The same word twice on one line (`G1 X1 X2`).
-    RepeatedWord,
-    /// Two codes of one modal group (`G0 G1`, `M3 M5`).
-    ModalGroupConflict,
-    /// `(` without `)`.
-    UnclosedComment,
-    /// T that is not a whole number 0..=255.
-    BadToolNumber,
-    /// M23 or M28 without a file name.
-    MissingFileName,
-    /// More than [`MAX_PARSE_LEN`] bytes.
-    LineTooLong,
-}
-
-impl ParseErrorKind {
-    /// Text printed after `Error:`.
-    pub fn message(&self) -> FStr {
-        match self {
-            ParseErrorKind::BadNumber => F!("bad number"),
-            ParseErrorKind::Exponent => F!("bad number: exponent not allowed"),
-            ParseErrorKind::NumberOutOfRange => F!("number out of range"),
-            ParseErrorKind::UnknownWord => F!("unknown word"),
-            ParseErrorKind::Unexpected => F!("unexpected character"),
-            ParseErrorKind::UnsupportedCode => F!("unsupported code"),
-            ParseErrorKind::RepeatedWord => F!("word repeated"),
-            ParseErrorKind::ModalGroupConflict => F!("two codes of one modal group"),
-            ParseErrorKind::UnclosedComment => F!("unclosed comment"),
-            ParseErrorKind::BadToolNumber => F!("tool number must be a whole number"),
-            ParseErrorKind::MissingFileName => F!("missing file name"),
-            ParseErrorKind::LineTooLong => F!("line too long"),
-        }
+crate::flash_messages! {
+    /// What is wrong with a rejected line (`message`: the text printed after
+    /// `Error:`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum ParseErrorKind {
+        /// Not a number: `X`, `X-`, `X.`, `X+.`, `X1.2.3`, `X1-2`.
+        BadNumber => "bad number",
+        /// A number directly followed by `E`, read as an exponent: `X1e99`.
+        Exponent => "bad number: exponent not allowed",
+        /// |value| ≥ 1e6, or more than 9 significant digits.
+        NumberOutOfRange => "number out of range",
+        /// A letter that is no word of the dialect (`A`, `C`, `O`, …).
+        UnknownWord => "unknown word",
+        /// A character where a word should start (`X1 0`, `#`, `)`).
+        Unexpected => "unexpected character",
+        /// A G or M number that is not supported (`G93`, `G1.5`, `M7`).
+        UnsupportedCode => "unsupported code",
+        /// The same word twice on one line (`G1 X1 X2`).
+        RepeatedWord => "word repeated",
+        /// Two codes of one modal group (`G0 G1`, `M3 M5`).
+        ModalGroupConflict => "two codes of one modal group",
+        /// `(` without `)`.
+        UnclosedComment => "unclosed comment",
+        /// T that is not a whole number 0..=255.
+        BadToolNumber => "tool number must be a whole number",
+        /// M23 or M28 without a file name.
+        MissingFileName => "missing file name",
+        /// More than [`MAX_PARSE_LEN`] bytes.
+        LineTooLong => "line too long",
     }
 }
 
