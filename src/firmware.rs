@@ -532,7 +532,7 @@ impl Hw {
     }
 }
 
-/// Zero-initialised (in .bss, no flash image); written once in `run`.
+/// Zero-initialised (in .bss, no flash image); built by `Machine::init` in `run`.
 static mut MACHINE: core::mem::MaybeUninit<Machine> = core::mem::MaybeUninit::uninit();
 /// Zero-initialised (in .bss, no flash image); written once in `run`.
 static mut HW: core::mem::MaybeUninit<Hw> = core::mem::MaybeUninit::uninit();

@@ -161,7 +161,6 @@ crate::flash_messages! {
     }
 }
 
-
 /// Interpreter-level error shown to the host as `Error:<text>`.
 pub type CmdResult = Result<(), interp::Error>;
 

@@ -74,7 +74,6 @@ crate::flash_messages! {
     }
 }
 
-
 /// Setter position and calibration (EEPROM record after the tool table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Setter {
