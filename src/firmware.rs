@@ -299,6 +299,10 @@ impl Io for Hw {
         stepper::clear_stop();
     }
 
+    fn stepper_stopped(&self) -> bool {
+        stepper::MOTION.load(portable_atomic::Ordering::Acquire) & stepper::motion::STOP != 0
+    }
+
     fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8) {
         stepper::set_watch(stepper::Watch { homing, probe, limits, homed, invert_dir });
     }

@@ -77,6 +77,11 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn stop_motion(&mut self);
     /// Accept segments again after a stop; clears trip flags.
     fn clear_stop(&mut self);
+    /// The ISR is stopped (e-stop, hard limit, homing or probe trip) and
+    /// drops every segment it is given until [`Io::clear_stop`].
+    fn stepper_stopped(&self) -> bool {
+        false
+    }
     /// What the ISR watches: homing axes, probe input, hard-limit axes,
     /// homed axes, direction inversion mask.
     fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8);
@@ -510,9 +515,12 @@ impl Machine {
         }
     }
 
-    /// Top up the segment ring from the planner.
+    /// Top up the segment ring from the planner. Not while the ISR is
+    /// stopped: it drops what it is given, so the whole queue would be
+    /// prepared into it before the stop is served (an M112 sent behind a
+    /// full queue was reported 0.75 s late).
     pub fn fill_segments(&mut self, io: &mut impl Io) {
-        while io.segment_space() > 0 {
+        while io.segment_space() > 0 && !io.stepper_stopped() {
             match self.prep.next_segment(&mut self.planner, &self.settings) {
                 Some(cmd) => {
                     if !io.push_segment(cmd) {
