@@ -65,6 +65,14 @@ impl FStr {
         self.len() >= s.len() && self.bytes().zip(s.bytes()).all(|(a, b)| a == b)
     }
 
+    /// Entry `i` of a table of `FStr` kept in flash (see [`flash_messages!`]).
+    #[doc(hidden)]
+    pub fn from_table(table: &'static [FStr], i: usize) -> FStr {
+        // SAFETY: the table is an immutable static in program memory (plain
+        // memory on the host) and FStr is Copy; `&table[i]` is in bounds.
+        unsafe { avr_progmem::raw::read_value(&table[i]) }
+    }
+
     /// Write the text through a `ufmt` writer, 16 bytes at a time.
     pub fn write_to<W: ufmt::uWrite + ?Sized>(&self, w: &mut W) -> Result<(), W::Error> {
         let mut chunk = [0u8; 16];
@@ -166,15 +174,17 @@ macro_rules! F {
 /// off on this target). The enum and its table come from the same list, so
 /// they cannot get out of step.
 ///
-/// ```ignore
-/// flash_messages! {
+/// ```
+/// mill::flash_messages! {
 ///     /// Why it failed.
 ///     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 ///     pub enum Fault {
 ///         /// The doc of the variant.
 ///         Stopped => "stopped",
+///         Jammed => "jammed",
 ///     }
 /// }
+/// assert!(Fault::Jammed.message().eq_str("jammed"));
 /// ```
 #[macro_export]
 macro_rules! flash_messages {
@@ -194,10 +204,7 @@ macro_rules! flash_messages {
             pub fn message(self) -> $crate::flash::FStr {
                 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
                 static TABLE: [$crate::flash::FStr; [$($text),+].len()] = [$( $crate::F!($text) ),+];
-                // SAFETY: TABLE is an immutable static in program memory
-                // (plain memory on the host); FStr is Copy, and a variant's
-                // index is below the number of variants, the table's length.
-                unsafe { avr_progmem::raw::read_value(&TABLE[self as usize]) }
+                $crate::flash::FStr::from_table(&TABLE, self as usize)
             }
         }
     };
