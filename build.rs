@@ -1,4 +1,4 @@
-//! Passes `memory.x` (the RAM/flash budget, SPEC §11) to the AVR link.
+//! Passes `memory.x` (the RAM/flash budget, SPEC §11) and `--relax` to the AVR link.
 use std::env;
 
 fn main() {
@@ -8,6 +8,8 @@ fn main() {
         let dir = env::var("CARGO_MANIFEST_DIR").unwrap();
         // Keep the budget symbols even though nothing references them.
         println!("cargo:rustc-link-arg-bins=-Wl,--undefined=__mill_ram_budget");
+        // Linker relaxation: call/jmp within ±4 KiB become rcall/rjmp (flash,
+        // README "Flash"); LLVM's AVR objects carry the relocations for it.
         println!("cargo:rustc-link-arg-bins=-Wl,--relax");
         println!("cargo:rustc-link-arg-bins={dir}/memory.x");
     }

@@ -298,6 +298,10 @@ impl Io for Hw {
         stepper::clear_stop();
     }
 
+    fn stepper_stopped(&self) -> bool {
+        stepper::MOTION.load(portable_atomic::Ordering::Acquire) & stepper::motion::STOP != 0
+    }
+
     fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8) {
         stepper::set_watch(stepper::Watch { homing, probe, limits, homed, invert_dir });
     }
@@ -531,7 +535,7 @@ impl Hw {
     }
 }
 
-/// Zero-initialised (in .bss, no flash image); written once in `run`.
+/// Zero-initialised (in .bss, no flash image); built by `Machine::init` in `run`.
 static mut MACHINE: core::mem::MaybeUninit<Machine> = core::mem::MaybeUninit::uninit();
 /// Zero-initialised (in .bss, no flash image); written once in `run`.
 static mut HW: core::mem::MaybeUninit<Hw> = core::mem::MaybeUninit::uninit();

@@ -65,6 +65,14 @@ impl FStr {
         self.len() >= s.len() && self.bytes().zip(s.bytes()).all(|(a, b)| a == b)
     }
 
+    /// Entry `i` of a table of `FStr` kept in flash (see [`flash_messages!`]).
+    #[doc(hidden)]
+    pub fn from_table(table: &'static [FStr], i: usize) -> FStr {
+        // SAFETY: the table is an immutable static in program memory (plain
+        // memory on the host) and FStr is Copy; `&table[i]` is in bounds.
+        unsafe { avr_progmem::raw::read_value(&table[i]) }
+    }
+
     /// Write the text through a `ufmt` writer, 16 bytes at a time.
     pub fn write_to<W: ufmt::uWrite + ?Sized>(&self, w: &mut W) -> Result<(), W::Error> {
         let mut chunk = [0u8; 16];
@@ -158,6 +166,48 @@ macro_rules! F {
         // SAFETY: __P is an immutable UTF-8 static, in .progmem.data on AVR.
         unsafe { $crate::flash::FStr::from_raw(__P.as_ptr(), __S.len() as u16) }
     }};
+}
+
+/// A fieldless enum whose variants each carry a message: the messages are
+/// one table of [`F!`] strings in flash, so `message()` is one indexed read
+/// instead of a compare chain of some 16 bytes per variant (jump tables are
+/// off on this target). The enum and its table come from the same list, so
+/// they cannot get out of step.
+///
+/// ```
+/// mill::flash_messages! {
+///     /// Why it failed.
+///     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+///     pub enum Fault {
+///         /// The doc of the variant.
+///         Stopped => "stopped",
+///         Jammed => "jammed",
+///     }
+/// }
+/// assert!(Fault::Jammed.message().eq_str("jammed"));
+/// ```
+#[macro_export]
+macro_rules! flash_messages {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $name:ident {
+            $( $(#[$vmeta:meta])* $variant:ident => $text:literal, )+
+        }
+    ) => {
+        $(#[$meta])*
+        $vis enum $name {
+            $( $(#[$vmeta])* $variant, )+
+        }
+
+        impl $name {
+            /// The message of this variant, in flash.
+            pub fn message(self) -> $crate::flash::FStr {
+                #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+                static TABLE: [$crate::flash::FStr; [$($text),+].len()] = [$( $crate::F!($text) ),+];
+                $crate::flash::FStr::from_table(&TABLE, self as usize)
+            }
+        }
+    };
 }
 
 #[cfg(test)]

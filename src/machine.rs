@@ -16,7 +16,6 @@
 
 use crate::config::Settings;
 use crate::dollar;
-use crate::flash::FStr;
 use crate::fixed::Micros;
 use crate::gcode::interp::{self, Interp};
 use crate::planner::{PlanError, Planner};
@@ -78,6 +77,11 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn stop_motion(&mut self);
     /// Accept segments again after a stop; clears trip flags.
     fn clear_stop(&mut self);
+    /// The ISR is stopped (e-stop, hard limit, homing or probe trip) and
+    /// drops every segment it is given until [`Io::clear_stop`].
+    fn stepper_stopped(&self) -> bool {
+        false
+    }
     /// What the ISR watches: homing axes, probe input, hard-limit axes,
     /// homed axes, direction inversion mask.
     fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8);
@@ -140,37 +144,25 @@ impl State {
     }
 }
 
-/// Why the machine is in alarm (SPEC §10).
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub enum Alarm {
-    /// M112 received.
-    EmergencyStop,
-    /// A home switch closed outside homing.
-    HardLimit,
-    /// G28 did not find a switch within travel + 10 %.
-    HomingFailed,
-    /// The probe input did not trip (G38.2).
-    ProbeFailed,
-    /// Booted after a watchdog reset.
-    WatchdogReset,
-    /// G205 / a tool change did not find the carousel switch.
-    CarouselHome,
-    /// G37 B: the tool's length is off by more than the tolerance.
-    BrokenTool,
-}
-
-impl Alarm {
-    /// Text after `Error:alarm ` / `ALARM:`.
-    pub fn message(self) -> FStr {
-        match self {
-            Alarm::EmergencyStop => F!("emergency stop"),
-            Alarm::HardLimit => F!("hard limit"),
-            Alarm::HomingFailed => F!("homing failed"),
-            Alarm::ProbeFailed => F!("probe failed"),
-            Alarm::WatchdogReset => F!("watchdog reset"),
-            Alarm::CarouselHome => F!("carousel home switch not found"),
-            Alarm::BrokenTool => F!("broken tool"),
-        }
+crate::flash_messages! {
+    /// Why the machine is in alarm (SPEC §10); `message`: the text after
+    /// `Error:alarm ` / `ALARM:`.
+    #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+    pub enum Alarm {
+        /// M112 received.
+        EmergencyStop => "emergency stop",
+        /// A home switch closed outside homing.
+        HardLimit => "hard limit",
+        /// G28 did not find a switch within travel + 10 %.
+        HomingFailed => "homing failed",
+        /// The probe input did not trip (G38.2).
+        ProbeFailed => "probe failed",
+        /// Booted after a watchdog reset.
+        WatchdogReset => "watchdog reset",
+        /// G205 / a tool change did not find the carousel switch.
+        CarouselHome => "carousel home switch not found",
+        /// G37 B: the tool's length is off by more than the tolerance.
+        BrokenTool => "broken tool",
     }
 }
 
@@ -416,7 +408,8 @@ impl Machine {
         if text.first() == Some(&b'$') {
             return self.dollar(text, io);
         }
-        let line = crate::gcode::parse(text).map_err(interp::Error::Parse)?;
+        let mut line = crate::gcode::Line::default();
+        crate::gcode::parse_into(text, &mut line).map_err(interp::Error::Parse)?;
         interp::execute(self, &line, text, io)
     }
 
@@ -522,16 +515,19 @@ impl Machine {
         }
     }
 
-    /// Top up the segment ring from the planner.
+    /// Top up the segment ring from the planner. Not while the ISR is
+    /// stopped: it drops what it is given, so the whole queue would be
+    /// prepared into it before the stop is served (an M112 sent behind a
+    /// full queue was reported 0.75 s late).
     pub fn fill_segments(&mut self, io: &mut impl Io) {
-        // At most one ring's worth per call: after an emergency stop the ISR
-        // throws segments away as fast as they come, and an unbounded loop
-        // would prep the whole planner queue before the next poll (0.7 s
-        // before the alarm was even reported). The space is asked again for
-        // each segment: the board caps the queued motion time, not only the
-        // slots.
+        // At most one ring's worth per call, and none while the ISR is
+        // stopped (after an emergency stop it throws segments away as fast
+        // as they come: the whole planner queue was prepped before the next
+        // poll, 0.7 s before the alarm was even reported). The space is asked
+        // again for each segment: the board caps the queued motion time, not
+        // only the slots.
         let mut room = io.segment_space();
-        while room > 0 && io.segment_space() > 0 {
+        while room > 0 && io.segment_space() > 0 && !io.stepper_stopped() {
             room -= 1;
             match self.prep.next_segment(&mut self.planner, &self.settings) {
                 Some(cmd) => {

@@ -31,41 +31,27 @@ pub fn is_realtime(b: u8) -> bool {
     matches!(b, b'?' | b'!' | b'~')
 }
 
-/// A line-level protocol error: the line is dropped and the host is asked to
-/// resend it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ProtoError {
-    /// The XOR of the bytes before `*` differs from the number after it.
-    Checksum,
-    /// `N<n>` is not the last line number + 1 (and the line is not M110).
-    LineNumber,
-    /// `N<n>` without `*<checksum>`.
-    MissingChecksum,
-    /// `*<checksum>` without a leading `N<n>`.
-    MissingLineNumber,
-    /// `N` not followed by an integer that fits in an i32.
-    BadLineNumber,
-    /// The line was longer than [`MAX_LINE_LEN`].
-    TooLong,
-    /// The RX ring overflowed while this line arrived: bytes are missing.
-    Overrun,
-    /// The line held a non-ASCII or control byte (other than tab).
-    BadByte,
-}
-
-impl ProtoError {
-    /// Text printed after `Error:`.
-    pub fn message(&self) -> FStr {
-        match self {
-            ProtoError::Checksum => F!("checksum mismatch"),
-            ProtoError::LineNumber => F!("line number is not last line number+1"),
-            ProtoError::MissingChecksum => F!("no checksum with line number"),
-            ProtoError::MissingLineNumber => F!("no line number with checksum"),
-            ProtoError::BadLineNumber => F!("bad line number"),
-            ProtoError::TooLong => F!("line too long"),
-            ProtoError::Overrun => F!("serial receive overrun, line dropped"),
-            ProtoError::BadByte => F!("binary or control byte in line"),
-        }
+crate::flash_messages! {
+    /// A line-level protocol error: the line is dropped and the host is asked to
+    /// resend it (`message`: the text printed after `Error:`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum ProtoError {
+        /// The XOR of the bytes before `*` differs from the number after it.
+        Checksum => "checksum mismatch",
+        /// `N<n>` is not the last line number + 1 (and the line is not M110).
+        LineNumber => "line number is not last line number+1",
+        /// `N<n>` without `*<checksum>`.
+        MissingChecksum => "no checksum with line number",
+        /// `*<checksum>` without a leading `N<n>`.
+        MissingLineNumber => "no line number with checksum",
+        /// `N` not followed by an integer that fits in an i32.
+        BadLineNumber => "bad line number",
+        /// The line was longer than [`MAX_LINE_LEN`].
+        TooLong => "line too long",
+        /// The RX ring overflowed while this line arrived: bytes are missing.
+        Overrun => "serial receive overrun, line dropped",
+        /// The line held a non-ASCII or control byte (other than tab).
+        BadByte => "binary or control byte in line",
     }
 }
 
@@ -474,7 +460,6 @@ impl<const A: u8, const B: u8, const C: u8> MCodeScanner<A, B, C> {
     }
 }
 
-use crate::flash::FStr;
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -78,61 +78,40 @@ pub const STATION: Station = Station {
     feed_y_out: 1000.0,
 };
 
-/// Why an ATC command was refused or stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Fault {
-    /// T outside 0..=12.
-    ToolRange,
-    /// X, Y, Z not homed.
-    NotHomed,
-    /// The pocket of the tool asked for is empty.
-    PocketEmpty,
-    /// The pocket of the tool in the spindle is full.
-    ReturnPocketFull,
-    /// A station point or the return point is outside travel.
-    SoftLimit,
-    /// A change was interrupted; the operator must confirm the spindle (M61).
-    Interrupted,
-    /// The carousel home switch did not close within a revolution + margin.
-    CarouselHome,
-    /// An alarm (M112, limit, …) stopped the change.
-    Stopped,
-    /// G201–G205 without `P0`.
-    Motor,
-    /// G201/G202 without X, or X out of range.
-    CarouselX,
-    /// G204 S must be 0 or 1; G205 S/E must be 0 or 1.
-    OnOff,
-    /// T or M6 on a line that also moves.
-    WithMotion,
-    /// M6 without any T word so far.
-    NoTool,
-    /// M61: Q must be a tool 0–12, or P a pocket 1–12 with S0/S1.
-    M61Words,
-    /// M61 P S1 for the pocket of the tool in the spindle.
-    PocketOfSpindleTool,
-}
-
-impl Fault {
-    /// Text after `Error:`.
-    pub fn message(self) -> crate::flash::FStr {
-        match self {
-            Fault::ToolRange => F!("tool must be T0-T12"),
-            Fault::NotHomed => F!("home X Y Z (G28) before a tool change"),
-            Fault::PocketEmpty => F!("pocket of that tool is empty (M61 P<n> S1 if loaded)"),
-            Fault::ReturnPocketFull => F!("pocket of the spindle tool is full, cannot return it"),
-            Fault::SoftLimit => F!("tool change station outside travel (soft limit)"),
-            Fault::Interrupted => F!("tool change interrupted: check spindle, then M61 Q<tool>"),
-            Fault::CarouselHome => F!("carousel home switch not found"),
-            Fault::Stopped => F!("tool change stopped"),
-            Fault::Motor => F!("P must be 0 (the carousel)"),
-            Fault::CarouselX => F!("X missing or out of range (-360..360)"),
-            Fault::OnOff => F!("S and E must be 0 or 1"),
-            Fault::WithMotion => F!("T/M6 must be on a line without motion"),
-            Fault::NoTool => F!("M6 needs a T word"),
-            Fault::M61Words => F!("M61 Q<0-12>, or M61 P<1-12> S<0|1>"),
-            Fault::PocketOfSpindleTool => F!("that tool is in the spindle"),
-        }
+crate::flash_messages! {
+    /// Why an ATC command was refused or stopped (`message`: the text after `Error:`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Fault {
+        /// T outside 0..=12.
+        ToolRange => "tool must be T0-T12",
+        /// X, Y, Z not homed.
+        NotHomed => "home X Y Z (G28) before a tool change",
+        /// The pocket of the tool asked for is empty.
+        PocketEmpty => "pocket of that tool is empty (M61 P<n> S1 if loaded)",
+        /// The pocket of the tool in the spindle is full.
+        ReturnPocketFull => "pocket of the spindle tool is full, cannot return it",
+        /// A station point or the return point is outside travel.
+        SoftLimit => "tool change station outside travel (soft limit)",
+        /// A change was interrupted; the operator must confirm the spindle (M61).
+        Interrupted => "tool change interrupted: check spindle, then M61 Q<tool>",
+        /// The carousel home switch did not close within a revolution + margin.
+        CarouselHome => "carousel home switch not found",
+        /// An alarm (M112, limit, …) stopped the change.
+        Stopped => "tool change stopped",
+        /// G201–G205 without `P0`.
+        Motor => "P must be 0 (the carousel)",
+        /// G201/G202 without X, or X out of range.
+        CarouselX => "X missing or out of range (-360..360)",
+        /// G204 S must be 0 or 1; G205 S/E must be 0 or 1.
+        OnOff => "S and E must be 0 or 1",
+        /// T or M6 on a line that also moves.
+        WithMotion => "T/M6 must be on a line without motion",
+        /// M6 without any T word so far.
+        NoTool => "M6 needs a T word",
+        /// M61: Q must be a tool 0–12, or P a pocket 1–12 with S0/S1.
+        M61Words => "M61 Q<0-12>, or M61 P<1-12> S<0|1>",
+        /// M61 P S1 for the pocket of the tool in the spindle.
+        PocketOfSpindleTool => "that tool is in the spindle",
     }
 }
 

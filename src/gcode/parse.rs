@@ -390,52 +390,35 @@ impl Line {
     }
 }
 
-/// What is wrong with a rejected line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ParseErrorKind {
-    /// Not a number: `X`, `X-`, `X.`, `X+.`, `X1.2.3`, `X1-2`.
-    BadNumber,
-    /// A number directly followed by `E`, read as an exponent: `X1e99`.
-    Exponent,
-    /// |value| ≥ 1e6, or more than 9 significant digits.
-    NumberOutOfRange,
-    /// A letter that is no word of the dialect (`A`, `C`, `O`, …).
-    UnknownWord,
-    /// A character where a word should start (`X1 0`, `#`, `)`).
-    Unexpected,
-    /// A G or M number that is not supported (`G93`, `G1.5`, `M7`).
-    UnsupportedCode,
-    /// The same word twice on one line (`G1 X1 X2`).
-    RepeatedWord,
-    /// Two codes of one modal group (`G0 G1`, `M3 M5`).
-    ModalGroupConflict,
-    /// `(` without `)`.
-    UnclosedComment,
-    /// T that is not a whole number 0..=255.
-    BadToolNumber,
-    /// M23 or M28 without a file name.
-    MissingFileName,
-    /// More than [`MAX_PARSE_LEN`] bytes.
-    LineTooLong,
-}
-
-impl ParseErrorKind {
-    /// Text printed after `Error:`.
-    pub fn message(&self) -> FStr {
-        match self {
-            ParseErrorKind::BadNumber => F!("bad number"),
-            ParseErrorKind::Exponent => F!("bad number: exponent not allowed"),
-            ParseErrorKind::NumberOutOfRange => F!("number out of range"),
-            ParseErrorKind::UnknownWord => F!("unknown word"),
-            ParseErrorKind::Unexpected => F!("unexpected character"),
-            ParseErrorKind::UnsupportedCode => F!("unsupported code"),
-            ParseErrorKind::RepeatedWord => F!("word repeated"),
-            ParseErrorKind::ModalGroupConflict => F!("two codes of one modal group"),
-            ParseErrorKind::UnclosedComment => F!("unclosed comment"),
-            ParseErrorKind::BadToolNumber => F!("tool number must be a whole number"),
-            ParseErrorKind::MissingFileName => F!("missing file name"),
-            ParseErrorKind::LineTooLong => F!("line too long"),
-        }
+crate::flash_messages! {
+    /// What is wrong with a rejected line (`message`: the text printed after
+    /// `Error:`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum ParseErrorKind {
+        /// Not a number: `X`, `X-`, `X.`, `X+.`, `X1.2.3`, `X1-2`.
+        BadNumber => "bad number",
+        /// A number directly followed by `E`, read as an exponent: `X1e99`.
+        Exponent => "bad number: exponent not allowed",
+        /// |value| ≥ 1e6, or more than 9 significant digits.
+        NumberOutOfRange => "number out of range",
+        /// A letter that is no word of the dialect (`A`, `C`, `O`, …).
+        UnknownWord => "unknown word",
+        /// A character where a word should start (`X1 0`, `#`, `)`).
+        Unexpected => "unexpected character",
+        /// A G or M number that is not supported (`G93`, `G1.5`, `M7`).
+        UnsupportedCode => "unsupported code",
+        /// The same word twice on one line (`G1 X1 X2`).
+        RepeatedWord => "word repeated",
+        /// Two codes of one modal group (`G0 G1`, `M3 M5`).
+        ModalGroupConflict => "two codes of one modal group",
+        /// `(` without `)`.
+        UnclosedComment => "unclosed comment",
+        /// T that is not a whole number 0..=255.
+        BadToolNumber => "tool number must be a whole number",
+        /// M23 or M28 without a file name.
+        MissingFileName => "missing file name",
+        /// More than [`MAX_PARSE_LEN`] bytes.
+        LineTooLong => "line too long",
     }
 }
 
@@ -726,10 +709,19 @@ fn text_arg(s: &[u8], pos: usize, col: u8) -> Result<(u8, u8), ParseError> {
 /// A malformed line is rejected whole with the column of the first problem;
 /// a blank or comment-only line gives an empty [`Line`].
 pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
+    let mut line = Line::default();
+    parse_into(s, &mut line)?;
+    Ok(line)
+}
+
+/// [`parse`] into `line` (reset first), for callers that keep the line in
+/// place: a `Result<Line, _>` is one more 100-byte copy on AVR.
+#[inline(never)]
+pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
+    *line = Line::default();
     if s.len() > MAX_PARSE_LEN {
         return err(ParseErrorKind::LineTooLong, col_of(MAX_PARSE_LEN));
     }
-    let mut line = Line::default();
     let mut pos = 0;
     let mut seen_word = false;
     // Column of a `%` program delimiter, 0 if none.
@@ -766,7 +758,7 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                             kind: ParseErrorKind::UnsupportedCode,
                             col,
                         })?;
-                        apply_g(&mut line, code, col)?;
+                        apply_g(line, code, col)?;
                     }
                     b'M' => {
                         let (n, next) = lex_number(s, pos, col)?;
@@ -775,7 +767,7 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
                             Some(c) if c % 10 == 0 => c / 10,
                             _ => return err(ParseErrorKind::UnsupportedCode, col),
                         };
-                        apply_m(&mut line, code, col)?;
+                        apply_m(line, code, col)?;
                         if TEXT_ARG_M_CODES.contains(&code) {
                             line.text_arg = Some(text_arg(s, pos, col)?);
                             break;
@@ -818,7 +810,7 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
     if bare_axis_col != 0 && line.non_modal != Some(NonModal::Home) {
         return err(ParseErrorKind::BadNumber, bare_axis_col);
     }
-    Ok(line)
+    Ok(())
 }
 
 /// True when the word whose letter ends at `pos` has no number at all: the

@@ -47,46 +47,30 @@ pub const TIP_BELOW_MM: f32 = 1.0;
 /// Travel height, machine Z mm (Z grows downward).
 pub const Z_SAFE_MM: f32 = 1.0;
 
-/// Why G37 was refused or stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Fault {
-    /// The beam is broken before anything moves.
-    BeamBlocked,
-    /// A seek reached its end without breaking the beam.
-    BeamNeverBroke,
-    /// After the back-off the beam is still broken.
-    BeamStuck,
-    /// No calibration yet.
-    NotCalibrated,
-    /// No tool in the spindle to measure.
-    NoTool,
-    /// B given but the table has no length for the tool.
-    NothingToCheck,
-    /// Bad words: D not 1, B negative, L without R, …
-    Words,
-    /// The setter or a seek end is outside travel.
-    SoftLimit,
-    /// Not homed.
-    NotHomed,
-    /// An alarm (M112, limit, …) stopped the measurement.
-    Stopped,
-}
-
-impl Fault {
-    /// Text after `Error:`.
-    pub fn message(self) -> crate::flash::FStr {
-        match self {
-            Fault::BeamBlocked => F!("tool setter beam blocked at start, nothing moved"),
-            Fault::BeamNeverBroke => F!("tool setter beam never broke; tool retracted, nothing stored"),
-            Fault::BeamStuck => F!("tool setter beam stays blocked after back-off"),
-            Fault::NotCalibrated => F!("tool setter not calibrated (G37 L<len> R<radius>)"),
-            Fault::NoTool => F!("no tool in the spindle"),
-            Fault::NothingToCheck => F!("no stored length to check against"),
-            Fault::Words => F!("G37 [D1] [B<tol>] or G37 L<len> R<radius> [X Y]"),
-            Fault::SoftLimit => F!("tool setter outside travel (soft limit)"),
-            Fault::NotHomed => F!("home X Y Z (G28) before G37"),
-            Fault::Stopped => F!("G37 stopped"),
-        }
+crate::flash_messages! {
+    /// Why G37 was refused or stopped (`message`: the text after `Error:`).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Fault {
+        /// The beam is broken before anything moves.
+        BeamBlocked => "tool setter beam blocked at start, nothing moved",
+        /// A seek reached its end without breaking the beam.
+        BeamNeverBroke => "tool setter beam never broke; tool retracted, nothing stored",
+        /// After the back-off the beam is still broken.
+        BeamStuck => "tool setter beam stays blocked after back-off",
+        /// No calibration yet.
+        NotCalibrated => "tool setter not calibrated (G37 L<len> R<radius>)",
+        /// No tool in the spindle to measure.
+        NoTool => "no tool in the spindle",
+        /// B given but the table has no length for the tool.
+        NothingToCheck => "no stored length to check against",
+        /// Bad words: D not 1, B negative, L without R, …
+        Words => "G37 [D1] [B<tol>] or G37 L<len> R<radius> [X Y]",
+        /// The setter or a seek end is outside travel.
+        SoftLimit => "tool setter outside travel (soft limit)",
+        /// Not homed.
+        NotHomed => "home X Y Z (G28) before G37",
+        /// An alarm (M112, limit, …) stopped the measurement.
+        Stopped => "G37 stopped",
     }
 }
 

@@ -779,24 +779,40 @@ where
                 let mode = solve_mode_variant(mode, true);
                 let raw_file = RawFile(data.id_generator.generate());
 
-                // MillFW patch: flash size (vendor/README.md). One FileInfo
-                // for the three modes instead of one literal per mode.
-                let mut file = FileInfo {
-                    raw_file,
-                    raw_volume: volume_id,
-                    current_cluster: (0, dir_entry.cluster),
-                    current_offset: 0,
-                    mode,
-                    entry: dir_entry,
-                    dirty: false,
-                };
-                match mode {
-                    Mode::ReadOnly => {}
+                let file = match mode {
+                    Mode::ReadOnly => FileInfo {
+                        raw_file,
+                        raw_volume: volume_id,
+                        current_cluster: (0, dir_entry.cluster),
+                        current_offset: 0,
+                        mode,
+                        entry: dir_entry,
+                        dirty: false,
+                    },
                     Mode::ReadWriteAppend => {
+                        let mut file = FileInfo {
+                            raw_file,
+                            raw_volume: volume_id,
+                            current_cluster: (0, dir_entry.cluster),
+                            current_offset: 0,
+                            mode,
+                            entry: dir_entry,
+                            dirty: false,
+                        };
                         // seek_from_end with 0 can't fail
                         file.seek_from_end(0).ok();
+                        file
                     }
                     Mode::ReadWriteTruncate => {
+                        let mut file = FileInfo {
+                            raw_file,
+                            raw_volume: volume_id,
+                            current_cluster: (0, dir_entry.cluster),
+                            current_offset: 0,
+                            mode,
+                            entry: dir_entry,
+                            dirty: false,
+                        };
                         match &mut data.open_volumes[volume_idx].volume_type {
                             VolumeType::Fat(fat) => fat.truncate_cluster_chain(
                                 &mut data.block_cache,
@@ -810,9 +826,11 @@ where
                                 fat.write_entry_to_disk(&mut data.block_cache, &file.entry)?;
                             }
                         };
+
+                        file
                     }
                     _ => return Err(Error::Unsupported),
-                }
+                };
 
                 // Remember this open file - can't be full as we checked already
                 unsafe {
