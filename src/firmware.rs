@@ -7,7 +7,7 @@
 //! ```text
 //!  serial bytes ─► Machine::push_byte
 //!  SD job       ─► one line per turn while the planner has room ─► Machine::run_job_line
-//!  menu command ─► jog / home / start a file (at the top level, never nested in a wait)
+//!  menu command ─► jog / home / start a file / Tools line (at the top level, never nested in a wait)
 //!  Machine::idle ─► segment prep, realtime ─► Io::background: encoder, one display slice
 //! ```
 //!
@@ -26,7 +26,7 @@ use mill::gcode::interp;
 use mill::machine::{Io, Machine, Realtime, StepperStatus};
 use mill::protocol::MAX_LINE_LEN;
 use mill::stepper::StepperCmd;
-use mill::ui::menu::{Cmd, Screen, Ui, View};
+use mill::ui::menu::{Cmd, Reply, Screen, Ui, View};
 use mill::ui::render::{Line, ROWS, SLICE, WIDTH};
 use mill::ui::sd::{self as sdjob, req, Card, Name, SdError, SdJob, Turn};
 use ufmt::uwriteln;
@@ -424,7 +424,8 @@ impl Hw {
         v.job_name = self.job.name;
         v.card_in = board::sd_detected();
         v.files = self.files;
-        if self.ui.screen == Screen::Info {
+        v.interrupted = m.atc.interrupted;
+        if matches!(self.ui.screen, Screen::Info) {
             v.free_ram = board::free_ram();
         }
     }
@@ -460,7 +461,7 @@ impl Hw {
                     None
                 }
             };
-            let line = self.ui.line(page as usize, &self.view, &m.settings, &file);
+            let line = self.ui.line(page as usize, &self.view, m, &file);
             let h = line.hash();
             let d = &mut self.display;
             if d.valid & (1 << page) != 0 && d.shown[page as usize] == h {
@@ -625,7 +626,7 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         hw.sd.unmount();
         hw.names_valid = false;
     }
-    if hw.ui.screen == Screen::Files && (!hw.names_valid || hw.ui.visible_files().0 != hw.names_first) {
+    if matches!(hw.ui.screen, Screen::Files) && (!hw.names_valid || hw.ui.visible_files().0 != hw.names_first) {
         hw.refresh_names();
     }
     let cmd = core::mem::replace(&mut hw.pending, Cmd::None);
@@ -649,6 +650,21 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             interp::jog(m, hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN)
         }
         Cmd::Home(mask) => mill::machine::home(m, hw, mask),
+        Cmd::Tool(op) => {
+            // The same line as over serial (T<n>, G37 [D1], M61 Q<t>), so
+            // the same checks and errors; the reply screen shows the outcome.
+            let mut l = Line::blank();
+            let n = op.gcode(&mut l);
+            let r = m.run_menu_line(&l.chars[..n], hw);
+            hw.ui.reply = match r {
+                Ok(()) => Reply::Ok,
+                Err(e) => Reply::Err(match (e, m.alarm) {
+                    (interp::Error::Alarm, Some(a)) => a.message(),
+                    _ => e.message(),
+                }),
+            };
+            r
+        }
         _ => Ok(()),
     };
     if let Err(e) = r {

@@ -397,6 +397,14 @@ impl Machine {
         r
     }
 
+    /// Run one line for the menu (Tools: `T<n>`, `G37`, `M61 Q<t>`): the
+    /// same path as a serial line, without the `ok`; the caller reports errors.
+    #[inline(never)]
+    pub fn run_menu_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        self.line_aborts = self.aborts;
+        self.execute(text, io)
+    }
+
     /// True while the line being run comes from the SD job.
     pub fn in_job_line(&self) -> bool {
         self.job_line

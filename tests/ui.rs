@@ -9,7 +9,7 @@
 mod common;
 use common::*;
 use sim::oled;
-use sim::{Axis, CardKind, FatKind, Flow, SdCard, SdImage, StreamOptions, Vm};
+use sim::{AtcConfig, Axis, CardKind, FatKind, Flow, OpticalBeam, SdCard, SdImage, StreamOptions, Tool, ToolSetter, Vm, VmConfig};
 use std::path::PathBuf;
 
 // ------------------------------------------------------------- helpers
@@ -613,7 +613,7 @@ fn jog_home_settings_and_info_from_the_menu() {
     assert!(vm.position(Axis::X) >= 0 && vm.position(Axis::X) < 300, "{}", vm.position(Axis::X));
     settle(&mut vm);
     // Settings (view) and Info.
-    main_menu_entry(&mut vm, 5);
+    main_menu_entry(&mut vm, 6);
     press(&mut vm);
     let s = screen(&vm);
     assert_eq!(s[0..2], ["[ Settings]", "X   100 steps/mm"], "{s:?}");
@@ -664,4 +664,226 @@ fn a_card_that_never_answers_is_an_error_not_a_watchdog_reset() {
     println!("gave up after {:.1} s", vm.seconds() - t0);
     assert_eq!(vm.resets().len(), 1, "no watchdog reset");
     ok(&mut vm, "M115");
+}
+
+// ------------------------------------------------------------ Tools menu
+
+/// A machine with the carousel loaded (tool n in pocket n) and time for
+/// tool changes.
+fn tools_vm() -> Vm {
+    let mut cfg = VmConfig::default();
+    cfg.command_timeout_s = 120.0;
+    boot_with(cfg)
+}
+
+/// Main menu → Tools (entry 5) → entry `i`, pressed.
+fn tools_entry(vm: &mut Vm, i: i32) {
+    main_menu_entry(vm, 5);
+    assert_eq!(screen(vm)[6], "[ Tools]", "{:?}", screen(vm));
+    press(vm);
+    assert_eq!(screen(vm)[0], "[ Tools]");
+    turn(vm, i);
+    press(vm);
+}
+
+/// Rows 2..7 of a reply screen joined: the message it shows, unwrapped.
+fn reply_text(vm: &Vm) -> String {
+    screen(vm)[2..7].iter().map(|l| l.trim()).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ")
+}
+
+/// From the Tools menu back to the status screen.
+fn tools_to_status(vm: &mut Vm) {
+    turn(vm, -10);
+    press(vm); // < Back: the main menu, on Tools
+    turn(vm, -10);
+    press(vm); // < Status
+    assert_eq!(screen(vm)[7], "Press for menu");
+}
+
+fn spindle_tool(vm: &Vm) -> u8 {
+    vm.atc().spindle.map_or(0, |t| t.id)
+}
+
+/// Change tool → T`t` → Yes, from the status screen.
+fn change_from_menu(vm: &mut Vm, t: i32) {
+    tools_entry(vm, 1);
+    let s = screen(vm);
+    assert_eq!(s[0], "[ Change tool]", "{s:?}");
+    // The list opens on the tool in the spindle (entry 0 is "< Back").
+    let now = spindle_tool(vm) as i32;
+    turn(vm, t - now);
+    press(vm);
+    assert_eq!(screen(vm)[0..3], [format!("[ Change to T{t}?]"), "[ No]".into(), " Yes".into()]);
+    turn(vm, 1);
+    press(vm);
+}
+
+#[test]
+fn tools_menu_changes_to_t2_through_the_same_path_as_serial_t2() {
+    let mut vm = tools_vm();
+    // The Tools menu.
+    main_menu_entry(&mut vm, 5);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(
+        s[0..7],
+        ["[ Tools]", "[ < Back]", " Change tool", " Measure length", " Measure len+dia", " Tool table", " Confirm spindle"],
+        "{s:?}"
+    );
+    golden(&vm, "tools_menu");
+    tools_to_status(&mut vm);
+    assert_eq!(screen(&vm)[0], "[ Idle            T0]");
+    // Not homed (homing lock): refused with the serial error, shown on screen.
+    change_from_menu(&mut vm, 2);
+    let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 5.0);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Change tool]");
+    assert_eq!(reply_text(&vm), err.trim_start_matches("Error:"), "{s:?}");
+    assert_eq!(s[7], "Press: back");
+    assert_eq!(total_steps(&vm), 0, "nothing moved");
+    press(&mut vm);
+    assert_eq!(screen(&vm)[2], "[ Change tool]");
+    tools_to_status(&mut vm);
+    // Homed: the change runs and ends with the serial protocol's line.
+    ok(&mut vm, "G28");
+    vm.take_lines();
+    change_from_menu(&mut vm, 2);
+    wait_for(&mut vm, |l| l == "SelectTool:2", 5.0);
+    settle(&mut vm);
+    assert_eq!(screen(&vm)[2], " Tool change", "{:?}", screen(&vm));
+    wait_for(&mut vm, |l| l == "NowSelectedTool:2", 60.0);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Change tool]", "", " T2 in spindle"], "{s:?}");
+    assert_eq!(spindle_tool(&vm), 2);
+    assert_eq!(vm.atc().pocket_ids(), [1, 0, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
+    assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+    // The status screen shows the tool.
+    press(&mut vm);
+    tools_to_status(&mut vm);
+    assert_eq!(screen(&vm)[0], "[ Idle            T2]");
+    // An empty pocket is refused like T6 over serial.
+    vm.with_atc(|a| a.pockets[5] = None);
+    ok(&mut vm, "M61 P6 S0");
+    let n = total_steps(&vm);
+    change_from_menu(&mut vm, 6);
+    let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 5.0);
+    settle(&mut vm);
+    assert!(err.contains("pocket of that tool is empty"), "{err}");
+    assert_eq!(reply_text(&vm), err.trim_start_matches("Error:"));
+    assert_eq!(total_steps(&vm), n);
+    assert_eq!(spindle_tool(&vm), 2);
+    // RAM: a change run from the menu, drawing its reply screen meanwhile.
+    let stack = vm.stack_high_water_bytes().unwrap();
+    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
+    println!("tool change from the menu: static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
+    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
+}
+
+#[test]
+fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
+    let mut vm = tools_vm();
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X10 Y5 Z3");
+    ok(&mut vm, "T2");
+    vm.send_line("T5");
+    // Reset after T2 went back into its pocket, before T5 is clamped
+    // (as tests/atc.rs chip_reset_mid_change...).
+    vm.run_until(|vm| vm.atc().transfers.len() == 2, 60.0).unwrap();
+    vm.run_for(0.3).unwrap();
+    assert_eq!(spindle_tool(&vm), 0);
+    vm.reset();
+    vm.wait_for_start(3.0).unwrap();
+    wait_for(&mut vm, |l| l.contains("interrupted"), 1.0);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[6..8], ["Change interrupted:", "Tools>Confirm spindle"], "{s:?}");
+    assert!(refused(&mut vm, "G28").contains("M61"));
+    // A change from the menu is refused like T5 over serial.
+    change_from_menu(&mut vm, 5);
+    let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 5.0);
+    settle(&mut vm);
+    assert!(err.contains("M61"), "{err}");
+    assert_eq!(reply_text(&vm), err.trim_start_matches("Error:"));
+    press(&mut vm); // back to Tools, on "Change tool"
+    // Confirm spindle: the list marks the two tools of the change.
+    turn(&mut vm, 4);
+    assert_eq!(screen(&vm)[6], "[ Confirm spindle]");
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..5], ["[ In spindle now?]", "[ < Back]", " T0 no tool", " T1", " T2 old tool"], "{s:?}");
+    assert_eq!(s[7], " T5 new tool");
+    // The operator finds the spindle empty.
+    turn(&mut vm, 1);
+    press(&mut vm);
+    assert_eq!(screen(&vm)[0..3], ["[ Spindle holds T0?]", "[ No]", " Yes"]);
+    turn(&mut vm, 1);
+    press(&mut vm);
+    wait_for(&mut vm, |l| l == "echo:tool in spindle: T0", 2.0);
+    settle(&mut vm);
+    assert_eq!(screen(&vm)[2], " T0 in spindle");
+    // Confirmed: records as after M61 Q0, motion allowed again.
+    let e = vm.eeprom();
+    let (s, j) = (mill::atc::tools::EEPROM_STATE_ADDR as usize, mill::atc::tools::EEPROM_JOURNAL_ADDR as usize);
+    let st = mill::atc::ToolState::from_bytes(&e[s..s + 5].try_into().unwrap()).unwrap();
+    assert_eq!(mill::atc::Journal::from_bytes(&e[j..j + 5].try_into().unwrap()), None);
+    assert_eq!(st.spindle, 0);
+    for p in 1..=12u8 {
+        assert_eq!(st.pocket_full(p), vm.atc().pocket(p).is_some(), "pocket {p}");
+    }
+    press(&mut vm);
+    tools_to_status(&mut vm);
+    assert_eq!(screen(&vm)[6], "No job");
+    ok(&mut vm, "G28");
+    ok(&mut vm, "T5");
+    assert_eq!(spindle_tool(&vm), 5);
+    assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
+}
+
+#[test]
+fn tools_menu_shows_the_tool_table_and_measures_the_spindle_tool() {
+    let mut cfg = VmConfig::default();
+    cfg.command_timeout_s = 120.0;
+    cfg.machine.tool_setter = ToolSetter::Optical(OpticalBeam {
+        x_mm: (3.0, 7.0),
+        y_mm: 10.013,
+        z_mm: 48.0047,
+        width_mm: 0.52,
+        steps_per_mm: 100.0,
+    });
+    let mut atc = AtcConfig::default();
+    atc.pockets[0] = Some(Tool { id: 1, length_mm: 19.5, diameter_mm: 3.0 });
+    atc.pockets[1] = Some(Tool { id: 2, length_mm: 21.3371, diameter_mm: 3.175 });
+    cfg.machine.atc = atc;
+    let mut vm = boot_with(cfg);
+    ok(&mut vm, "G28");
+    // The table by hand: T3 25 mm long, radius 1 mm.
+    ok(&mut vm, "G10 L1 P3 Z25 R1");
+    tools_entry(&mut vm, 4);
+    let s = screen(&vm);
+    assert_eq!(s[0..4], ["[ T      L mm     D mm]", " T1    0.000    0.000", " T2    0.000    0.000", " T3   25.000    2.000"], "{s:?}");
+    turn(&mut vm, 5);
+    assert_eq!(screen(&vm)[7], " T12   0.000    0.000");
+    press(&mut vm);
+    assert_eq!(screen(&vm)[5], "[ Tool table]");
+    // Calibrate with T1 and pick T2 over serial, then measure from the menu.
+    ok(&mut vm, "T1");
+    ok(&mut vm, "G37 L19.5 R1.5");
+    ok(&mut vm, "T2");
+    vm.take_lines();
+    turn(&mut vm, -1);
+    assert_eq!(screen(&vm)[4], "[ Measure len+dia]");
+    press(&mut vm);
+    let res = wait_for(&mut vm, |l| l.starts_with("[TOOL:"), 60.0);
+    settle(&mut vm);
+    let field = |k: &str| -> f64 { res.split(' ').find_map(|w| w.strip_prefix(k)).unwrap().trim_end_matches(']').parse().unwrap() };
+    assert!(res.starts_with("[TOOL:2 "), "{res}");
+    let (l, d) = (field("L:"), field("D:"));
+    assert!((l - 21.3371).abs() < 0.02 && (d - 3.175).abs() < 0.03, "{res}");
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Measure len+dia]", "", " T      L mm     D mm"], "{s:?}");
+    assert_eq!(s[3], format!(" T2*{:>8.3}{:>9.3}", l, d), "{s:?}");
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }

@@ -1,26 +1,36 @@
 //! The menu tree (SPEC §9) as data, and the state machine the encoder drives.
 //!
 //! ```text
-//!  Status ──press──► Menu: < Status | Run from SD | Job | Jog | Home | Settings | Info
+//!  Status ──press──► Menu: < Status | Run from SD | Job | Jog | Home | Tools | Settings | Info
 //!    Run from SD: < Back, files (scrolling) ──► "Run NAME?" No/Yes
 //!    Job:  < Back | Pause/Resume | Abort ──► "Abort the job?" No/Yes | Feed override nnn%
 //!    Jog:  < Back | Axis X/Y/Z | Step 0.1/1/10 mm | Jog now (turn = move, press = done)
 //!    Home: < Back | Home all | Home Z | Home Y | Home X
+//!    Tools: < Back | Change tool ──► < Back, T0..T12 ──► "Change to Tn?" No/Yes ──► reply
+//!           | Measure length (G37) ──► reply | Measure len+dia (G37 D1) ──► reply
+//!           | Tool table (view, scrolling)
+//!           | Confirm spindle ──► < Back, T0..T12 ──► "Spindle holds Tn?" No/Yes ──► reply
 //!    Settings (view, scrolling), Info (version, free RAM, card)
 //! ```
 //!
 //! [`Ui::step`] takes what the encoder did (detents, presses) and returns a
 //! [`Cmd`] for the firmware to carry out; [`Ui::line`] gives the text of any
 //! row of the current screen from a [`View`] (a snapshot of the machine
-//! taken once per frame). Tool-changer entries are left out until the tool
-//! changer lands.
+//! taken once per frame) and the [`Machine`] (settings, tool table).
+//!
+//! The Tools entries run G-code lines through the machine's command path
+//! ([`ToolOp::gcode`]: `T<n>`, `G37`, `G37 D1`, `M61 Q<t>`), so they are
+//! refused exactly as over serial; the reply screen shows the result or
+//! the refusal ([`Reply`], set by the firmware when the line returns).
 
 use super::flash;
 use super::render::{Line, COLS, ROWS};
 use super::sd::{Name, Outcome, Phase};
 use super::text::Text;
+use crate::atc::{Journal, N_POCKETS};
 use crate::config::Settings;
-use crate::machine::State;
+use crate::flash::FStr;
+use crate::machine::{Machine, State};
 
 /// What an entry does when pressed.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -43,6 +53,12 @@ pub enum Act {
     HomeZ,
     HomeY,
     HomeX,
+    ToolsMenu,
+    ChangeTool,
+    MeasureLength,
+    MeasureDia,
+    ToolTable,
+    ConfirmSpindle,
 }
 
 /// The menus with fixed entries.
@@ -53,6 +69,7 @@ pub enum MenuId {
     Job,
     Jog,
     Home,
+    Tools,
 }
 
 const fn item(t: Text, a: Act) -> [u8; 2] {
@@ -61,13 +78,14 @@ const fn item(t: Text, a: Act) -> [u8; 2] {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 20] = [
+static ITEMS: [[u8; 2]; 27] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
     item(Text::Job, Act::JobMenu),
     item(Text::Jog, Act::JogMenu),
     item(Text::Home, Act::HomeMenu),
+    item(Text::Tools, Act::ToolsMenu),
     item(Text::Settings, Act::Settings),
     item(Text::Info, Act::Info),
     // Job
@@ -86,16 +104,23 @@ static ITEMS: [[u8; 2]; 20] = [
     item(Text::HomeZ, Act::HomeZ),
     item(Text::HomeY, Act::HomeY),
     item(Text::HomeX, Act::HomeX),
+    // Tools
+    item(Text::Back, Act::Back),
+    item(Text::ChangeTool, Act::ChangeTool),
+    item(Text::MeasureLength, Act::MeasureLength),
+    item(Text::MeasureDia, Act::MeasureDia),
+    item(Text::ToolTable, Act::ToolTable),
+    item(Text::ConfirmSpindle, Act::ConfirmSpindle),
 ];
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 5] = [0, 7, 11, 15, 20];
+static MENU_START: [u8; 6] = [0, 8, 12, 16, 21, 27];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
         let i = self as usize;
-        // SAFETY: i + 1 < 5.
+        // SAFETY: i + 1 < 6.
         let a = flash::read_byte(unsafe { MENU_START.as_ptr().add(i) }) as usize;
         // SAFETY: as above.
         let b = flash::read_byte(unsafe { MENU_START.as_ptr().add(i + 1) }) as usize;
@@ -127,6 +152,7 @@ impl MenuId {
             MenuId::Job => Text::Job,
             MenuId::Jog => Text::Jog,
             MenuId::Home => Text::Home,
+            MenuId::Tools => Text::Tools,
         }
     }
 }
@@ -147,6 +173,70 @@ pub enum Screen {
     Jogging,
     Settings,
     Info,
+    /// The tool list (entry 0 "< Back", entry i is T(i - 1)): for a change,
+    /// or (true) for confirming the spindle after an interrupted change.
+    PickTool(bool),
+    /// "Change to Tn?" / "Spindle holds Tn?" No/Yes.
+    AskTool(ToolOp),
+    /// A Tools command running, then its result or refusal ([`Ui::reply`]).
+    Reply(ToolOp),
+    /// T1..T12 length and diameter (view, scrolling).
+    ToolTable,
+}
+
+/// A Tools-menu command: one G-code line run through the machine.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum ToolOp {
+    /// `T<n>`: change to tool n (0 = empty the spindle).
+    Change(u8),
+    /// `G37` (length) or `G37 D1` (length and diameter) of the spindle tool.
+    Measure { diameter: bool },
+    /// `M61 Q<t>`: the spindle holds tool t (after an interrupted change).
+    Confirm(u8),
+}
+
+impl ToolOp {
+    /// Write the G-code line into `l` from column 0; returns its length.
+    pub fn gcode(self, l: &mut Line) -> usize {
+        match self {
+            ToolOp::Change(t) => {
+                let c = l.put(0, b"T");
+                l.uint(c, t as u32)
+            }
+            ToolOp::Confirm(t) => {
+                let c = l.text(0, Text::LineM61Q);
+                l.uint(c, t as u32)
+            }
+            ToolOp::Measure { diameter } => {
+                let c = l.text(0, Text::LineG37D1);
+                if diameter {
+                    c
+                } else {
+                    3
+                }
+            }
+        }
+    }
+
+    /// Its entry in the Tools menu (label and position).
+    fn entry(self) -> (Text, u8) {
+        match self {
+            ToolOp::Change(_) => (Text::ChangeTool, 1),
+            ToolOp::Measure { diameter: false } => (Text::MeasureLength, 2),
+            ToolOp::Measure { diameter: true } => (Text::MeasureDia, 3),
+            ToolOp::Confirm(_) => (Text::ConfirmSpindle, 5),
+        }
+    }
+}
+
+/// How the last Tools command went.
+#[derive(Clone, Copy, PartialEq, Debug)]
+pub enum Reply {
+    /// Sent to the firmware, not finished yet.
+    Pending,
+    Ok,
+    /// Refused or failed: the message printed after `Error:` (in flash).
+    Err(FStr),
 }
 
 /// What the firmware should do after [`Ui::step`].
@@ -166,6 +256,8 @@ pub enum Cmd {
     Jog { axis: u8, delta_um: i32 },
     /// Home the axes of the mask (bit 0 X, 1 Y, 2 Z).
     Home(u8),
+    /// Run a Tools command; the firmware puts its outcome in [`Ui::reply`].
+    Tool(ToolOp),
 }
 
 /// A snapshot of what the screens show, taken once per frame.
@@ -187,6 +279,8 @@ pub struct View {
     /// Files on the card (after the last listing).
     pub files: u8,
     pub free_ram: u16,
+    /// A tool change that did not finish and awaits M61 (`Atc::interrupted`).
+    pub interrupted: Option<Journal>,
 }
 
 impl View {
@@ -204,11 +298,18 @@ impl View {
             card_in: false,
             files: 0,
             free_ram: 0,
+            interrupted: None,
         }
     }
 
     fn job_active(&self) -> bool {
         matches!(self.job, Phase::Running | Phase::Paused | Phase::CardLost | Phase::Draining(_) | Phase::Aborting(_))
+    }
+
+    /// A Tools command may start: no job, and the machine idle (or in alarm,
+    /// where the machine itself answers with the alarm).
+    fn may_run_tool(&self) -> bool {
+        !self.job_active() && matches!(self.state, State::Idle | State::Alarm)
     }
 }
 
@@ -221,7 +322,7 @@ impl Default for View {
 /// Jog steps, µm.
 const JOG_STEPS_UM: [i32; 3] = [100, 1000, 10_000];
 
-/// The UI state machine. RAM: 8 bytes.
+/// The UI state machine. RAM: 14 bytes on AVR (8 before the Tools reply).
 pub struct Ui {
     pub screen: Screen,
     /// Selected entry and first entry shown, for list screens.
@@ -232,6 +333,8 @@ pub struct Ui {
     pub jog_step: u8,
     /// The override being set.
     pub override_pct: u16,
+    /// Outcome of the last Tools command (shown on [`Screen::Reply`]).
+    pub reply: Reply,
 }
 
 impl Default for Ui {
@@ -244,10 +347,12 @@ impl Default for Ui {
 const LIST_ROWS: u8 = (ROWS - 1) as u8;
 /// Entries on the Settings screen.
 const SETTINGS_LINES: u8 = 13;
+/// Entries of the tool lists: "< Back", T0..T12.
+const TOOL_ENTRIES: u8 = N_POCKETS as u8 + 2;
 
 impl Ui {
     pub const fn new() -> Ui {
-        Ui { screen: Screen::Status, sel: 0, top: 0, jog_axis: 0, jog_step: 1, override_pct: 100 }
+        Ui { screen: Screen::Status, sel: 0, top: 0, jog_axis: 0, jog_step: 1, override_pct: 100, reply: Reply::Ok }
     }
 
     fn go(&mut self, s: Screen) {
@@ -261,7 +366,8 @@ impl Ui {
         match self.screen {
             Screen::Menu(m) => m.len() as u8,
             Screen::Files => v.files + 1,
-            Screen::ConfirmRun(_) | Screen::ConfirmAbort => 2,
+            Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) => 2,
+            Screen::PickTool(_) => TOOL_ENTRIES,
             Screen::Settings => SETTINGS_LINES,
             _ => 0,
         }
@@ -318,7 +424,22 @@ impl Ui {
             }
             Screen::Info => {
                 if press {
-                    self.back_to_main(6);
+                    self.back_to(MenuId::Main, 7);
+                }
+                Cmd::None
+            }
+            Screen::ToolTable => {
+                // The view scrolls itself (no selection): 12 tools, 7 rows.
+                let top = self.top as i16 + detents as i16;
+                self.top = top.clamp(0, N_POCKETS as i16 - LIST_ROWS as i16) as u8;
+                if press {
+                    self.back_to(MenuId::Tools, 4);
+                }
+                Cmd::None
+            }
+            Screen::Reply(op) => {
+                if press && !matches!(self.reply, Reply::Pending) {
+                    self.back_to(MenuId::Tools, op.entry().1);
                 }
                 Cmd::None
             }
@@ -334,9 +455,22 @@ impl Ui {
         }
     }
 
-    fn back_to_main(&mut self, entry: u8) {
-        self.go(Screen::Menu(MenuId::Main));
-        self.scroll(entry as i8, MenuId::Main.len() as u8);
+    /// Open menu `m` with `entry` selected.
+    fn back_to(&mut self, m: MenuId, entry: u8) {
+        self.go(Screen::Menu(m));
+        self.scroll(entry as i8, m.len() as u8);
+    }
+
+    /// Start Tools command `op` (the Reply screen shows how it goes), or
+    /// refuse it at once while the machine is busy.
+    fn run_tool(&mut self, op: ToolOp, v: &View) -> Cmd {
+        self.go(Screen::Reply(op));
+        if !v.may_run_tool() {
+            self.reply = Reply::Err(Text::NotIdle.as_fstr());
+            return Cmd::None;
+        }
+        self.reply = Reply::Pending;
+        Cmd::Tool(op)
     }
 
     #[inline(never)]
@@ -346,7 +480,7 @@ impl Ui {
             Screen::Menu(m) => self.act(m, m.item(sel as usize).1, v),
             Screen::Files => {
                 if sel == 0 || !v.card_in {
-                    self.back_to_main(1);
+                    self.back_to(MenuId::Main, 1);
                 } else if v.job_active() {
                     self.go(Screen::Status);
                 } else {
@@ -374,7 +508,29 @@ impl Ui {
                 }
             }
             Screen::Settings => {
-                self.back_to_main(5);
+                self.back_to(MenuId::Main, 6);
+                Cmd::None
+            }
+            Screen::PickTool(confirm) => {
+                if sel == 0 {
+                    self.back_to(MenuId::Tools, if confirm { 5 } else { 1 });
+                } else {
+                    let t = sel - 1;
+                    self.go(Screen::AskTool(if confirm { ToolOp::Confirm(t) } else { ToolOp::Change(t) }));
+                }
+                Cmd::None
+            }
+            Screen::AskTool(op) => {
+                if sel == 1 {
+                    return self.run_tool(op, v);
+                }
+                let (confirm, t) = match op {
+                    ToolOp::Confirm(t) => (true, t),
+                    ToolOp::Change(t) => (false, t),
+                    ToolOp::Measure { .. } => (false, 0),
+                };
+                self.go(Screen::PickTool(confirm));
+                self.scroll(t as i8 + 1, TOOL_ENTRIES);
                 Cmd::None
             }
             _ => Cmd::None,
@@ -392,9 +548,10 @@ impl Ui {
                     let entry = match m {
                         MenuId::Job => 2,
                         MenuId::Jog => 3,
-                        _ => 4,
+                        MenuId::Home => 4,
+                        _ => 5,
                     };
-                    self.back_to_main(entry);
+                    self.back_to(MenuId::Main, entry);
                 }
                 Cmd::None
             }
@@ -466,6 +623,30 @@ impl Ui {
                     _ => 0b111,
                 })
             }
+            Act::ToolsMenu => {
+                self.go(Screen::Menu(MenuId::Tools));
+                Cmd::None
+            }
+            Act::ChangeTool => {
+                // The list opens on the tool in the spindle.
+                self.go(Screen::PickTool(false));
+                self.scroll(v.tool as i8 + 1, TOOL_ENTRIES);
+                Cmd::None
+            }
+            Act::MeasureLength | Act::MeasureDia => self.run_tool(ToolOp::Measure { diameter: a == Act::MeasureDia }, v),
+            Act::ToolTable => {
+                self.go(Screen::ToolTable);
+                Cmd::None
+            }
+            Act::ConfirmSpindle => {
+                if v.interrupted.is_some() {
+                    self.go(Screen::PickTool(true));
+                } else {
+                    self.go(Screen::Reply(ToolOp::Confirm(0)));
+                    self.reply = Reply::Err(Text::NoChangeCut.as_fstr());
+                }
+                Cmd::None
+            }
         }
     }
 
@@ -481,7 +662,7 @@ impl Ui {
     /// Text of `row` of the current screen. `file(i)` gives the name of
     /// file i (only the visible ones are asked for).
     #[inline(never)]
-    pub fn line(&self, row: usize, v: &View, s: &Settings, file: &dyn Fn(u8) -> Option<Name>) -> Line {
+    pub fn line(&self, row: usize, v: &View, m: &Machine, file: &dyn Fn(u8) -> Option<Name>) -> Line {
         let mut l = Line::blank();
         match self.screen {
             Screen::Status => status_line(row, v, &mut l),
@@ -496,13 +677,26 @@ impl Ui {
                         Screen::ConfirmAbort => Text::AbortQ,
                         Screen::Override => Text::FeedOverride,
                         Screen::Jogging => Text::Jog,
+                        Screen::PickTool(false) => Text::ChangeTool,
+                        Screen::PickTool(true) => Text::InSpindleQ,
+                        Screen::AskTool(ToolOp::Change(_)) => Text::ChangeToQ,
+                        Screen::AskTool(_) => Text::HoldsQ,
+                        Screen::Reply(op) => op.entry().0,
+                        Screen::ToolTable => Text::TableHead,
                         _ => Text::Settings,
                     };
                     let c = l.text(1, t);
-                    if let Screen::ConfirmRun(i) = self.screen {
-                        let n = file(i).unwrap_or_default();
-                        let c = l.put(c, n.as_bytes());
-                        l.put(c, b"?");
+                    match self.screen {
+                        Screen::ConfirmRun(i) => {
+                            let n = file(i).unwrap_or_default();
+                            let c = l.put(c, n.as_bytes());
+                            l.put(c, b"?");
+                        }
+                        Screen::AskTool(ToolOp::Change(t) | ToolOp::Confirm(t)) => {
+                            let c = l.uint(c, t as u32);
+                            l.put(c, b"?");
+                        }
+                        _ => {}
                     }
                     return l;
                 }
@@ -522,10 +716,18 @@ impl Ui {
                         jog_line(row, self, v, &mut l);
                         return l;
                     }
+                    Screen::Reply(op) => {
+                        reply_line(row, op, self.reply, v, m, &mut l);
+                        return l;
+                    }
+                    Screen::ToolTable => {
+                        table_line(e + 1, v, m, &mut l);
+                        return l;
+                    }
                     _ => {}
                 }
                 if e >= self.entries(v) {
-                    if self.screen == Screen::Files && e == 1 && row == 2 {
+                    if matches!(self.screen, Screen::Files) && e == 1 && row == 2 {
                         l.text(2, if v.card_in { Text::NoFiles } else { Text::NoCard });
                     }
                     return l;
@@ -540,13 +742,14 @@ impl Ui {
                             l.put(1, n.as_bytes());
                         }
                     }
-                    Screen::ConfirmRun(_) | Screen::ConfirmAbort => {
+                    Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) => {
                         l.text(1, if e == 0 { Text::No } else { Text::Yes });
                     }
                     Screen::Settings => {
                         l.invert = false;
-                        settings_line(e, s, &mut l);
+                        settings_line(e, &m.settings, &mut l);
                     }
+                    Screen::PickTool(confirm) => pick_line(e, confirm, v, m, &mut l),
                     _ => {}
                 }
             }
@@ -629,9 +832,22 @@ fn status_line(row: usize, v: &View, l: &mut Line) {
                 l.text(8, Text::Rpm);
             }
         }
+        // An interrupted change outranks the job: nothing moves until confirmed.
+        6 if v.interrupted.is_some() => {
+            l.text(0, Text::ChangeCut);
+        }
         6 => job_status(v, l),
         7 => {
-            l.text(0, if v.state == State::Hold { Text::HintResume } else { Text::HintMenu });
+            l.text(
+                0,
+                if v.interrupted.is_some() {
+                    Text::HintConfirm
+                } else if v.state == State::Hold {
+                    Text::HintResume
+                } else {
+                    Text::HintMenu
+                },
+            );
         }
         _ => {}
     }
@@ -735,6 +951,112 @@ fn jog_line(row: usize, ui: &Ui, v: &View, l: &mut Line) {
     }
 }
 
+/// " T<t>" at column 1 and, when given, a note after it; returns the
+/// column after the number.
+fn tool_and_note(l: &mut Line, t: u8, note: Option<Text>) -> usize {
+    let c = l.put(1, b"T");
+    let c = l.uint(c, t as u32);
+    if let Some(n) = note {
+        l.text(c + 1, n);
+    }
+    c
+}
+
+/// Entry `e` of a tool list: "< Back", then T0..T12 with what is known of
+/// each (for a change: in the spindle, pocket empty; for a confirmation:
+/// the old and new tool of the interrupted change).
+#[inline(never)]
+fn pick_line(e: u8, confirm: bool, v: &View, m: &Machine, l: &mut Line) {
+    if e == 0 {
+        l.text(1, Text::Back);
+        return;
+    }
+    let t = e - 1;
+    let note = if t == 0 {
+        Some(Text::NoTool)
+    } else if confirm {
+        match v.interrupted {
+            Some(j) if j.from == t => Some(Text::OldTool),
+            Some(j) if j.to == t => Some(Text::NewTool),
+            _ => None,
+        }
+    } else if t == v.tool {
+        Some(Text::InSpindle)
+    } else if !m.atc.tools.pocket_full(t) {
+        Some(Text::PocketEmpty)
+    } else {
+        None
+    };
+    tool_and_note(l, t, note);
+}
+
+/// Row `t` (1..=12) of the tool table, `T3*  25.000    2.000` (length and
+/// diameter, mm; * = in the spindle), from the tool table in RAM.
+#[inline(never)]
+fn table_line(t: u8, v: &View, m: &Machine, l: &mut Line) {
+    let c = tool_and_note(l, t, None);
+    if t == v.tool {
+        l.chars[c] = b'*';
+    }
+    l.micros_right(12, m.atc.table.length_um(t));
+    l.micros_right(COLS, m.atc.table.diameter_um(t) as i32);
+}
+
+/// The reply screen of a Tools command: the machine state while it runs,
+/// then the result (tool in the spindle; the measured tool's table row) or
+/// the refusal, word-wrapped.
+#[inline(never)]
+fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut Line) {
+    let t = v.tool;
+    match (r, row) {
+        (Reply::Pending, 2) => {
+            l.text(1, state_text(v.state));
+        }
+        (Reply::Pending, _) => {}
+        (Reply::Err(msg), 2..=6) => wrapped(msg, row - 2, l),
+        // Measured: the spindle tool's row of the tool table, under its head.
+        (Reply::Ok, 2) if matches!(op, ToolOp::Measure { .. }) => {
+            l.text(1, Text::TableHead);
+        }
+        (Reply::Ok, 3) if matches!(op, ToolOp::Measure { .. }) => table_line(t, v, m, l),
+        (Reply::Ok, 2) => {
+            tool_and_note(l, t, Some(Text::InSpindle));
+        }
+        (_, 7) => {
+            l.text(0, Text::HintBack);
+        }
+        _ => {}
+    }
+}
+
+/// Line `k` of `msg` word-wrapped to the 20 columns from column 1 (a
+/// word longer than a line is cut).
+#[inline(never)]
+fn wrapped(msg: FStr, k: usize, l: &mut Line) {
+    let n = msg.len();
+    let (mut line, mut col, mut i) = (0, 1, 0);
+    while i < n {
+        // The word i..j.
+        let mut j = i;
+        while msg.get(j).is_some_and(|b| b != b' ') {
+            j += 1;
+        }
+        if col > 1 && col + (j - i) > COLS {
+            line += 1;
+            col = 1;
+        }
+        while i < j {
+            if line == k && col < COLS {
+                l.chars[col] = msg.get(i).unwrap_or(b' ');
+            }
+            col += 1;
+            i += 1;
+        }
+        col += 1;
+        i += 1;
+    }
+}
+
 #[inline(never)]
 fn settings_line(e: u8, s: &Settings, l: &mut Line) {
     let axis = (e % 3) as usize;
@@ -758,10 +1080,14 @@ mod tests {
     use super::*;
 
     fn screen(ui: &Ui, v: &View) -> Vec<String> {
+        screen_of(ui, v, &Machine::new())
+    }
+
+    fn screen_of(ui: &Ui, v: &View, m: &Machine) -> Vec<String> {
         let names = |i: u8| Name::parse(format!("FILE{i}.NC").as_bytes());
         (0..ROWS)
             .map(|r| {
-                let l = ui.line(r, v, &Settings::DEFAULT, &names);
+                let l = ui.line(r, v, m, &names);
                 let s = String::from_utf8(l.chars.to_vec()).unwrap();
                 if l.invert {
                     format!("[{}]", s.trim_end())
@@ -774,8 +1100,12 @@ mod tests {
 
     #[test]
     fn the_menu_tree_is_laid_out_as_the_spec_says() {
-        assert_eq!(MenuId::Main.len(), 7);
+        assert_eq!(MenuId::Main.len(), 8);
         assert_eq!(MenuId::Main.item(1), (Text::RunFromSd, Act::Files));
+        assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
+        assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
+        assert_eq!(MenuId::Tools.len(), 6);
+        assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
         assert_eq!(MenuId::Job.item(2), (Text::Abort, Act::Abort));
         assert_eq!(MenuId::Home.item(4), (Text::HomeX, Act::HomeX));
     }
@@ -901,5 +1231,204 @@ mod tests {
         assert_eq!(s[1], "X   100 steps/mm");
         ui.step(0, true, &v);
         assert_eq!(ui.screen, Screen::Menu(MenuId::Main));
+    }
+
+    /// Open the Tools menu from the status screen and press entry `i`.
+    fn tools_entry(ui: &mut Ui, v: &View, i: i8) -> Cmd {
+        *ui = Ui::new();
+        ui.step(0, true, v); // status -> menu
+        ui.step(5, true, v); // Tools
+        assert_eq!(ui.screen, Screen::Menu(MenuId::Tools));
+        ui.step(i, true, v)
+    }
+
+    #[test]
+    fn tools_menu_lists_change_measure_table_and_confirm() {
+        let mut ui = Ui::new();
+        let v = View::new();
+        tools_entry(&mut ui, &v, 0);
+        assert_eq!(ui.screen, Screen::Menu(MenuId::Main), "< Back");
+        assert_eq!(ui.sel, 5, "back on Tools");
+        ui.step(0, true, &v);
+        let s = screen(&ui, &v);
+        assert_eq!(
+            s[..7],
+            ["[ Tools]", "[ < Back]", " Change tool", " Measure length", " Measure len+dia", " Tool table", " Confirm spindle"]
+        );
+    }
+
+    #[test]
+    fn change_tool_picks_a_tool_asks_then_runs_t_n_and_shows_the_outcome() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        let mut m = Machine::new();
+        v.tool = 3;
+        m.atc.tools.spindle = 3;
+        m.atc.tools.occupied &= !(crate::atc::tools::pocket_bit(3) | crate::atc::tools::pocket_bit(6));
+        assert_eq!(tools_entry(&mut ui, &v, 1), Cmd::None);
+        assert_eq!(ui.screen, Screen::PickTool(false));
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!(s[0], "[ Change tool]");
+        assert_eq!(s[1..6], [" < Back", " T0 no tool", " T1", " T2", "[ T3 in spindle]"], "opens on the spindle tool");
+        ui.step(3, false, &v);
+        assert_eq!(screen_of(&ui, &v, &m)[7], "[ T6 pocket empty]");
+        // T2: "Change to T2?", No goes back to the list on T2.
+        ui.step(-4, true, &v);
+        assert_eq!(ui.screen, Screen::AskTool(ToolOp::Change(2)));
+        assert_eq!(screen(&ui, &v)[0..3], ["[ Change to T2?]", "[ No]", " Yes"]);
+        assert_eq!(ui.step(0, true, &v), Cmd::None);
+        assert_eq!((ui.screen, ui.sel), (Screen::PickTool(false), 3));
+        ui.step(0, true, &v);
+        assert_eq!(ui.step(1, true, &v), Cmd::Tool(ToolOp::Change(2)));
+        assert_eq!((ui.screen, ui.reply), (Screen::Reply(ToolOp::Change(2)), Reply::Pending));
+        // While it runs: the state; presses do nothing.
+        v.state = State::Tool;
+        assert_eq!(screen(&ui, &v)[0..3], ["[ Change tool]", "", " Tool change"]);
+        assert_eq!(ui.step(1, true, &v), Cmd::None);
+        assert_eq!(ui.screen, Screen::Reply(ToolOp::Change(2)));
+        // Done.
+        v.state = State::Idle;
+        v.tool = 2;
+        ui.reply = Reply::Ok;
+        let s = screen(&ui, &v);
+        assert_eq!((s[2].as_str(), s[7].as_str()), (" T2 in spindle", "Press: back"));
+        ui.step(0, true, &v);
+        assert_eq!((ui.screen, ui.sel), (Screen::Menu(MenuId::Tools), 1));
+    }
+
+    #[test]
+    fn a_refused_change_shows_the_machine_error_word_wrapped() {
+        let mut ui = Ui::new();
+        let v = View::new();
+        tools_entry(&mut ui, &v, 1);
+        ui.step(1, true, &v);
+        assert_eq!(ui.step(1, true, &v), Cmd::Tool(ToolOp::Change(1)));
+        ui.reply = Reply::Err(crate::atc::Fault::PocketEmpty.message());
+        let s = screen(&ui, &v);
+        // "pocket of that tool is empty (M61 P<n> S1 if loaded)"
+        assert_eq!(s[2..6], [" pocket of that tool", " is empty (M61 P<n>", " S1 if loaded)", ""]);
+        let long = crate::gcode::interp::Error::NotHomed.message();
+        ui.reply = Reply::Err(long);
+        let s = screen(&ui, &v);
+        assert_eq!(s[2..6], [" not homed: home", " (G28) or unlock", " (M999) first,", " nothing moved"]);
+        // A word longer than a line is cut.
+        let mut l = Line::blank();
+        wrapped(F!("a abcdefghijklmnopqrstuvwxyz b"), 1, &mut l);
+        assert_eq!(String::from_utf8(l.chars.to_vec()).unwrap(), " abcdefghijklmnopqrst");
+        let mut l = Line::blank();
+        wrapped(F!("a abcdefghijklmnopqrstuvwxyz b"), 2, &mut l);
+        assert_eq!(String::from_utf8(l.chars.to_vec()).unwrap().trim_end(), " b");
+    }
+
+    #[test]
+    fn tool_commands_are_refused_while_the_machine_is_busy() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        v.state = State::Run;
+        assert_eq!(tools_entry(&mut ui, &v, 2), Cmd::None);
+        assert_eq!(ui.screen, Screen::Reply(ToolOp::Measure { diameter: false }));
+        assert_eq!(screen(&ui, &v)[2], " Machine busy");
+        v.state = State::Idle;
+        v.job = Phase::Running;
+        ui.step(0, true, &v);
+        assert_eq!(ui.sel, 2, "back on Measure length");
+        assert_eq!(ui.step(1, true, &v), Cmd::None, "measure during an SD job");
+        // In alarm the machine itself answers (with the alarm).
+        v.job = Phase::Idle;
+        v.state = State::Alarm;
+        assert_eq!(tools_entry(&mut ui, &v, 3), Cmd::Tool(ToolOp::Measure { diameter: true }));
+    }
+
+    #[test]
+    fn measuring_runs_g37_or_g37_d1_and_shows_the_table_entry() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        let mut m = Machine::new();
+        v.tool = 4;
+        m.atc.table.length_um[3] = 24_511;
+        m.atc.table.diameter_um[3] = 1_590;
+        assert_eq!(tools_entry(&mut ui, &v, 2), Cmd::Tool(ToolOp::Measure { diameter: false }));
+        ui.reply = Reply::Ok;
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!(s[0..5], ["[ Measure length]", "", " T      L mm     D mm", " T4*  24.511    1.590", ""]);
+        assert_eq!(tools_entry(&mut ui, &v, 3), Cmd::Tool(ToolOp::Measure { diameter: true }));
+        ui.reply = Reply::Ok;
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!(s[0..4], ["[ Measure len+dia]", "", " T      L mm     D mm", " T4*  24.511    1.590"]);
+        ui.step(0, true, &v);
+        assert_eq!((ui.screen, ui.sel), (Screen::Menu(MenuId::Tools), 3));
+    }
+
+    #[test]
+    fn tool_ops_are_the_gcode_lines_of_the_serial_commands() {
+        let line = |op: ToolOp| {
+            let mut l = Line::blank();
+            let n = op.gcode(&mut l);
+            String::from_utf8(l.chars[..n].to_vec()).unwrap()
+        };
+        assert_eq!(line(ToolOp::Change(2)), "T2");
+        assert_eq!(line(ToolOp::Change(12)), "T12");
+        assert_eq!(line(ToolOp::Measure { diameter: false }), "G37");
+        assert_eq!(line(ToolOp::Measure { diameter: true }), "G37 D1");
+        assert_eq!(line(ToolOp::Confirm(0)), "M61 Q0");
+        for t in 0..=12u8 {
+            let g = line(ToolOp::Change(t));
+            let l = crate::gcode::parse(g.as_bytes()).unwrap();
+            assert_eq!(l.tool(), Some(t));
+        }
+    }
+
+    #[test]
+    fn the_tool_table_scrolls_through_t1_to_t12() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        let mut m = Machine::new();
+        v.tool = 3;
+        m.atc.table.length_um[2] = 25_000;
+        m.atc.table.diameter_um[2] = 2_000;
+        m.atc.table.length_um[11] = 105_250;
+        tools_entry(&mut ui, &v, 4);
+        assert_eq!(ui.screen, Screen::ToolTable);
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!(s[0], "[ T      L mm     D mm]");
+        assert_eq!(s[1], " T1    0.000    0.000");
+        assert_eq!(s[3], " T3*  25.000    2.000");
+        assert_eq!(s[7], " T7    0.000    0.000");
+        ui.step(100, false, &v);
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!((s[1].as_str(), s[7].as_str()), (" T6    0.000    0.000", " T12 105.250    0.000"));
+        ui.step(-1, false, &v);
+        assert_eq!(screen_of(&ui, &v, &m)[1], " T5    0.000    0.000");
+        ui.step(0, true, &v);
+        assert_eq!((ui.screen, ui.sel), (Screen::Menu(MenuId::Tools), 4));
+    }
+
+    #[test]
+    fn confirm_spindle_works_only_after_an_interrupted_change_and_sends_m61() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        // Nothing interrupted: it says so.
+        assert_eq!(tools_entry(&mut ui, &v, 5), Cmd::None);
+        let s = screen(&ui, &v);
+        assert_eq!(s[0..4], ["[ Confirm spindle]", "", " No interrupted tool", " change"]);
+        // Interrupted T2 -> T5: the status screen says so.
+        v.interrupted = Some(Journal { from: 2, to: 5 });
+        let s = screen(&Ui::new(), &v);
+        assert_eq!(s[6..8], ["Change interrupted:", "Tools>Confirm spindle"]);
+        ui.step(0, true, &v);
+        assert_eq!(ui.step(0, true, &v), Cmd::None);
+        assert_eq!(ui.screen, Screen::PickTool(true));
+        let s = screen(&ui, &v);
+        assert_eq!(s[0..5], ["[ In spindle now?]", "[ < Back]", " T0 no tool", " T1", " T2 old tool"]);
+        assert_eq!(s[7], " T5 new tool");
+        ui.step(1, true, &v);
+        assert_eq!(screen(&ui, &v)[0], "[ Spindle holds T0?]");
+        assert_eq!(ui.step(1, true, &v), Cmd::Tool(ToolOp::Confirm(0)));
+        assert_eq!(ui.screen, Screen::Reply(ToolOp::Confirm(0)));
+        // In alarm (M112 mid-change) the confirmation still goes to the machine.
+        v.state = State::Alarm;
+        tools_entry(&mut ui, &v, 5);
+        ui.step(3, true, &v);
+        assert_eq!(ui.step(1, true, &v), Cmd::Tool(ToolOp::Confirm(2)));
     }
 }

@@ -103,6 +103,29 @@ crate::flash_texts! {
     Mm = " mm",
     Pct = "%",
     NotIdle = "Machine busy",
+    // Tools menu (SPEC §7, §8).
+    Tools = "Tools",
+    ChangeTool = "Change tool",
+    MeasureLength = "Measure length",
+    MeasureDia = "Measure len+dia",
+    ToolTable = "Tool table",
+    ConfirmSpindle = "Confirm spindle",
+    InSpindleQ = "In spindle now?",
+    ChangeToQ = "Change to T",
+    HoldsQ = "Spindle holds T",
+    TableHead = "T      L mm     D mm",
+    NoTool = "no tool",
+    InSpindle = "in spindle",
+    PocketEmpty = "pocket empty",
+    OldTool = "old tool",
+    NewTool = "new tool",
+    NoChangeCut = "No interrupted tool change",
+    ChangeCut = "Change interrupted:",
+    HintConfirm = "Tools>Confirm spindle",
+    HintBack = "Press: back",
+    // Lines the Tools menu runs (Machine::run_menu_line).
+    LineG37D1 = "G37 D1",
+    LineM61Q = "M61 Q",
 }
 
 #[cfg(test)]
