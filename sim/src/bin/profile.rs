@@ -133,6 +133,8 @@ fn main() {
     let starts: HashMap<u32, usize> = syms.iter().enumerate().map(|(i, s)| (s.0, i)).collect();
     let mut tstack: Vec<(usize, u64, u32)> = Vec::new();
     let mut tincl: HashMap<usize, (u64, u64)> = HashMap::new();
+    let mut tself: HashMap<Option<usize>, u64> = HashMap::new();
+    let mut prev_pc_fn: Option<usize> = lookup(vm.pc());
     let mut callers: HashMap<String, (u64, u64)> = HashMap::new();
     let mut oks = 0usize;
     let mut traced_cycles = 0u64;
@@ -162,6 +164,10 @@ fn main() {
                 traced_cycles += c - c0;
                 let pc = vm.pc();
                 let sp = vm.read_u16(0x5D) as u32;
+                // Self time: the cycles of the instruction just run, charged
+                // to the function the PC was in before it ran.
+                *tself.entry(prev_pc_fn).or_default() += c - c0;
+                prev_pc_fn = lookup(pc);
                 while let Some(&(k, entry, fsp)) = tstack.last() {
                     if sp > fsp {
                         tstack.pop();
@@ -246,6 +252,14 @@ fn main() {
                 100.0 * *c as f64 / traced_cycles as f64,
                 syms[*k].2
             );
+        }
+        let mut v: Vec<_> = tself.into_iter().collect();
+        v.sort_by(|a, b| b.1.cmp(&a.1));
+        println!("-- exact self cycles (instructions run in the function itself) --");
+        println!("{:>12} {:>8}  function", "cycles/line", "%");
+        for (k, c) in v.iter().take(70) {
+            let name = match k { Some(k) => syms[*k].2.clone(), None => "?".to_string() };
+            println!("{:>12} {:>7.1}%  {}", c / n as u64, 100.0 * *c as f64 / traced_cycles as f64, name);
         }
         let mut v: Vec<_> = callers.into_iter().collect();
         v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
