@@ -416,7 +416,8 @@ impl Machine {
         if text.first() == Some(&b'$') {
             return self.dollar(text, io);
         }
-        let line = crate::gcode::parse(text).map_err(interp::Error::Parse)?;
+        let mut line = crate::gcode::Line::default();
+        crate::gcode::parse_into(text, &mut line).map_err(interp::Error::Parse)?;
         interp::execute(self, &line, text, io)
     }
 
