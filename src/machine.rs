@@ -314,18 +314,38 @@ impl Machine {
     }
 
     /// Feed one received byte; runs complete lines.
+    ///
+    /// The per-byte path is only the assembler; the end of a line goes
+    /// through [`Machine::line_end`], so that its stack frame (a copy of the
+    /// line) is not set up for every byte.
     #[inline(never)]
     pub fn push_byte(&mut self, b: u8, io: &mut impl Io) {
-        match self.asm.push(b) {
-            None => {}
-            Some(Assembled::Line) => {
-                let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
+        if let Some(done) = self.asm.push(b) {
+            self.line_end(done, io);
+        }
+    }
+
+    /// A line ended in the assembler: run it, or report why it was dropped.
+    #[inline(never)]
+    fn line_end(&mut self, done: Assembled, io: &mut impl Io) {
+        match done {
+            Assembled::Line => {
+                // The line is copied out of the assembler (running it needs
+                // `&mut self`); only its bytes are written, the rest of the
+                // buffer is never read, so it is not zeroed first.
                 let raw = self.asm.line();
-                let n = raw.len();
-                buf[..n].copy_from_slice(raw);
-                self.run_raw_line(&buf[..n], io);
+                let n = raw.len().min(crate::protocol::MAX_LINE_LEN);
+                let mut buf = core::mem::MaybeUninit::<[u8; crate::protocol::MAX_LINE_LEN]>::uninit();
+                // SAFETY: `n` ≤ the buffer's length; `raw` and the local `buf`
+                // do not overlap; the slice covers only the `n` bytes written.
+                let line = unsafe {
+                    let p = buf.as_mut_ptr() as *mut u8;
+                    core::ptr::copy_nonoverlapping(raw.as_ptr(), p, n);
+                    core::slice::from_raw_parts(p, n)
+                };
+                self.run_raw_line(line, io);
             }
-            Some(other) => {
+            other => {
                 let msg = match other {
                     Assembled::TooLong => F!("line too long (max 96 characters), ignored"),
                     Assembled::Overrun => F!("serial receive overrun, line dropped"),
@@ -354,17 +374,14 @@ impl Machine {
                 uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
             }
             Ok(cmd) => {
-                let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
-                let n = cmd.len();
-                buf[..n].copy_from_slice(cmd);
                 self.line_aborts = self.aborts;
-                let sd = crate::ui::sd::sd_code(&buf[..n]);
+                let sd = crate::ui::sd::sd_code(cmd);
                 let r = match sd {
                     // M28 is writing a file: every line but M29 goes there.
                     Some((29, _)) => io.sd_command(self, 29, &[]),
-                    _ if io.sd_capture(&buf[..n]) => Ok(()),
+                    _ if io.sd_capture(cmd) => Ok(()),
                     Some((code, arg)) => io.sd_command(self, code, arg),
-                    None => self.execute(&buf[..n], io),
+                    None => self.execute(cmd, io),
                 };
                 if let Err(e) = r {
                     self.report_error(io, e);
