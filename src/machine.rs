@@ -467,7 +467,7 @@ impl Machine {
         self.wait_idle(io)?;
         let mm = self.steps_to_mm(io.stepper().position);
         self.settings = s;
-        let new = interp::to_steps(&self.settings, &mm);
+        let new = self.interp.steps_of(&self.settings, &mm);
         io.set_stepper_position(new);
         self.planner.set_position(new);
         self.apply_watch(io, 0, false);
