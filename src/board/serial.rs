@@ -184,7 +184,7 @@ fn USART0_RX() {
             // SAFETY: the scanner and RX producer are only used by this ISR.
             unsafe {
                 if (*addr_of_mut!(ESTOP_SCAN)).feed(b) {
-                    super::emergency_stop();
+                    super::emergency_stop_in_isr();
                 }
                 // M108 continues after M0/M1 even though the line waits in
                 // the ring behind the pause (Marlin's emergency parser).
