@@ -487,7 +487,7 @@ impl Machine {
         // them off again.
         io.drivers(true);
         loop {
-            match self.planner.push_line(target, feed_mm_per_min, rapid, &self.settings) {
+            match self.planner.accept_line(target, feed_mm_per_min, rapid, &self.settings) {
                 Ok(p) => {
                     if p.rate_capped {
                         uwriteln!(io, "{}", F!("echo:warning: feed capped to the maximum step rate")).ok();
@@ -542,6 +542,9 @@ impl Machine {
 
     /// Top up the segment ring from the planner.
     pub fn fill_segments(&mut self, io: &mut impl Io) {
+        // A move the planner accepted without planning it yet (so that `ok`
+        // went out sooner) is planned now, before prep looks at the ring.
+        self.planner.flush(&self.settings);
         // At most one ring's worth per call: after an emergency stop the ISR
         // throws segments away as fast as they come, and an unbounded loop
         // would prep the whole planner queue before the next poll (0.7 s

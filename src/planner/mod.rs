@@ -177,6 +177,10 @@ struct AxisCache {
     inv_accel: [f32; N_AXES],
     /// 1 / max speed, s/mm.
     inv_max_speed: [f32; N_AXES],
+    /// Time per mm above which an X/Y/Z move can never hit the step-rate cap
+    /// (1 % above the largest steps/mm over `MAX_STEP_RATE_HZ`), s/mm: such a
+    /// move may be planned later ([`Planner::accept_line`]).
+    defer_min_inv_feed: f32,
 }
 
 impl AxisCache {
@@ -185,6 +189,7 @@ impl AxisCache {
         mm_per_step: [0.0; N_AXES],
         inv_accel: [0.0; N_AXES],
         inv_max_speed: [0.0; N_AXES],
+        defer_min_inv_feed: 0.0,
     };
 
     /// Recompute the derived values if `s` differs from what they came from.
@@ -207,6 +212,15 @@ impl AxisCache {
             self.inv_accel[i] = 1.0 / s.accel_mm_per_s2[i];
             self.inv_max_speed[i] = 60.0 / s.max_feed_mm_per_min[i];
         }
+        // Along any X/Y/Z path the dominant axis makes at most its own
+        // steps/mm (the path is at least as long as that axis' share).
+        let mut spm = 0.0f32;
+        for i in 0..3 {
+            if s.steps_per_mm[i] > spm {
+                spm = s.steps_per_mm[i];
+            }
+        }
+        self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
         true
     }
 }
@@ -251,6 +265,9 @@ pub struct Planner {
     nominal_cache: (u32, f32),
     /// Settings-derived per-axis values.
     axis: AxisCache,
+    /// A move accepted by [`Planner::accept_line`] and not planned yet: its
+    /// steps and time per mm (s/mm). It holds a ring slot.
+    pending: Option<([i32; N_AXES], f32)>,
 }
 
 #[inline]
@@ -320,6 +337,7 @@ impl Planner {
             feed_cache: (0, 0.0),
             nominal_cache: (0, 0.0),
             axis: AxisCache::EMPTY,
+            pending: None,
         }
     }
 
@@ -332,6 +350,36 @@ impl Planner {
         feed_mm_per_min: f32,
         rapid: bool,
         s: &Settings,
+    ) -> Result<Push, PlanError> {
+        self.push(target, feed_mm_per_min, rapid, s, false)
+    }
+
+    /// [`Planner::push_line`], except that a plain feed move (X/Y/Z, no
+    /// backlash take-up, too slow to ever be rate-capped, so nothing to
+    /// report but `queued`) is only accepted:
+    /// it takes its slot and moves [`Planner::position`], and is planned by
+    /// the next [`Planner::flush`] (which the next accept does first, and
+    /// prep's caller before taking segments). The firmware sends `ok` in
+    /// between, so a host that waits for it (ping-pong) sends the next line
+    /// while this one is planned (~10 k cycles on the AVR).
+    pub fn accept_line(
+        &mut self,
+        target: [i32; N_AXES],
+        feed_mm_per_min: f32,
+        rapid: bool,
+        s: &Settings,
+    ) -> Result<Push, PlanError> {
+        self.push(target, feed_mm_per_min, rapid, s, true)
+    }
+
+    /// [`Planner::push_line`] (`may_defer` false) or [`Planner::accept_line`].
+    fn push(
+        &mut self,
+        target: [i32; N_AXES],
+        feed_mm_per_min: f32,
+        rapid: bool,
+        s: &Settings,
+        may_defer: bool,
     ) -> Result<Push, PlanError> {
         let inv_feed = if rapid {
             0.0
@@ -378,6 +426,8 @@ impl Planner {
                 }
             }
         }
+        // The move accepted before this one is planned first.
+        self.flush(s);
         let need = 1 + take_up_any as usize;
         if BLOCK_BUFFER_LEN - (self.len as usize) < need {
             return Err(PlanError::Full);
@@ -388,23 +438,38 @@ impl Planner {
             self.previous_limits_valid = false;
         }
         let mut push = Push::default();
-        if take_up_any {
-            let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
-            for i in 0..3 {
-                self.backlash_offset[i] += take_up[i];
+        if may_defer && !take_up_any && !rapid && moving & 0b1000 == 0 && lt_nn(self.axis.defer_min_inv_feed, inv_feed) {
+            // Never capped (see `AxisCache::defer_min_inv_feed`); floored or
+            // not, which is not reported, prep runs it the same.
+            self.pending = Some((delta, inv_feed));
+            push.queued = 1;
+        } else {
+            if take_up_any {
+                let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
+                for i in 0..3 {
+                    self.backlash_offset[i] += take_up[i];
+                }
+                push.queued += 1;
+                push.rate_capped |= capped;
+                push.rate_floored |= floored;
             }
+            let (capped, floored) = self.queue_block(&delta, inv_feed, 0, s);
             push.queued += 1;
             push.rate_capped |= capped;
             push.rate_floored |= floored;
         }
-        let (capped, floored) = self.queue_block(&delta, inv_feed, 0, s);
-        push.queued += 1;
-        push.rate_capped |= capped;
-        push.rate_floored |= floored;
         self.position = target;
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
         Ok(push)
+    }
+
+    /// Plan the move [`Planner::accept_line`] left pending, if any (with the
+    /// settings it was accepted under: the per-axis cache is as it was then).
+    pub fn flush(&mut self, s: &Settings) {
+        if let Some((delta, inv_feed)) = self.pending.take() {
+            self.queue_block(&delta, inv_feed, 0, s);
+        }
     }
 
     /// Build a block for `delta` (steps, not all zero) at `inv_feed` s/mm (0 =
@@ -737,30 +802,31 @@ impl Planner {
         self.backlash_offset
     }
 
-    /// Blocks queued (including the executing one).
+    /// Blocks queued (including the executing one and a pending move).
     pub fn len(&self) -> usize {
-        self.len as usize
+        self.len as usize + self.pending.is_some() as usize
     }
 
-    /// No block queued.
+    /// No block queued (and none pending).
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.len() == 0
     }
 
     /// No free slot (a move with a backlash take-up needs 2).
     pub fn is_full(&self) -> bool {
-        self.len as usize == BLOCK_BUFFER_LEN
+        self.len() == BLOCK_BUFFER_LEN
     }
 
     /// Free slots.
     pub fn free(&self) -> usize {
-        BLOCK_BUFFER_LEN - self.len as usize
+        BLOCK_BUFFER_LEN - self.len()
     }
 
     /// Drop every block (e-stop, limit, abort). The position is kept as the end
     /// of the dropped moves: the caller must `set_position` to the true motor
     /// position. Backlash directions become unknown.
     pub fn clear(&mut self) {
+        self.pending = None;
         self.tail = 0;
         self.head = 0;
         self.len = 0;
