@@ -277,7 +277,7 @@ impl Machine {
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
         let loaded = Settings::from_bytes(&img);
         if let Some(s) = loaded {
-            self.settings = s;
+            self.set_settings(s);
         }
         self.interp.load_settings(&self.settings);
         self.apply_watch(io, 0, false);
@@ -466,7 +466,7 @@ impl Machine {
     pub fn replace_settings(&mut self, s: Settings, io: &mut impl Io) -> CmdResult {
         self.wait_idle(io)?;
         let mm = self.steps_to_mm(io.stepper().position);
-        self.settings = s;
+        self.set_settings(s);
         let new = self.interp.steps_of(&self.settings, &mm);
         io.set_stepper_position(new);
         self.planner.set_position(new);
@@ -726,6 +726,12 @@ impl Machine {
         uwrite!(io, "{},{},{}", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
     }
 
+    /// Put `s` in force as the settings (the planner is told).
+    pub fn set_settings(&mut self, s: Settings) {
+        self.settings = s;
+        self.planner.settings_changed();
+    }
+
     /// Save the settings image to EEPROM (M500).
     pub fn save_settings(&mut self, io: &mut impl Io) {
         self.interp.store_settings(&mut self.settings);
@@ -739,7 +745,7 @@ impl Machine {
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
         match Settings::from_bytes(&img) {
             Some(s) => {
-                self.settings = s;
+                self.set_settings(s);
                 self.interp.load_settings(&self.settings);
                 true
             }

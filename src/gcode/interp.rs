@@ -891,7 +891,7 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
         }
         502 => {
             m.wait_idle(io)?;
-            m.settings = Settings::defaults();
+            m.set_settings(Settings::defaults());
             m.interp.load_settings(&m.settings);
             uwriteln!(io, "{}", F!("echo:factory settings restored (M500 to store)")).ok();
         }

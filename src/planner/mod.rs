@@ -263,11 +263,19 @@ pub struct Planner {
     feed_cache: (u32, f32),
     /// Bits of the last time per mm `t` and the nominal speed² 1/t², (mm/s)².
     nominal_cache: (u32, f32),
+    /// Bits of the last time per mm before the step-rate limits, and it
+    /// times `MAX_STEP_RATE_HZ` and `MIN_STEP_RATE_HZ`, steps/mm.
+    rate_cache: (u32, f32, f32),
+    /// Bits of the last junction cap `L` (a speed²) and L².
+    cap_sqr_cache: (u32, f32),
     /// Settings-derived per-axis values.
     axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
     /// steps and time per mm (s/mm). It holds a ring slot.
     pending: Option<([i32; N_AXES], f32)>,
+    /// `axis` matches the settings [`Planner::accept_line`] is given, until
+    /// [`Planner::settings_changed`] (saves comparing 12 settings per move).
+    axis_fresh: bool,
 }
 
 #[inline]
@@ -315,6 +323,31 @@ fn abs_f32(x: f32) -> f32 {
     f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
 
+/// 2·x for a finite x ≥ +0.0, exactly, by adding one to the exponent (a
+/// ~145-cycle soft-float multiply on the AVR otherwise). Zero, subnormals
+/// and values near the top of the range take the multiply.
+#[inline(always)]
+fn times2(x: f32) -> f32 {
+    let b = x.to_bits();
+    if b >= 0x0080_0000 && b < 0x7F00_0000 {
+        f32::from_bits(b + 0x0080_0000)
+    } else {
+        2.0 * x
+    }
+}
+
+/// x / 2 for a finite x ≥ +0.0, exactly while x/2 is a normal number (by
+/// subtracting one from the exponent); smaller values take the multiply.
+#[inline(always)]
+fn half(x: f32) -> f32 {
+    let b = x.to_bits();
+    if b >= 0x0100_0000 {
+        f32::from_bits(b - 0x0080_0000)
+    } else {
+        0.5 * x
+    }
+}
+
 impl Planner {
     /// An empty planner at position 0.
     pub const fn new() -> Self {
@@ -336,8 +369,11 @@ impl Planner {
             previous_limits_valid: false,
             feed_cache: (0, 0.0),
             nominal_cache: (0, 0.0),
+            rate_cache: (0, 0.0, 0.0),
+            cap_sqr_cache: (0, 0.0),
             axis: AxisCache::EMPTY,
             pending: None,
+            axis_fresh: false,
         }
     }
 
@@ -354,7 +390,9 @@ impl Planner {
         self.push(target, feed_mm_per_min, rapid, s, false)
     }
 
-    /// [`Planner::push_line`], except that a plain feed move (X/Y/Z, no
+    /// [`Planner::push_line`] for the firmware, which calls
+    /// [`Planner::settings_changed`] whenever it replaces the settings. A plain
+    /// feed move (X/Y/Z, no
     /// backlash take-up, too slow to ever be rate-capped, so nothing to
     /// report but `queued`) is only accepted:
     /// it takes its slot and moves [`Planner::position`], and is planned by
@@ -433,9 +471,12 @@ impl Planner {
             return Err(PlanError::Full);
         }
 
-        if self.axis.refresh(s) {
-            // Limits changed: the same direction no longer means the same limits.
-            self.previous_limits_valid = false;
+        if !(may_defer && self.axis_fresh) {
+            if self.axis.refresh(s) {
+                // Limits changed: the same direction no longer means the same limits.
+                self.previous_limits_valid = false;
+            }
+            self.axis_fresh = may_defer;
         }
         let mut push = Push::default();
         if may_defer && !take_up_any && !rapid && moving & 0b1000 == 0 && lt_nn(self.axis.defer_min_inv_feed, inv_feed) {
@@ -462,6 +503,13 @@ impl Planner {
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
         Ok(push)
+    }
+
+    /// The settings changed: the next [`Planner::accept_line`] compares them
+    /// with what the per-axis cache was made from ([`Planner::push_line`]
+    /// always does).
+    pub fn settings_changed(&mut self) {
+        self.axis_fresh = false;
     }
 
     /// Plan the move [`Planner::accept_line`] left pending, if any (with the
@@ -552,18 +600,22 @@ impl Planner {
             (1.0 / inv_accel, t_axes)
         };
         let mut t = if lt_nn(t_axes, inv_feed) { inv_feed } else { t_axes };
-        // Step-rate cap: the dominant axis makes step_event_count steps over mm.
+        // Step-rate limits: the dominant axis makes step_event_count steps
+        // over mm. At time per mm t the rate stays within them while the
+        // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
+        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's).
         let steps_per_mm = b.step_event_count as f32 * inv_mm;
-        let t_cap = steps_per_mm * INV_MAX_STEP_RATE;
-        let mut capped = false;
-        if lt_nn(t, t_cap) {
-            t = t_cap;
-            capped = true;
+        if self.rate_cache.0 != t.to_bits() {
+            self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
         }
-        let t_floor = steps_per_mm * INV_MIN_STEP_RATE;
+        let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
+        let mut capped = false;
         let mut floored = false;
-        if lt_nn(t_floor, t) {
-            t = t_floor;
+        if lt_nn(max_steps_per_mm, steps_per_mm) {
+            t = steps_per_mm * INV_MAX_STEP_RATE;
+            capped = true;
+        } else if lt_nn(steps_per_mm, min_steps_per_mm) {
+            t = steps_per_mm * INV_MIN_STEP_RATE;
             floored = true;
         }
         // t is usually the same as for the last block (the feed is modal).
@@ -587,14 +639,18 @@ impl Planner {
                         cos_theta -= prev_unit[i] * unit[i];
                     }
                 }
-                if cos_theta > JUNCTION_COS_LIMIT {
+                // |cos θ| beyond the limit, on the bit pattern (a soft-float
+                // compare costs ~50 cycles).
+                let cos_bits = cos_theta.to_bits();
+                let beyond = cos_bits & 0x7FFF_FFFF > JUNCTION_COS_LIMIT.to_bits();
+                if beyond && cos_bits & 0x8000_0000 == 0 {
                     0.0 // full reversal
-                } else if cos_theta < -JUNCTION_COS_LIMIT {
+                } else if beyond {
                     JUNCTION_SPEED_SQR_STRAIGHT
                 } else {
                     let a = min_nn(acceleration, prev_accel);
                     let ad = a * s.junction_deviation_mm;
-                    let h = 0.5 * (1.0 - cos_theta); // sin²(θ/2)
+                    let h = half(1.0 - cos_theta); // sin²(θ/2)
                     let mut reversing = 0u8;
                     for i in 0..N_AXES {
                         let (p, u) = (prev_unit[i].to_bits(), unit[i].to_bits());
@@ -607,8 +663,11 @@ impl Planner {
                     // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the
                     // division (most junctions of a smooth curve).
                     let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
+                    if self.cap_sqr_cache.0 != cap.to_bits() {
+                        self.cap_sqr_cache = (cap.to_bits(), cap * cap);
+                    }
                     let k = ad + cap;
-                    if reversing == 0 && h * (k * k) >= cap * cap {
+                    if reversing == 0 && !lt_nn(h * (k * k), self.cap_sqr_cache.1) {
                         JUNCTION_SPEED_SQR_STRAIGHT
                     } else {
                         let sin_theta_d2 = sqrtf(h);
@@ -632,7 +691,7 @@ impl Planner {
         b.millimeters = mm;
         b.acceleration = acceleration;
         b.nominal_speed_sqr = nominal_speed_sqr;
-        b.max_delta_speed_sqr = 2.0 * acceleration * mm;
+        b.max_delta_speed_sqr = times2(acceleration * mm);
 
         self.previous_unit_vec = unit;
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
