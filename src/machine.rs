@@ -269,7 +269,7 @@ impl Machine {
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
         let loaded = Settings::from_bytes(&img);
         if let Some(s) = loaded {
-            self.settings = s;
+            self.set_settings(s);
         }
         self.interp.load_settings(&self.settings);
         self.apply_watch(io, 0, false);
@@ -306,18 +306,38 @@ impl Machine {
     }
 
     /// Feed one received byte; runs complete lines.
+    ///
+    /// The per-byte path is only the assembler; the end of a line goes
+    /// through [`Machine::line_end`], so that its stack frame (a copy of the
+    /// line) is not set up for every byte.
     #[inline(never)]
     pub fn push_byte(&mut self, b: u8, io: &mut impl Io) {
-        match self.asm.push(b) {
-            None => {}
-            Some(Assembled::Line) => {
-                let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
+        if let Some(done) = self.asm.push(b) {
+            self.line_end(done, io);
+        }
+    }
+
+    /// A line ended in the assembler: run it, or report why it was dropped.
+    #[inline(never)]
+    fn line_end(&mut self, done: Assembled, io: &mut impl Io) {
+        match done {
+            Assembled::Line => {
+                // The line is copied out of the assembler (running it needs
+                // `&mut self`); only its bytes are written, the rest of the
+                // buffer is never read, so it is not zeroed first.
                 let raw = self.asm.line();
-                let n = raw.len();
-                buf[..n].copy_from_slice(raw);
-                self.run_raw_line(&buf[..n], io);
+                let n = raw.len().min(crate::protocol::MAX_LINE_LEN);
+                let mut buf = core::mem::MaybeUninit::<[u8; crate::protocol::MAX_LINE_LEN]>::uninit();
+                // SAFETY: `n` ≤ the buffer's length; `raw` and the local `buf`
+                // do not overlap; the slice covers only the `n` bytes written.
+                let line = unsafe {
+                    let p = buf.as_mut_ptr() as *mut u8;
+                    core::ptr::copy_nonoverlapping(raw.as_ptr(), p, n);
+                    core::slice::from_raw_parts(p, n)
+                };
+                self.run_raw_line(line, io);
             }
-            Some(other) => {
+            other => {
                 let msg = match other {
                     Assembled::TooLong => F!("line too long (max 96 characters), ignored"),
                     Assembled::Overrun => F!("serial receive overrun, line dropped"),
@@ -346,17 +366,14 @@ impl Machine {
                 uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
             }
             Ok(cmd) => {
-                let mut buf = [0u8; crate::protocol::MAX_LINE_LEN];
-                let n = cmd.len();
-                buf[..n].copy_from_slice(cmd);
                 self.line_aborts = self.aborts;
-                let sd = crate::ui::sd::sd_code(&buf[..n]);
+                let sd = crate::ui::sd::sd_code(cmd);
                 let r = match sd {
                     // M28 is writing a file: every line but M29 goes there.
                     Some((29, _)) => io.sd_command(self, 29, &[]),
-                    _ if io.sd_capture(&buf[..n]) => Ok(()),
+                    _ if io.sd_capture(cmd) => Ok(()),
                     Some((code, arg)) => io.sd_command(self, code, arg),
-                    None => self.execute(&buf[..n], io),
+                    None => self.execute(cmd, io),
                 };
                 if let Err(e) = r {
                     self.report_error(io, e);
@@ -449,8 +466,8 @@ impl Machine {
     pub fn replace_settings(&mut self, s: Settings, io: &mut impl Io) -> CmdResult {
         self.wait_idle(io)?;
         let mm = self.steps_to_mm(io.stepper().position);
-        self.settings = s;
-        let new = interp::to_steps(&self.settings, &mm);
+        self.set_settings(s);
+        let new = self.interp.steps_of(&self.settings, &mm);
         io.set_stepper_position(new);
         self.planner.set_position(new);
         self.apply_watch(io, 0, false);
@@ -470,7 +487,7 @@ impl Machine {
         // them off again.
         io.drivers(true);
         loop {
-            match self.planner.push_line(target, feed_mm_per_min, rapid, &self.settings) {
+            match self.planner.accept_line(target, feed_mm_per_min, rapid, &self.settings) {
                 Ok(p) => {
                     if p.rate_capped {
                         uwriteln!(io, "{}", F!("echo:warning: feed capped to the maximum step rate")).ok();
@@ -528,6 +545,9 @@ impl Machine {
     /// prepared into it before the stop is served (an M112 sent behind a
     /// full queue was reported 0.75 s late).
     pub fn fill_segments(&mut self, io: &mut impl Io) {
+        // A move the planner accepted without planning it yet (so that `ok`
+        // went out sooner) is planned now, before prep looks at the ring.
+        self.planner.flush(&self.settings);
         // At most one ring's worth per call, and none while the ISR is
         // stopped (after an emergency stop it throws segments away as fast
         // as they come: the whole planner queue was prepped before the next
@@ -709,6 +729,12 @@ impl Machine {
         uwrite!(io, "{},{},{}", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
     }
 
+    /// Put `s` in force as the settings (the planner is told).
+    pub fn set_settings(&mut self, s: Settings) {
+        self.settings = s;
+        self.planner.settings_changed();
+    }
+
     /// Save the settings image to EEPROM (M500).
     pub fn save_settings(&mut self, io: &mut impl Io) {
         self.interp.store_settings(&mut self.settings);
@@ -722,7 +748,7 @@ impl Machine {
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
         match Settings::from_bytes(&img) {
             Some(s) => {
-                self.settings = s;
+                self.set_settings(s);
                 self.interp.load_settings(&self.settings);
                 true
             }

@@ -57,6 +57,31 @@ pub fn emergency_stop() {
     REALTIME.fetch_or(realtime::ESTOP, Ordering::AcqRel);
 }
 
+/// [`emergency_stop`] from inside an ISR (interrupts are off already),
+/// written out to a few register writes with no call: a call in the RX ISR
+/// made it save 14 more registers for every byte received.
+#[inline(always)]
+pub(crate) fn emergency_stop_in_isr() {
+    stepper::halt_from_isr();
+    /// Drive pin `p` high (enable is active low: driver off).
+    #[inline(always)]
+    fn set_high(p: pins::Pin) {
+        // SAFETY: RMW of PORTx with interrupts off (inside an ISR).
+        unsafe { core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) | p.mask) }
+    }
+    set_high(pins::X_ENABLE);
+    set_high(pins::Y_ENABLE);
+    set_high(pins::Z_ENABLE);
+    set_high(pins::E_ENABLE);
+    // SAFETY: RMWs of Timer2 and PORTB with interrupts off (inside an ISR).
+    unsafe {
+        (*TC2::ptr()).tccr2a().modify(|_, w| w.com2a().disconnected());
+        let p = pins::SPINDLE_PWM;
+        core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
+    }
+    REALTIME.fetch_or(realtime::ESTOP, Ordering::AcqRel);
+}
+
 // ---- Steppers enable -----------------------------------------------------
 
 /// Enable (`true`) or disable all four stepper drivers (enable is active low).

@@ -4,8 +4,9 @@
 //! (`?` `!` `~`) become bits in [`super::REALTIME`] and never reach the ring;
 //! `M112` is spotted by `protocol::EstopScanner` and stops the machine from
 //! inside the ISR, and `M108` (continue after M0) sets the resume bit; both
-//! lines also reach the ring and run as usual. Other bytes go into a 256-byte `heapless::spsc` ring whose
-//! consumer is the main loop. If the ring is full the byte is dropped, and a
+//! lines also reach the ring and run as usual. Other bytes go into a 256-byte
+//! single-producer ring (indexed by a `u8`, see [`rx_store`]) whose consumer
+//! is the main loop. If the ring is full the byte is dropped, and a
 //! gap marker (`protocol::RX_GAP`) is stored before the next byte that fits,
 //! so the line assembler drops exactly the damaged line instead of running
 //! it: the ring itself can never overflow.
@@ -18,21 +19,46 @@
 use super::{realtime, REALTIME};
 use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
+use core::sync::atomic::{AtomicU8, Ordering};
 use heapless::spsc::{Consumer, Producer, Queue};
 use mill::protocol::{ContinueScanner, EstopScanner, RxStore};
 
-/// RX ring capacity + 1 (heapless keeps one slot free): 255 bytes usable.
-/// A character-counting host may keep this many bytes in flight.
+/// RX ring slots; one stays free, so 255 bytes are usable. A
+/// character-counting host may keep this many bytes in flight. RAM: 256 + 2 B.
 pub const RX_LEN: usize = 256;
 /// TX ring capacity + 1.
 pub const TX_LEN: usize = 128;
 
-static mut RX: Queue<u8, RX_LEN> = Queue::new();
+/// The RX ring. Indexed by a `u8`, so 256 slots wrap for free; the ISR
+/// writes slot `RX_HEAD` and then advances it, the main loop reads slot
+/// `RX_TAIL` and then advances that. Each index has one writer and a `u8`
+/// load or store is a single instruction, so neither side needs a critical
+/// section (heapless' `spsc` took ~100 cycles per byte in the ISR here).
+static mut RX_BUF: [u8; RX_LEN] = [0; RX_LEN];
+/// Next RX slot to write (ISR only).
+static RX_HEAD: AtomicU8 = AtomicU8::new(0);
+/// Next RX slot to read (main loop only).
+static RX_TAIL: AtomicU8 = AtomicU8::new(0);
+const _: () = assert!(RX_LEN == u8::MAX as usize + 1);
+
+/// Store `b` in the RX ring; false when it is full (RX ISR only).
+#[inline(always)]
+fn rx_store(b: u8) -> bool {
+    let head = RX_HEAD.load(Ordering::Relaxed);
+    let next = head.wrapping_add(1);
+    if next == RX_TAIL.load(Ordering::Acquire) {
+        return false;
+    }
+    // SAFETY: only this ISR writes the ring, and slot `head` is outside the
+    // readable range `RX_TAIL..RX_HEAD` until the store below publishes it.
+    unsafe { (*addr_of_mut!(RX_BUF))[head as usize] = b };
+    RX_HEAD.store(next, Ordering::Release);
+    true
+}
+
 static mut TX: Queue<u8, TX_LEN> = Queue::new();
-// Ends of the rings. Each is touched by exactly one context: the RX producer
-// and TX consumer by the ISRs, the others by the main loop.
-static mut RX_PROD: Option<Producer<'static, u8, RX_LEN>> = None;
-static mut RX_CONS: Option<Consumer<'static, u8, RX_LEN>> = None;
+// Ends of the TX ring: the producer is the main loop's, the consumer the
+// UDRE ISR's.
 static mut TX_PROD: Option<Producer<'static, u8, TX_LEN>> = None;
 static mut TX_CONS: Option<Consumer<'static, u8, TX_LEN>> = None;
 static mut ESTOP_SCAN: EstopScanner = EstopScanner::new();
@@ -54,9 +80,6 @@ pub fn init(usart: &USART0, baud: Baud) {
     // SAFETY: called once at boot with interrupts disabled; nothing else
     // holds references into the queues yet.
     unsafe {
-        let (p, c) = (*addr_of_mut!(RX)).split();
-        *addr_of_mut!(RX_PROD) = Some(p);
-        *addr_of_mut!(RX_CONS) = Some(c);
         let (p, c) = (*addr_of_mut!(TX)).split();
         *addr_of_mut!(TX_PROD) = Some(p);
         *addr_of_mut!(TX_CONS) = Some(c);
@@ -82,14 +105,20 @@ pub fn set_tx_wait_hook(f: fn()) {
 /// Next received byte, if any (main loop only).
 #[inline]
 pub fn read() -> Option<u8> {
-    // SAFETY: the RX consumer is only used from the main loop.
-    unsafe { (*addr_of_mut!(RX_CONS)).as_mut().and_then(|c| c.dequeue()) }
+    let tail = RX_TAIL.load(Ordering::Relaxed);
+    if tail == RX_HEAD.load(Ordering::Acquire) {
+        return None;
+    }
+    // SAFETY: slot `tail` was published by the ISR (it is before RX_HEAD),
+    // and the ISR does not write it again until RX_TAIL moves past it below.
+    let b = unsafe { (*addr_of_mut!(RX_BUF))[tail as usize] };
+    RX_TAIL.store(tail.wrapping_add(1), Ordering::Release);
+    Some(b)
 }
 
 /// Bytes waiting in the RX ring.
 pub fn rx_len() -> usize {
-    // SAFETY: main loop only; len() reads the indices atomically.
-    unsafe { (*addr_of_mut!(RX_CONS)).as_ref().map_or(0, |c| c.len()) }
+    RX_HEAD.load(Ordering::Acquire).wrapping_sub(RX_TAIL.load(Ordering::Relaxed)) as usize
 }
 
 /// Queue bytes for sending; waits (running the wait hook) while the ring is full.
@@ -155,16 +184,14 @@ fn USART0_RX() {
             // SAFETY: the scanner and RX producer are only used by this ISR.
             unsafe {
                 if (*addr_of_mut!(ESTOP_SCAN)).feed(b) {
-                    super::emergency_stop();
+                    super::emergency_stop_in_isr();
                 }
                 // M108 continues after M0/M1 even though the line waits in
                 // the ring behind the pause (Marlin's emergency parser).
                 if (*addr_of_mut!(CONTINUE_SCAN)).feed(b) {
                     REALTIME.fetch_or(realtime::RESUME, portable_atomic::Ordering::AcqRel);
                 }
-                if let Some(p) = (*addr_of_mut!(RX_PROD)).as_mut() {
-                    (*addr_of_mut!(RX_STORE)).store(b, |x| p.enqueue(x).is_ok());
-                }
+                (*addr_of_mut!(RX_STORE)).store(b, rx_store);
             }
             0
         }

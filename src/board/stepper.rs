@@ -432,6 +432,7 @@ pub fn busy() -> bool {
 }
 
 /// Stop stepping at once. ISR-safe.
+#[inline(always)]
 pub fn halt_from_isr() {
     MOTION.fetch_or(motion::STOP, Ordering::AcqRel);
 }

@@ -117,6 +117,15 @@ pub struct Interp {
     pub tlo_mm: f32,
     /// Commanded position, machine mm (E in carousel units).
     pub pos_mm: [f32; N_AXES],
+    /// Per axis, the last mm → steps conversion: (bits of the mm value, bits
+    /// of steps/mm, steps). See [`Interp::steps_of`].
+    steps_cache: [(u32, u32, i32); N_AXES],
+    /// Per axis X Y Z, the travel in steps: (bits of travel_mm, bits of
+    /// steps/mm, steps). See [`Interp::travel_steps`].
+    travel_cache: [(u32, u32, i32); 3],
+    /// (bits of the programmed feed, override %, the feed with the override,
+    /// mm/min). See [`Interp::feed_with_override`].
+    feed_cache: (u32, u16, f32),
 }
 
 impl Interp {
@@ -136,7 +145,38 @@ impl Interp {
             g92_mm: [0.0; 3],
             tlo_mm: 0.0,
             pos_mm: [0.0; N_AXES],
+            steps_cache: [(0, 0, 0); N_AXES],
+            travel_cache: [(0, 0, 0); 3],
+            feed_cache: (0, 0, 0.0),
         }
+    }
+
+    /// Absolute mm → absolute steps, rounded per axis (no accumulated
+    /// error). An axis whose mm value and steps/mm are those of its last
+    /// conversion reuses the result (a float multiply and a rounding, ~330
+    /// cycles on the AVR; a streamed XY move leaves Z and E where they were).
+    pub fn steps_of(&mut self, s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+        let mut st = [0i32; N_AXES];
+        for a in 0..N_AXES {
+            st[a] = cached_steps(&mut self.steps_cache[a], mm[a], s.steps_per_mm[a]);
+        }
+        st
+    }
+
+    /// The travel of axis `a` (X, Y, Z) in steps, rounded (cached).
+    fn travel_steps(&mut self, s: &Settings, a: usize) -> i32 {
+        cached_steps(&mut self.travel_cache[a], s.travel_mm[a], s.steps_per_mm[a])
+    }
+
+    /// The programmed feed with the override applied, mm/min (cached: both
+    /// rarely change between lines).
+    fn feed_with_override(&mut self) -> f32 {
+        let key = (self.feed_mm_per_min.to_bits(), self.feed_override_pct);
+        if (self.feed_cache.0, self.feed_cache.1) != key {
+            let f = self.feed_mm_per_min * self.feed_override_pct as f32 * 0.01;
+            self.feed_cache = (key.0, key.1, f);
+        }
+        self.feed_cache.2
     }
 
     /// Take the persistent parts (work offsets) from the settings.
@@ -455,7 +495,7 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
                 m.interp.pos_mm[a] + v
             } else {
                 let tlo = if a == 2 { g.tlo } else { 0.0 };
-                v + m.interp.wcs_mm[g.wcs as usize][a] + g.g92[a] + tlo
+                add_nz(add_nz(add_nz(v, m.interp.wcs_mm[g.wcs as usize][a]), g.g92[a]), tlo)
             };
         }
     }
@@ -523,7 +563,7 @@ fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl
 
 /// Every chord end stays inside the arc's bounding box; check it.
 #[inline(never)]
-fn check_arc_limits(m: &Machine, plan: &arc::Arc) -> Result<(), Error> {
+fn check_arc_limits(m: &mut Machine, plan: &arc::Arc) -> Result<(), Error> {
     let (lo, hi) = plan.bounds();
     let mut lo4 = m.interp.pos_mm;
     let mut hi4 = m.interp.pos_mm;
@@ -607,7 +647,7 @@ fn finish_line(
 
     if let Some(mo) = do_motion {
         let rapid = mo == Motion::Rapid;
-        let feed = m.interp.feed_mm_per_min * m.interp.feed_override_pct as f32 * 0.01;
+        let feed = m.interp.feed_with_override();
         match mo {
             Motion::ArcCw | Motion::ArcCcw => match arc {
                 Some(plan) => arc_chords(m, io, plan, target, feed)?,
@@ -662,35 +702,65 @@ pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f
     }
     // The homing lock guards X/Y/Z; the carousel alone (G201) has its own
     // homing (G205), and an interrupted tool change is locked separately.
-    let xyz_moves = (0..3).any(|a| target[a] != m.interp.pos_mm[a]);
+    let xyz_moves = (0..3).any(|a| !same_f32(target[a], m.interp.pos_mm[a]));
     if xyz_moves && !m.motion_allowed() {
         return Err(Error::NotHomed);
     }
-    let steps = to_steps(&m.settings, &target);
+    let steps = m.interp.steps_of(&m.settings, &target);
     m.queue_line(io, steps, feed, rapid)?;
     m.interp.pos_mm = target;
     Ok(())
 }
 
-/// Absolute mm → absolute steps, rounded per axis (no accumulated error).
-pub fn to_steps(s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
-    let mut st = [0i32; N_AXES];
-    for a in 0..N_AXES {
-        st[a] = round_i32(mm[a] * s.steps_per_mm[a]);
+/// `round(mm · steps_per_mm)`, through the cache entry `c` = (bits of mm,
+/// bits of steps/mm, steps): recomputed only when either changed.
+#[inline(never)]
+fn cached_steps(c: &mut (u32, u32, i32), mm: f32, steps_per_mm: f32) -> i32 {
+    let key = (mm.to_bits(), steps_per_mm.to_bits());
+    if (c.0, c.1) != key {
+        *c = (key.0, key.1, round_i32(mm * steps_per_mm));
     }
-    st
+    c.2
 }
 
-fn check_soft_limits(m: &Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
+/// `a == b` for finite floats (+0.0 equals −0.0), on the bit patterns: a
+/// soft-float compare costs ~50 cycles on the AVR.
+#[inline]
+fn same_f32(a: f32, b: f32) -> bool {
+    let (a, b) = (a.to_bits(), b.to_bits());
+    a == b || (a | b) & 0x7FFF_FFFF == 0
+}
+
+/// `a + b`, without the ~90-cycle soft-float addition when `b` is +0.0 (no
+/// offset): `a + 0.0 == a` for every `a` but −0.0, which the parser never
+/// gives.
+#[inline]
+fn add_nz(a: f32, b: f32) -> f32 {
+    if b.to_bits() == 0 {
+        a
+    } else {
+        add_cold(a, b)
+    }
+}
+
+/// `a + b`, as a call: LLVM-AVR would otherwise turn [`add_nz`]'s branch
+/// into a select that always adds (see `math::div_cold`).
+#[inline(never)]
+fn add_cold(a: f32, b: f32) -> f32 {
+    a + b
+}
+
+/// Soft limits: the target, rounded to steps as it will be queued, must lie
+/// within 0..=travel (rounded to steps) on X, Y and Z. Integer compares on
+/// the steps [`Interp::steps_of`] caches for the move itself.
+fn check_soft_limits(m: &mut Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
     if !m.settings.soft_limits {
         return Ok(());
     }
+    let st = m.interp.steps_of(&m.settings, t);
     for a in 0..3 {
-        // Half a step of slack for rounding; compared in steps (a multiply
-        // instead of a ~500-cycle division on the AVR).
-        let spm = m.settings.steps_per_mm[a];
-        let st = t[a] * spm;
-        if !(st >= -0.5 && st <= m.settings.travel_mm[a] * spm + 0.5) {
+        let max = m.interp.travel_steps(&m.settings, a);
+        if st[a] < 0 || st[a] > max {
             return Err(Error::SoftLimit);
         }
     }
@@ -821,7 +891,7 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
         }
         502 => {
             m.wait_idle(io)?;
-            m.settings = Settings::defaults();
+            m.set_settings(Settings::defaults());
             m.interp.load_settings(&m.settings);
             uwriteln!(io, "{}", F!("echo:factory settings restored (M500 to store)")).ok();
         }
@@ -847,7 +917,7 @@ fn probe(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, mu
     let prev = m.state;
     m.state = State::Probe;
     m.apply_watch(io, 0, true);
-    let steps = to_steps(&m.settings, &target);
+    let steps = m.interp.steps_of(&m.settings, &target);
     let r = m.queue_line(io, steps, feed, false).and_then(|_| m.wait_motion_or_trip(io));
     m.apply_watch(io, 0, false);
     m.state = prev;

@@ -117,9 +117,18 @@ impl Word {
     }
 
     /// Bit of this word in a presence mask.
+    ///
+    /// A variable 32-bit shift is a loop on the AVR (up to 17 turns of four
+    /// shifts, ~100 cycles); a byte is shifted and placed instead.
     #[inline]
     const fn bit(self) -> u32 {
-        1 << (self as u32)
+        let i = self as u8;
+        let b = (1u8 << (i & 7)) as u32;
+        match i >> 3 {
+            0 => b,
+            1 => b << 8,
+            _ => b << 16,
+        }
     }
 }
 
@@ -469,6 +478,10 @@ struct Number {
 impl Number {
     /// The nearest f32 (exact rounding while the mantissa is below 2^24, i.e.
     /// up to 7 significant digits; within about one ulp above).
+    ///
+    /// One int → float conversion and one division by an exact power of ten
+    /// (the division rounds once, a multiply by 10^−scale would not): about
+    /// 600 cycles on the AVR for the usual scale ≤ 9.
     fn to_f32(self) -> f32 {
         if self.mantissa == 0 {
             return 0.0;
@@ -479,14 +492,9 @@ impl Number {
             v /= 1e10;
             scale -= 10;
         }
-        // 10^scale by repeated ×10: exact up to 1e10 (5^10 < 2^24), so the
-        // one division below rounds once. A loop, not a table: on AVR a
-        // const table would be copied into RAM.
-        let mut pow10 = 1.0f32;
-        for _ in 0..scale {
-            pow10 *= 10.0;
+        if scale != 0 {
+            v /= pow10(scale as u8);
         }
-        v /= pow10;
         if self.negative {
             -v
         } else {
@@ -509,6 +517,24 @@ impl Number {
     }
 }
 
+/// 10^`n` for `n` in 1..=10, exact in f32 (5^10 < 2^24). A match, not a
+/// table: on AVR a const table would be copied into RAM, and the build has no
+/// jump or lookup tables, so this is a few compares.
+fn pow10(n: u8) -> f32 {
+    match n {
+        1 => 1e1,
+        2 => 1e2,
+        3 => 1e3,
+        4 => 1e4,
+        5 => 1e5,
+        6 => 1e6,
+        7 => 1e7,
+        8 => 1e8,
+        9 => 1e9,
+        _ => 1e10,
+    }
+}
+
 /// Most significant digits a number may have.
 const MAX_SIG_DIGITS: u8 = 9;
 /// Most significant digits before the point (|value| < 1e6).
@@ -522,19 +548,21 @@ fn skip_blanks(s: &[u8], mut pos: usize) -> usize {
     pos
 }
 
-/// Append digit `d` to the mantissa; false (and no change) when it already
-/// holds [`MAX_SIG_DIGITS`] digits.
-fn push_digit(mantissa: &mut u32, sig: &mut u8, d: u32) -> bool {
-    if *sig >= MAX_SIG_DIGITS {
-        return false;
+/// The digit value of byte `c`, or a value above 9 when it is no digit.
+#[inline(always)]
+fn digit(c: Option<&u8>) -> u8 {
+    match c {
+        Some(&c) => c.wrapping_sub(b'0'),
+        None => 10,
     }
-    *mantissa = *mantissa * 10 + d;
-    *sig += 1;
-    true
 }
 
 /// Lex the number of the word whose letter is at column `col`, starting at
 /// `pos` (just after the letter). Returns the number and the index after it.
+///
+/// The digits go into a `u32` mantissa (leading zeros and trailing fraction
+/// zeros dropped) with a power-of-ten scale; [`Number::to_f32`] converts once.
+/// On the AVR this is about 40 cycles a digit.
 fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseError> {
     let mut pos = skip_blanks(s, pos);
     let mut negative = false;
@@ -546,45 +574,69 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
         Some(b'+') => pos += 1,
         _ => {}
     }
+    let first = pos;
     let mut mantissa: u32 = 0;
+    // Significant digits in `mantissa`.
     let mut sig: u8 = 0;
-    let mut scale: u16 = 0;
-    // Fraction zeros not yet known to be followed by a non-zero digit.
-    let mut pending_zeros: u16 = 0;
-    let mut digits = false;
-    let mut in_fraction = false;
     let mut too_long = false;
+    // Integer part: at most MAX_INT_DIGITS significant digits.
     loop {
-        match s.get(pos) {
-            Some(&c @ b'0'..=b'9') => {
-                digits = true;
-                let d = (c - b'0') as u32;
-                if in_fraction {
-                    scale = scale.saturating_add(1);
-                    if d == 0 {
-                        pending_zeros = pending_zeros.saturating_add(1);
-                    } else {
-                        if mantissa != 0 {
-                            for _ in 0..pending_zeros {
-                                too_long |= !push_digit(&mut mantissa, &mut sig, 0);
-                            }
-                        }
-                        pending_zeros = 0;
-                        too_long |= !push_digit(&mut mantissa, &mut sig, d);
-                    }
-                } else if mantissa != 0 || d != 0 {
-                    too_long |= !push_digit(&mut mantissa, &mut sig, d);
-                    if sig > MAX_INT_DIGITS {
-                        too_long = true;
-                    }
-                }
-            }
-            Some(b'.') if !in_fraction => in_fraction = true,
-            _ => break,
+        let d = digit(s.get(pos));
+        if d > 9 {
+            break;
         }
         pos += 1;
+        if mantissa != 0 || d != 0 {
+            if sig == MAX_INT_DIGITS {
+                too_long = true;
+            } else {
+                mantissa = mantissa * 10 + d as u32;
+                sig += 1;
+            }
+        }
     }
-    scale -= pending_zeros.min(scale);
+    let mut digits = pos != first;
+    let mut scale: u16 = 0;
+    if s.get(pos) == Some(&b'.') {
+        pos += 1;
+        // Fraction digits read, and the zeros among the last of them not yet
+        // known to be followed by a non-zero digit.
+        let mut frac: u16 = 0;
+        let mut pending: u16 = 0;
+        loop {
+            let d = digit(s.get(pos));
+            if d > 9 {
+                break;
+            }
+            pos += 1;
+            frac = frac.saturating_add(1);
+            if d == 0 {
+                pending = pending.saturating_add(1);
+                continue;
+            }
+            if mantissa != 0 {
+                // The zeros between two significant digits are significant.
+                while pending != 0 {
+                    if sig == MAX_SIG_DIGITS {
+                        too_long = true;
+                        break;
+                    }
+                    mantissa *= 10;
+                    sig += 1;
+                    pending -= 1;
+                }
+            }
+            pending = 0;
+            if sig == MAX_SIG_DIGITS {
+                too_long = true;
+            } else {
+                mantissa = mantissa * 10 + d as u32;
+                sig += 1;
+            }
+            scale = frac;
+        }
+        digits |= frac != 0;
+    }
     if !digits {
         return err(ParseErrorKind::BadNumber, col);
     }
@@ -819,7 +871,9 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
 fn no_number_follows(s: &[u8], pos: usize) -> bool {
     match s.get(skip_blanks(s, pos)) {
         None | Some(b';' | b'(') => true,
-        Some(&c) => matches!(c.to_ascii_uppercase(), b'G' | b'M') || Word::from_letter(c).is_some(),
+        Some(&c) => {
+            c.is_ascii_alphabetic() && (matches!(c.to_ascii_uppercase(), b'G' | b'M') || Word::from_letter(c).is_some())
+        }
     }
 }
 

@@ -177,6 +177,10 @@ struct AxisCache {
     inv_accel: [f32; N_AXES],
     /// 1 / max speed, s/mm.
     inv_max_speed: [f32; N_AXES],
+    /// Time per mm above which an X/Y/Z move can never hit the step-rate cap
+    /// (1 % above the largest steps/mm over `MAX_STEP_RATE_HZ`), s/mm: such a
+    /// move may be planned later ([`Planner::accept_line`]).
+    defer_min_inv_feed: f32,
 }
 
 impl AxisCache {
@@ -185,6 +189,7 @@ impl AxisCache {
         mm_per_step: [0.0; N_AXES],
         inv_accel: [0.0; N_AXES],
         inv_max_speed: [0.0; N_AXES],
+        defer_min_inv_feed: 0.0,
     };
 
     /// Recompute the derived values if `s` differs from what they came from.
@@ -207,6 +212,15 @@ impl AxisCache {
             self.inv_accel[i] = 1.0 / s.accel_mm_per_s2[i];
             self.inv_max_speed[i] = 60.0 / s.max_feed_mm_per_min[i];
         }
+        // Along any X/Y/Z path the dominant axis makes at most its own
+        // steps/mm (the path is at least as long as that axis' share).
+        let mut spm = 0.0f32;
+        for i in 0..3 {
+            if s.steps_per_mm[i] > spm {
+                spm = s.steps_per_mm[i];
+            }
+        }
+        self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
         true
     }
 }
@@ -249,8 +263,19 @@ pub struct Planner {
     feed_cache: (u32, f32),
     /// Bits of the last time per mm `t` and the nominal speed² 1/t², (mm/s)².
     nominal_cache: (u32, f32),
+    /// Bits of the last time per mm before the step-rate limits, and it
+    /// times `MAX_STEP_RATE_HZ` and `MIN_STEP_RATE_HZ`, steps/mm.
+    rate_cache: (u32, f32, f32),
+    /// Bits of the last junction cap `L` (a speed²) and L².
+    cap_sqr_cache: (u32, f32),
     /// Settings-derived per-axis values.
     axis: AxisCache,
+    /// A move accepted by [`Planner::accept_line`] and not planned yet: its
+    /// steps and time per mm (s/mm). It holds a ring slot.
+    pending: Option<([i32; N_AXES], f32)>,
+    /// `axis` matches the settings [`Planner::accept_line`] is given, until
+    /// [`Planner::settings_changed`] (saves comparing 12 settings per move).
+    axis_fresh: bool,
 }
 
 #[inline]
@@ -298,6 +323,31 @@ fn abs_f32(x: f32) -> f32 {
     f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
 
+/// 2·x for a finite x ≥ +0.0, exactly, by adding one to the exponent (a
+/// ~145-cycle soft-float multiply on the AVR otherwise). Zero, subnormals
+/// and values near the top of the range take the multiply.
+#[inline(always)]
+fn times2(x: f32) -> f32 {
+    let b = x.to_bits();
+    if b >= 0x0080_0000 && b < 0x7F00_0000 {
+        f32::from_bits(b + 0x0080_0000)
+    } else {
+        2.0 * x
+    }
+}
+
+/// x / 2 for a finite x ≥ +0.0, exactly while x/2 is a normal number (by
+/// subtracting one from the exponent); smaller values take the multiply.
+#[inline(always)]
+fn half(x: f32) -> f32 {
+    let b = x.to_bits();
+    if b >= 0x0100_0000 {
+        f32::from_bits(b - 0x0080_0000)
+    } else {
+        0.5 * x
+    }
+}
+
 impl Planner {
     /// An empty planner at position 0.
     pub const fn new() -> Self {
@@ -319,7 +369,11 @@ impl Planner {
             previous_limits_valid: false,
             feed_cache: (0, 0.0),
             nominal_cache: (0, 0.0),
+            rate_cache: (0, 0.0, 0.0),
+            cap_sqr_cache: (0, 0.0),
             axis: AxisCache::EMPTY,
+            pending: None,
+            axis_fresh: false,
         }
     }
 
@@ -332,6 +386,38 @@ impl Planner {
         feed_mm_per_min: f32,
         rapid: bool,
         s: &Settings,
+    ) -> Result<Push, PlanError> {
+        self.push(target, feed_mm_per_min, rapid, s, false)
+    }
+
+    /// [`Planner::push_line`] for the firmware, which calls
+    /// [`Planner::settings_changed`] whenever it replaces the settings. A plain
+    /// feed move (X/Y/Z, no
+    /// backlash take-up, too slow to ever be rate-capped, so nothing to
+    /// report but `queued`) is only accepted:
+    /// it takes its slot and moves [`Planner::position`], and is planned by
+    /// the next [`Planner::flush`] (which the next accept does first, and
+    /// prep's caller before taking segments). The firmware sends `ok` in
+    /// between, so a host that waits for it (ping-pong) sends the next line
+    /// while this one is planned (~10 k cycles on the AVR).
+    pub fn accept_line(
+        &mut self,
+        target: [i32; N_AXES],
+        feed_mm_per_min: f32,
+        rapid: bool,
+        s: &Settings,
+    ) -> Result<Push, PlanError> {
+        self.push(target, feed_mm_per_min, rapid, s, true)
+    }
+
+    /// [`Planner::push_line`] (`may_defer` false) or [`Planner::accept_line`].
+    fn push(
+        &mut self,
+        target: [i32; N_AXES],
+        feed_mm_per_min: f32,
+        rapid: bool,
+        s: &Settings,
+        may_defer: bool,
     ) -> Result<Push, PlanError> {
         let inv_feed = if rapid {
             0.0
@@ -378,33 +464,60 @@ impl Planner {
                 }
             }
         }
+        // The move accepted before this one is planned first.
+        self.flush(s);
         let need = 1 + take_up_any as usize;
         if BLOCK_BUFFER_LEN - (self.len as usize) < need {
             return Err(PlanError::Full);
         }
 
-        if self.axis.refresh(s) {
-            // Limits changed: the same direction no longer means the same limits.
-            self.previous_limits_valid = false;
+        if !(may_defer && self.axis_fresh) {
+            if self.axis.refresh(s) {
+                // Limits changed: the same direction no longer means the same limits.
+                self.previous_limits_valid = false;
+            }
+            self.axis_fresh = may_defer;
         }
         let mut push = Push::default();
-        if take_up_any {
-            let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
-            for i in 0..3 {
-                self.backlash_offset[i] += take_up[i];
+        if may_defer && !take_up_any && !rapid && moving & 0b1000 == 0 && lt_nn(self.axis.defer_min_inv_feed, inv_feed) {
+            // Never capped (see `AxisCache::defer_min_inv_feed`); floored or
+            // not, which is not reported, prep runs it the same.
+            self.pending = Some((delta, inv_feed));
+            push.queued = 1;
+        } else {
+            if take_up_any {
+                let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
+                for i in 0..3 {
+                    self.backlash_offset[i] += take_up[i];
+                }
+                push.queued += 1;
+                push.rate_capped |= capped;
+                push.rate_floored |= floored;
             }
+            let (capped, floored) = self.queue_block(&delta, inv_feed, 0, s);
             push.queued += 1;
             push.rate_capped |= capped;
             push.rate_floored |= floored;
         }
-        let (capped, floored) = self.queue_block(&delta, inv_feed, 0, s);
-        push.queued += 1;
-        push.rate_capped |= capped;
-        push.rate_floored |= floored;
         self.position = target;
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
         Ok(push)
+    }
+
+    /// The settings changed: the next [`Planner::accept_line`] compares them
+    /// with what the per-axis cache was made from ([`Planner::push_line`]
+    /// always does).
+    pub fn settings_changed(&mut self) {
+        self.axis_fresh = false;
+    }
+
+    /// Plan the move [`Planner::accept_line`] left pending, if any (with the
+    /// settings it was accepted under: the per-axis cache is as it was then).
+    pub fn flush(&mut self, s: &Settings) {
+        if let Some((delta, inv_feed)) = self.pending.take() {
+            self.queue_block(&delta, inv_feed, 0, s);
+        }
     }
 
     /// Build a block for `delta` (steps, not all zero) at `inv_feed` s/mm (0 =
@@ -487,18 +600,22 @@ impl Planner {
             (1.0 / inv_accel, t_axes)
         };
         let mut t = if lt_nn(t_axes, inv_feed) { inv_feed } else { t_axes };
-        // Step-rate cap: the dominant axis makes step_event_count steps over mm.
+        // Step-rate limits: the dominant axis makes step_event_count steps
+        // over mm. At time per mm t the rate stays within them while the
+        // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
+        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's).
         let steps_per_mm = b.step_event_count as f32 * inv_mm;
-        let t_cap = steps_per_mm * INV_MAX_STEP_RATE;
-        let mut capped = false;
-        if lt_nn(t, t_cap) {
-            t = t_cap;
-            capped = true;
+        if self.rate_cache.0 != t.to_bits() {
+            self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
         }
-        let t_floor = steps_per_mm * INV_MIN_STEP_RATE;
+        let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
+        let mut capped = false;
         let mut floored = false;
-        if lt_nn(t_floor, t) {
-            t = t_floor;
+        if lt_nn(max_steps_per_mm, steps_per_mm) {
+            t = steps_per_mm * INV_MAX_STEP_RATE;
+            capped = true;
+        } else if lt_nn(steps_per_mm, min_steps_per_mm) {
+            t = steps_per_mm * INV_MIN_STEP_RATE;
             floored = true;
         }
         // t is usually the same as for the last block (the feed is modal).
@@ -522,14 +639,18 @@ impl Planner {
                         cos_theta -= prev_unit[i] * unit[i];
                     }
                 }
-                if cos_theta > JUNCTION_COS_LIMIT {
+                // |cos θ| beyond the limit, on the bit pattern (a soft-float
+                // compare costs ~50 cycles).
+                let cos_bits = cos_theta.to_bits();
+                let beyond = cos_bits & 0x7FFF_FFFF > JUNCTION_COS_LIMIT.to_bits();
+                if beyond && cos_bits & 0x8000_0000 == 0 {
                     0.0 // full reversal
-                } else if cos_theta < -JUNCTION_COS_LIMIT {
+                } else if beyond {
                     JUNCTION_SPEED_SQR_STRAIGHT
                 } else {
                     let a = min_nn(acceleration, prev_accel);
                     let ad = a * s.junction_deviation_mm;
-                    let h = 0.5 * (1.0 - cos_theta); // sin²(θ/2)
+                    let h = half(1.0 - cos_theta); // sin²(θ/2)
                     let mut reversing = 0u8;
                     for i in 0..N_AXES {
                         let (p, u) = (prev_unit[i].to_bits(), unit[i].to_bits());
@@ -542,8 +663,11 @@ impl Planner {
                     // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the
                     // division (most junctions of a smooth curve).
                     let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
+                    if self.cap_sqr_cache.0 != cap.to_bits() {
+                        self.cap_sqr_cache = (cap.to_bits(), cap * cap);
+                    }
                     let k = ad + cap;
-                    if reversing == 0 && h * (k * k) >= cap * cap {
+                    if reversing == 0 && !lt_nn(h * (k * k), self.cap_sqr_cache.1) {
                         JUNCTION_SPEED_SQR_STRAIGHT
                     } else {
                         let sin_theta_d2 = sqrtf(h);
@@ -567,7 +691,7 @@ impl Planner {
         b.millimeters = mm;
         b.acceleration = acceleration;
         b.nominal_speed_sqr = nominal_speed_sqr;
-        b.max_delta_speed_sqr = 2.0 * acceleration * mm;
+        b.max_delta_speed_sqr = times2(acceleration * mm);
 
         self.previous_unit_vec = unit;
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
@@ -737,30 +861,31 @@ impl Planner {
         self.backlash_offset
     }
 
-    /// Blocks queued (including the executing one).
+    /// Blocks queued (including the executing one and a pending move).
     pub fn len(&self) -> usize {
-        self.len as usize
+        self.len as usize + self.pending.is_some() as usize
     }
 
-    /// No block queued.
+    /// No block queued (and none pending).
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.len() == 0
     }
 
     /// No free slot (a move with a backlash take-up needs 2).
     pub fn is_full(&self) -> bool {
-        self.len as usize == BLOCK_BUFFER_LEN
+        self.len() == BLOCK_BUFFER_LEN
     }
 
     /// Free slots.
     pub fn free(&self) -> usize {
-        BLOCK_BUFFER_LEN - self.len as usize
+        BLOCK_BUFFER_LEN - self.len()
     }
 
     /// Drop every block (e-stop, limit, abort). The position is kept as the end
     /// of the dropped moves: the caller must `set_position` to the true motor
     /// position. Backlash directions become unknown.
     pub fn clear(&mut self) {
+        self.pending = None;
         self.tail = 0;
         self.head = 0;
         self.len = 0;

@@ -495,3 +495,25 @@ fn a_block_between_slower_ones_is_a_trapezoid_from_entry_to_feed_to_exit() {
     let alone = block_profile(&[([2000, 0, 0, 0], 3000.0)], 0, &st);
     assert!(alone.first().unwrap().1 < 10.0 && alone.last().unwrap().1 < 10.0);
 }
+
+#[test]
+fn an_accepted_feed_move_is_planned_on_flush_exactly_as_push_line_plans_it() {
+    let st = s();
+    let (mut a, mut b) = (Planner::new(), Planner::new());
+    for k in 1..=12i32 {
+        let t = [k * 37, k * k * 5, 0, 0];
+        a.push_line(t, 3000.0, false, &st).unwrap();
+        assert_eq!(b.accept_line(t, 3000.0, false, &st).unwrap().queued, 1);
+        // The pending move holds its slot and the position already moved.
+        assert_eq!((b.len(), b.position()), (a.len(), a.position()));
+    }
+    b.flush(&st);
+    assert_eq!(blocks(&a), blocks(&b));
+    // Rapids and E moves are planned at once (they may be rate-capped).
+    b.accept_line([0, 0, 0, 0], 1.0, true, &st).unwrap();
+    assert_eq!(blocks(&b).len(), 13);
+    b.accept_line([0, 0, 0, 100], 600.0, false, &st).unwrap();
+    assert_eq!(blocks(&b).len(), 14);
+    b.clear();
+    assert!(b.is_empty());
+}

@@ -9,9 +9,15 @@
 //! simulated cycles (default 97, prime so it does not beat with the timer).
 //! Prints the share of CPU time per function (by ELF symbol; inlined code
 //! counts in its caller). Interrupt handlers show as `__vector_N`.
+//!
+//! `--trace FROM:N` instead single-steps the lines FROM..FROM+N (counted by
+//! their `ok`) and prints exact inclusive and self cycles per function.
+//! `--sd` runs the job from a FAT16 card (M23/M24) instead of the serial
+//! line; `--trace FROM:N` then starts FROM ms after M24 and covers N lines
+//! (counted as entries into `Planner::queue_block`).
 
 use sim::host::prepare_gcode;
-use sim::{Vm, VmConfig};
+use sim::{CardKind, FatKind, SdCard, SdImage, Vm, VmConfig};
 use std::collections::HashMap;
 use std::path::PathBuf;
 
@@ -56,12 +62,14 @@ fn main() {
     // Exact inclusive cycles per function for the lines [from, from + n) (ok'd).
     let mut trace: Option<(usize, usize)> = None;
     let mut job: Option<PathBuf> = None;
+    let mut sd = false;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
             "--elf" => elf = it.next().expect("--elf PATH").into(),
             "--every" => every = it.next().expect("--every N").parse().expect("number"),
             "--count" => window = it.next().expect("--count BYTES").parse().expect("number"),
+            "--sd" => sd = true,
             "--trace" => {
                 let v = it.next().expect("--trace FROM:N");
                 let (a, b) = v.split_once(':').expect("FROM:N");
@@ -131,8 +139,30 @@ fn main() {
         if k > 0 && pc < syms[k - 1].0 + syms[k - 1].1 { Some(k - 1) } else { None }
     };
     let starts: HashMap<u32, usize> = syms.iter().enumerate().map(|(i, s)| (s.0, i)).collect();
+    // From SD: the first lines (setup) over serial, the rest as a file.
+    let mut lines = lines;
+    let mut sd_start_cycles = 0u64;
+    let queue_block = syms.iter().position(|s| s.2.ends_with("Planner::queue_block"));
+    if sd {
+        let body: Vec<String> = lines.split_off(lines.len().min(3));
+        for l in &lines {
+            vm.send_line(l);
+            vm.wait_line(|x| x == "ok", 30.0).expect("ok");
+        }
+        lines.clear();
+        let text = body.join("\n") + "\n";
+        vm.insert_sd(SdCard::new(SdImage::new(FatKind::Fat16).file("PROFILE.NC", text.as_bytes()).build(), CardKind::Sdhc));
+        vm.send_line("M23 PROFILE.NC");
+        vm.wait_line(|x| x == "ok", 30.0).expect("M23");
+        vm.take_lines();
+        vm.send_line("M24");
+        sd_start_cycles = vm.cycles();
+    }
+    let mut blocks = 0usize;
     let mut tstack: Vec<(usize, u64, u32)> = Vec::new();
     let mut tincl: HashMap<usize, (u64, u64)> = HashMap::new();
+    let mut tself: HashMap<Option<usize>, u64> = HashMap::new();
+    let mut prev_pc_fn: Option<usize> = lookup(vm.pc());
     let mut callers: HashMap<String, (u64, u64)> = HashMap::new();
     let mut oks = 0usize;
     let mut traced_cycles = 0u64;
@@ -143,7 +173,7 @@ fn main() {
     // Ping-pong (window 0) or character counting (at most `window` bytes unacknowledged).
     let mut next = 0;
     let mut in_flight: std::collections::VecDeque<usize> = Default::default();
-    while next < lines.len() || !in_flight.is_empty() {
+    while next < lines.len() || !in_flight.is_empty() || (sd && trace.is_some_and(|(_, n)| blocks < n)) {
         while next < lines.len() {
             let len = lines[next].len() + 1;
             let bytes: usize = in_flight.iter().sum();
@@ -155,13 +185,22 @@ fn main() {
             next += 1;
         }
         if let Some((from, n)) = trace {
-            if oks >= from && oks < from + n {
+            let in_window = if sd {
+                vm.cycles() >= sd_start_cycles + from as u64 * 16_000 && blocks < n
+            } else {
+                oks >= from && oks < from + n
+            };
+            if in_window {
                 let c0 = vm.cycles();
                 vm.run_cycles(1).expect("run");
                 let c = vm.cycles();
                 traced_cycles += c - c0;
                 let pc = vm.pc();
                 let sp = vm.read_u16(0x5D) as u32;
+                // Self time: the cycles of the instruction just run, charged
+                // to the function the PC was in before it ran.
+                *tself.entry(prev_pc_fn).or_default() += c - c0;
+                prev_pc_fn = lookup(pc);
                 while let Some(&(k, entry, fsp)) = tstack.last() {
                     if sp > fsp {
                         tstack.pop();
@@ -176,6 +215,9 @@ fn main() {
                 }
                 if let Some(&k) = starts.get(&pc) {
                     tstack.push((k, c, sp));
+                    if Some(k) == queue_block {
+                        blocks += 1;
+                    }
                     // Who calls the copy/fill/float routines, and how much.
                     let name = &syms[k].2;
                     if matches!(name.as_str(), "memcpy" | "memset" | "__divsf3" | "__mulsf3" | "sqrt" | "__udivmodsi4") {
@@ -246,6 +288,14 @@ fn main() {
                 100.0 * *c as f64 / traced_cycles as f64,
                 syms[*k].2
             );
+        }
+        let mut v: Vec<_> = tself.into_iter().collect();
+        v.sort_by(|a, b| b.1.cmp(&a.1));
+        println!("-- exact self cycles (instructions run in the function itself) --");
+        println!("{:>12} {:>8}  function", "cycles/line", "%");
+        for (k, c) in v.iter().take(70) {
+            let name = match k { Some(k) => syms[*k].2.clone(), None => "?".to_string() };
+            println!("{:>12} {:>7.1}%  {}", c / n as u64, 100.0 * *c as f64 / traced_cycles as f64, name);
         }
         let mut v: Vec<_> = callers.into_iter().collect();
         v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
