@@ -609,7 +609,8 @@ fn job_turn(m: &mut Machine, hw: &mut Hw) {
     // Up to 4 lines per turn while the planner takes them, as the serial
     // loop drains every byte that waits: one line per turn left SD jobs
     // ~10 % slower than streaming (the display slice and the rest of the
-    // turn were paid per line). Realtime requests are still served inside
+    // turn were paid per line). Segments are prepped after each line so the
+    // ISR's ring never runs dry mid-batch; realtime requests are served in
     // every line's planner wait.
     for _ in 0..4 {
         let done = m.motion_done(hw);
@@ -618,6 +619,8 @@ fn job_turn(m: &mut Machine, hw: &mut Hw) {
             Turn::Run(n) => {
                 let r = m.run_job_line(&line[..n], hw);
                 hw.job.line_done(r, m, &mut SerialOut);
+                // Keep the ISR fed between the lines of a batch.
+                m.fill_segments(hw);
             }
             Turn::SpindleOff => {
                 m.spindle_off(hw);
