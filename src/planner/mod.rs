@@ -239,6 +239,9 @@ pub struct Planner {
     planned: u8,
     /// A re-plan may have changed the executing block's exit speed.
     exec_replanned: bool,
+    /// Blocks were queued since the last look-ahead pass (see
+    /// [`Planner::settle`]).
+    stale: bool,
     /// Axes (bits) whose last direction is known, for backlash.
     dir_known: u8,
     /// Last direction of each axis (bit set = negative), for backlash.
@@ -358,6 +361,7 @@ impl Planner {
             len: 0,
             planned: 0,
             exec_replanned: false,
+            stale: false,
             dir_known: 0,
             last_dir: 0,
             position: [0; N_AXES],
@@ -502,6 +506,9 @@ impl Planner {
         self.position = target;
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
+        if !may_defer {
+            self.recalculate();
+        }
         Ok(push)
     }
 
@@ -701,13 +708,28 @@ impl Planner {
 
         self.head = next_index(self.head);
         self.len += 1;
-        self.recalculate();
+        self.stale = true;
         (capped, floored)
+    }
+
+    /// Run the look-ahead if blocks were queued since the last pass and it
+    /// could change the executing block's exit speed (`planned` is the
+    /// executing block). Otherwise the blocks up to `planned`, the next one
+    /// included, are final, and the newer ones wait: their entry speeds are
+    /// those of a stop at the end of the ring as it was, never too fast, and
+    /// one pass later covers every block queued meanwhile. Prep calls this
+    /// before every segment; with a stream of short moves it saves most
+    /// passes (each visits every block of the final deceleration ramp).
+    pub fn settle(&mut self) {
+        if self.stale && self.planned == self.tail {
+            self.recalculate();
+        }
     }
 
     /// grbl's `planner_recalculate`: backward pass from the newest block to
     /// `planned`, then forward pass from `planned` to the newest block.
     fn recalculate(&mut self) {
+        self.stale = false;
         let mut idx = prev_index(self.head);
         if idx == self.planned {
             return;
@@ -886,6 +908,7 @@ impl Planner {
     /// position. Backlash directions become unknown.
     pub fn clear(&mut self) {
         self.pending = None;
+        self.stale = false;
         self.tail = 0;
         self.head = 0;
         self.len = 0;

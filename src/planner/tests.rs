@@ -497,7 +497,7 @@ fn a_block_between_slower_ones_is_a_trapezoid_from_entry_to_feed_to_exit() {
 }
 
 #[test]
-fn an_accepted_feed_move_is_planned_on_flush_exactly_as_push_line_plans_it() {
+fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_plans_it() {
     let st = s();
     let (mut a, mut b) = (Planner::new(), Planner::new());
     for k in 1..=12i32 {
@@ -508,6 +508,8 @@ fn an_accepted_feed_move_is_planned_on_flush_exactly_as_push_line_plans_it() {
         assert_eq!((b.len(), b.position()), (a.len(), a.position()));
     }
     b.flush(&st);
+    // Accepted moves wait for the look-ahead until prep settles the ring.
+    b.settle();
     assert_eq!(blocks(&a), blocks(&b));
     // Rapids and E moves are planned at once (they may be rate-capped).
     b.accept_line([0, 0, 0, 0], 1.0, true, &st).unwrap();
