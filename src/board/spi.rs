@@ -173,8 +173,10 @@ impl SpiBus {
         self.spi
     }
 
-    /// Clock one byte out and return the byte clocked in.
-    #[inline]
+    /// Clock one byte out and return the byte clocked in. Always inlined:
+    /// as a call it cost ~45 cycles a byte against the 16 the SPI takes at
+    /// F_CPU / 2 (an SD block is 512 bytes).
+    #[inline(always)]
     fn exchange(&mut self, out: u8) -> Result<u8, Error> {
         self.spi.spdr().write(|w| w.set(out));
         let mut polls = BYTE_TIMEOUT_POLLS;
