@@ -217,6 +217,9 @@ struct Display {
     shown: [u16; ROWS],
     valid: u8,
     frame_start_ms: u32,
+    /// Page and start time of the slice last sent in the background.
+    sent_page: u8,
+    sent_ms: u32,
 }
 
 /// The hardware behind `Io`, plus the UI and the SD job.
@@ -429,8 +432,19 @@ impl Hw {
     /// the current page (pages whose text did not change are skipped).
     #[inline(never)]
     fn draw_step(&mut self, m: &Machine) {
-        if self.display.oled.is_none() {
-            return;
+        let d = &mut self.display;
+        let Some(o) = d.oled.as_mut() else { return };
+        // The last slice goes out in the background (~0.75 ms): come back
+        // when the bus is free; a stuck bus is given up after 20 ms. A slice
+        // that failed leaves its page to be drawn again.
+        if o.busy() {
+            if board::millis().wrapping_sub(d.sent_ms) < 20 {
+                return;
+            }
+            o.abort();
+        }
+        if o.take_failed() {
+            d.valid &= !(1 << d.sent_page);
         }
         if !self.display.drawing {
             let now = board::millis();
@@ -475,9 +489,11 @@ impl Hw {
         let n = SLICE.min(WIDTH - x0);
         d.line.render(x0, &mut buf[..n]);
         let ok = match d.oled.as_mut() {
-            Some(o) => o.write(page, x0 as u8, &buf[..n]).is_ok(),
+            Some(o) => o.write_async(page, x0 as u8, &buf[..n]).is_ok(),
             None => false,
         };
+        d.sent_page = page;
+        d.sent_ms = board::millis();
         d.slice += 1;
         if !ok {
             d.valid &= !(1 << page);
@@ -571,6 +587,8 @@ pub fn run() -> ! {
                 shown: [0; ROWS],
                 valid: 0,
                 frame_start_ms: 0,
+                sent_page: 0,
+                sent_ms: 0,
             },
             names: [Name::EMPTY; 7],
             names_first: 0,
