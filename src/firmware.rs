@@ -621,15 +621,28 @@ pub fn run() -> ! {
 /// The SD job's turn: at most one line.
 #[inline(never)]
 fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
-    let done = m.motion_done(hw);
-    let turn = hw.job.poll(&mut hw.sd, m, done, line, &mut SerialOut);
-    match turn {
-        Turn::Run(n) => {
-            let r = m.run_job_line(&line[..n], hw);
-            hw.job.line_done(r, m, &mut SerialOut);
+    // Up to four lines per turn while the planner has room, as a serial host
+    // keeps lines coming back to back (one line per turn of the main loop
+    // left the ring emptier than a serial stream's: 10 % slower). Serial
+    // bytes waiting (M27, a status query) end the batch: they go first, as
+    // they did with one line per turn.
+    for _ in 0..4 {
+        let done = m.motion_done(hw);
+        let turn = hw.job.poll(&mut hw.sd, m, done, line, &mut SerialOut);
+        match turn {
+            Turn::Run(n) => {
+                let r = m.run_job_line(&line[..n], hw);
+                hw.job.line_done(r, m, &mut SerialOut);
+                if serial::rx_len() != 0 {
+                    return;
+                }
+            }
+            Turn::SpindleOff => {
+                m.spindle_off(hw);
+                return;
+            }
+            Turn::Idle => return,
         }
-        Turn::SpindleOff => m.spindle_off(hw),
-        Turn::Idle => {}
     }
 }
 
