@@ -117,12 +117,14 @@ pub struct Interp {
     pub tlo_mm: f32,
     /// Commanded position, machine mm (E in carousel units).
     pub pos_mm: [f32; N_AXES],
-    /// Per axis, the last mm → steps conversion: (bits of the mm value, bits
-    /// of steps/mm, steps). See [`Interp::steps_of`].
-    steps_cache: [(u32, u32, i32); N_AXES],
-    /// Per axis X Y Z, the travel in steps: (bits of travel_mm, bits of
-    /// steps/mm, steps). See [`Interp::travel_steps`].
-    travel_cache: [(u32, u32, i32); 3],
+    /// Per axis, the last mm → steps conversion: (bits of the mm value,
+    /// steps). Valid while `conv_fresh`. See [`Interp::steps_of`].
+    steps_cache: [(u32, i32); N_AXES],
+    /// The travel of X, Y, Z in steps, rounded. Valid while `conv_fresh`.
+    travel_steps: [i32; 3],
+    /// The two caches above match the settings; cleared by
+    /// [`Interp::settings_changed`].
+    conv_fresh: bool,
     /// (bits of the programmed feed, override %, the feed with the override,
     /// mm/min). See [`Interp::feed_with_override`].
     feed_cache: (u32, u16, f32),
@@ -145,27 +147,48 @@ impl Interp {
             g92_mm: [0.0; 3],
             tlo_mm: 0.0,
             pos_mm: [0.0; N_AXES],
-            steps_cache: [(0, 0, 0); N_AXES],
-            travel_cache: [(0, 0, 0); 3],
+            steps_cache: [(0, 0); N_AXES],
+            travel_steps: [0; 3],
+            conv_fresh: false,
             feed_cache: (0, 0, 0.0),
         }
     }
 
     /// Absolute mm → absolute steps, rounded per axis (no accumulated
-    /// error). An axis whose mm value and steps/mm are those of its last
-    /// conversion reuses the result (a float multiply and a rounding, ~330
-    /// cycles on the AVR; a streamed XY move leaves Z and E where they were).
+    /// error). An axis whose mm value is that of its last conversion reuses
+    /// the result (a float multiply and a rounding, ~330 cycles on the AVR;
+    /// a streamed XY move leaves Z and E where they were).
     pub fn steps_of(&mut self, s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
+        }
         let mut st = [0i32; N_AXES];
         for a in 0..N_AXES {
-            st[a] = cached_steps(&mut self.steps_cache[a], mm[a], s.steps_per_mm[a]);
+            let c = &mut self.steps_cache[a];
+            if c.0 != mm[a].to_bits() {
+                *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
+            }
+            st[a] = c.1;
         }
         st
     }
 
-    /// The travel of axis `a` (X, Y, Z) in steps, rounded (cached).
-    fn travel_steps(&mut self, s: &Settings, a: usize) -> i32 {
-        cached_steps(&mut self.travel_cache[a], s.travel_mm[a], s.steps_per_mm[a])
+    /// The settings changed: the step conversions are made afresh.
+    pub fn settings_changed(&mut self) {
+        self.conv_fresh = false;
+    }
+
+    /// Empty the steps cache (an all-ones pattern is a NaN, never a
+    /// position) and convert the travel.
+    #[inline(never)]
+    fn refresh_conv(&mut self, s: &Settings) {
+        for c in self.steps_cache.iter_mut() {
+            c.0 = u32::MAX;
+        }
+        for a in 0..3 {
+            self.travel_steps[a] = to_steps(s.travel_mm[a], s.steps_per_mm[a]);
+        }
+        self.conv_fresh = true;
     }
 
     /// The programmed feed with the override applied, mm/min (cached: both
@@ -712,17 +735,6 @@ pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f
     Ok(())
 }
 
-/// `round(mm · steps_per_mm)`, through the cache entry `c` = (bits of mm,
-/// bits of steps/mm, steps): recomputed only when either changed.
-#[inline(never)]
-fn cached_steps(c: &mut (u32, u32, i32), mm: f32, steps_per_mm: f32) -> i32 {
-    let key = (mm.to_bits(), steps_per_mm.to_bits());
-    if (c.0, c.1) != key {
-        *c = (key.0, key.1, round_i32(mm * steps_per_mm));
-    }
-    c.2
-}
-
 /// `a == b` for finite floats (+0.0 equals −0.0), on the bit patterns: a
 /// soft-float compare costs ~50 cycles on the AVR.
 #[inline]
@@ -750,6 +762,12 @@ fn add_cold(a: f32, b: f32) -> f32 {
     a + b
 }
 
+/// `round(mm · steps_per_mm)`.
+#[inline(never)]
+fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
+    round_i32(mm * steps_per_mm)
+}
+
 /// Soft limits: the target, rounded to steps as it will be queued, must lie
 /// within 0..=travel (rounded to steps) on X, Y and Z. Integer compares on
 /// the steps [`Interp::steps_of`] caches for the move itself.
@@ -759,8 +777,7 @@ fn check_soft_limits(m: &mut Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
     }
     let st = m.interp.steps_of(&m.settings, t);
     for a in 0..3 {
-        let max = m.interp.travel_steps(&m.settings, a);
-        if st[a] < 0 || st[a] > max {
+        if st[a] < 0 || st[a] > m.interp.travel_steps[a] {
             return Err(Error::SoftLimit);
         }
     }
