@@ -251,7 +251,7 @@ const AXIS_WORDS: [Word; 3] = [Word::X, Word::Y, Word::Z];
 
 /// True when a line carries any of X, Y, Z.
 fn has_axis_words(l: &Line) -> bool {
-    AXIS_WORDS.iter().any(|&w| l.word(w).is_some())
+    l.words.has_xyz()
 }
 
 /// True when the line's X, Y, Z words are the arguments of its M code
