@@ -22,6 +22,24 @@ use ufmt::{uwrite, uwriteln};
 
 /// Millimetres per inch.
 const MM_PER_INCH: f32 = 25.4;
+/// `v` in mm: × 25.4 under G20. The multiply is a call only made under
+/// G20: LLVM-AVR turned `if inches { v * 25.4 } else { v }` into a select
+/// that multiplied every axis word (~145 cycles each) in millimetres too.
+#[inline]
+fn to_mm(inches: bool, v: f32) -> f32 {
+    if inches {
+        inch_to_mm(v)
+    } else {
+        v
+    }
+}
+
+/// `v` × 25.4, as a call (see [`to_mm`]).
+#[inline(never)]
+fn inch_to_mm(v: f32) -> f32 {
+    v * MM_PER_INCH
+}
+
 /// Number of tool table entries, T0..T12.
 pub const N_TOOLS: usize = 13;
 
@@ -419,7 +437,7 @@ fn modal_words(m: &Machine, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
         g.wcs = w;
     }
     if let Some(f) = l.word(Word::F) {
-        g.feed = if g.inches { f * MM_PER_INCH } else { f };
+        g.feed = to_mm(g.inches, f);
     }
     if let Some(mo) = l.motion {
         g.motion = mo;
@@ -450,7 +468,7 @@ fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Opti
             let mut off = m.interp.g92_mm;
             for (a, &w) in AXIS_WORDS.iter().enumerate() {
                 if let Some(v) = l.word(w) {
-                    let v = if g.inches { v * MM_PER_INCH } else { v };
+                    let v = to_mm(g.inches, v);
                     // work = machine - wcs - g92 - tlo  =>  g92 = machine - wcs - tlo - v
                     let tlo = if a == 2 { g.tlo } else { 0.0 };
                     off[a] = m.interp.pos_mm[a] - m.interp.wcs_mm[g.wcs as usize][a] - tlo - v;
@@ -511,7 +529,7 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
     let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
     for (a, &w) in AXIS_WORDS.iter().enumerate() {
         if let Some(v) = l.word(w) {
-            let v = if g.inches { v * MM_PER_INCH } else { v };
+            let v = to_mm(g.inches, v);
             target[a] = if machine_coords {
                 v
             } else if g.incremental {
@@ -562,12 +580,12 @@ fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl
         Plane::Yz => (1, 2, 0),
     };
     let off_words = [Word::I, Word::J, Word::K];
-    let r = l.word(Word::R).map(|r| if g.inches { r * MM_PER_INCH } else { r });
+    let r = l.word(Word::R).map(|r| to_mm(g.inches, r));
     let mut centre_off = [0.0f32; 3];
     let mut any_off = false;
     for (a, &w) in off_words.iter().enumerate() {
         if let Some(v) = l.word(w) {
-            centre_off[a] = if g.inches { v * MM_PER_INCH } else { v };
+            centre_off[a] = to_mm(g.inches, v);
             any_off = true;
         }
     }
@@ -810,7 +828,7 @@ fn tool_index(v: f32) -> Option<usize> {
 fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
     let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;
     let p = l.word(Word::P).ok_or(Error::BadWord(F!("G10 needs P")))?;
-    let conv = |v: f32| if g.inches { v * MM_PER_INCH } else { v };
+    let conv = |v: f32| to_mm(g.inches, v);
     match round_i32(lv) {
         1 if lv == 1.0 => {
             let t = tool_index(p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool number 0-12")))?;

@@ -181,6 +181,10 @@ struct AxisCache {
     /// (1 % above the largest steps/mm over `MAX_STEP_RATE_HZ`), s/mm: such a
     /// move may be planned later ([`Planner::accept_line`]).
     defer_min_inv_feed: f32,
+    /// Bit i: axis i has the acceleration and speed limits of axis 0 (bit
+    /// for bit). A move on such axes alone takes its limits from its
+    /// largest unit component: two multiplies instead of two per axis.
+    uniform: u8,
 }
 
 impl AxisCache {
@@ -190,6 +194,7 @@ impl AxisCache {
         inv_accel: [0.0; N_AXES],
         inv_max_speed: [0.0; N_AXES],
         defer_min_inv_feed: 0.0,
+        uniform: 0,
     };
 
     /// Recompute the derived values if `s` differs from what they came from.
@@ -221,6 +226,14 @@ impl AxisCache {
             }
         }
         self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
+        self.uniform = 0;
+        for i in 0..N_AXES {
+            if self.inv_accel[i].to_bits() == self.inv_accel[0].to_bits()
+                && self.inv_max_speed[i].to_bits() == self.inv_max_speed[0].to_bits()
+            {
+                self.uniform |= 1 << i;
+            }
+        }
         true
     }
 }
@@ -308,6 +321,16 @@ const fn prev_index(i: u8) -> u8 {
 pub(crate) fn lt_nn(a: f32, b: f32) -> bool {
     debug_assert!(a.is_sign_positive() && b.is_sign_positive() && !a.is_nan() && !b.is_nan());
     a.to_bits() < b.to_bits()
+}
+
+/// The larger of two finite floats ≥ +0.0 (see `lt_nn`).
+#[inline(always)]
+fn max_nn(a: f32, b: f32) -> f32 {
+    if lt_nn(a, b) {
+        b
+    } else {
+        a
+    }
 }
 
 /// The smaller of two finite floats ≥ +0.0 (see `lt_nn`).
@@ -588,6 +611,16 @@ impl Planner {
         // last one (a stream of collinear moves) reuses them.
         let (acceleration, t_axes) = if same_dir {
             (prev_accel, prev_t_axes)
+        } else if moving & !ax.uniform == 0 {
+            // Every moving axis has axis 0's limits: the largest |u| decides
+            // (exactly: rounding keeps the order of the products).
+            let mut u_max = 0.0f32;
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    u_max = max_nn(u_max, abs_f32(unit[i]));
+                }
+            }
+            (1.0 / (u_max * ax.inv_accel[0]), u_max * ax.inv_max_speed[0])
         } else {
             let mut inv_accel = 0.0f32; // s²/mm along the path
             let mut t_axes = 0.0f32; // s/mm along the path
