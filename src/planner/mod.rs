@@ -76,6 +76,18 @@ const _: () = assert!(size_of::<Block>() * BLOCK_BUFFER_LEN <= 1536);
 const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
 const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
 
+/// Entries of the square-root cache (a power of two). 8 entries hit 88 % of
+/// the benchmark's 0.1 mm circle (19 distinct lengths).
+const ROOTS_LEN: usize = 8;
+
+/// The square-root cache's entry for `n` ≥ 1: (n, √n, 1/√n). Not inlined:
+/// behind a cache test LLVM-AVR would compute it every time (`math::div_cold`).
+#[inline(never)]
+fn root_entry(n: u32) -> (u32, f32, f32) {
+    let r = sqrtf(n as f32);
+    (n, r, 1.0 / r)
+}
+
 /// Cosine beyond which a junction counts as a full reversal / a straight line.
 const JUNCTION_COS_LIMIT: f32 = 0.999_999;
 /// At a junction where an axis reverses, its speed steps from +v·|u_prev| to
@@ -181,6 +193,8 @@ struct AxisCache {
     /// (1 % above the largest steps/mm over `MAX_STEP_RATE_HZ`), s/mm: such a
     /// move may be planned later ([`Planner::accept_line`]).
     defer_min_inv_feed: f32,
+    /// X, Y and Z have the same steps/mm (bit for bit).
+    xyz_same_steps: bool,
     /// Bit i: axis i has the acceleration and speed limits of axis 0 (bit
     /// for bit). A move on such axes alone takes its limits from its
     /// largest unit component: two multiplies instead of two per axis.
@@ -194,6 +208,7 @@ impl AxisCache {
         inv_accel: [0.0; N_AXES],
         inv_max_speed: [0.0; N_AXES],
         defer_min_inv_feed: 0.0,
+        xyz_same_steps: false,
         uniform: 0,
     };
 
@@ -226,6 +241,8 @@ impl AxisCache {
             }
         }
         self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
+        self.xyz_same_steps = s.steps_per_mm[1].to_bits() == s.steps_per_mm[0].to_bits()
+            && s.steps_per_mm[2].to_bits() == s.steps_per_mm[0].to_bits();
         self.uniform = 0;
         for i in 0..N_AXES {
             if self.inv_accel[i].to_bits() == self.inv_accel[0].to_bits()
@@ -284,6 +301,9 @@ pub struct Planner {
     rate_cache: (u32, f32, f32),
     /// Bits of the last junction cap `L` (a speed²) and L².
     cap_sqr_cache: (u32, f32),
+    /// (n, √n, 1/√n) for path lengths in steps, squared (n ≥ 1), direct
+    /// mapped on n's low bits. RAM: 12 B each.
+    roots: [(u32, f32, f32); ROOTS_LEN],
     /// Settings-derived per-axis values.
     axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
@@ -398,6 +418,7 @@ impl Planner {
             nominal_cache: (0, 0.0),
             rate_cache: (0, 0.0, 0.0),
             cap_sqr_cache: (0, 0.0),
+            roots: [(0, 0.0, 0.0); ROOTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,
             axis_fresh: false,
@@ -581,27 +602,59 @@ impl Planner {
             }
             if d != 0 {
                 moving |= 1 << i;
-                unit[i] = d as f32 * ax.mm_per_step[i];
                 if d < 0 {
                     b.direction_bits |= 1 << i;
                 }
             }
         }
-        // Path length: XYZ distance, or the E distance for an E-only move.
-        // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
-        let mut xyz_sqr = 0.0f32;
-        for i in 0..3 {
-            if moving & (1 << i) != 0 {
-                xyz_sqr += unit[i] * unit[i];
+        // Path length and unit vector.
+        let (mm, inv_mm);
+        if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
+            // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
+            // of short moves repeats a few dozen values of the integer Σd²,
+            // whose root and inverse root are cached: no square root and no
+            // division (~1 k cycles on the AVR) on a hit.
+            let mut sum_sqr = 0u32;
+            for i in 0..3 {
+                let n = b.steps[i] as u16 as u32;
+                sum_sqr += n * n;
+            }
+            let e = &mut self.roots[(sum_sqr & (ROOTS_LEN as u32 - 1)) as usize];
+            if e.0 != sum_sqr {
+                *e = root_entry(sum_sqr);
+            }
+            let (root, inv_root) = (e.1, e.2);
+            mm = root * ax.mm_per_step[0];
+            inv_mm = inv_root * s.steps_per_mm[0];
+            for i in 0..3 {
+                if moving & (1 << i) != 0 {
+                    unit[i] = delta[i] as f32 * inv_root;
+                }
+            }
+        } else {
+            // Path length: XYZ distance, or the E distance for an E-only move.
+            // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    unit[i] = delta[i] as f32 * ax.mm_per_step[i];
+                }
+            }
+            let mut xyz_sqr = 0.0f32;
+            for i in 0..3 {
+                if moving & (1 << i) != 0 {
+                    xyz_sqr += unit[i] * unit[i];
+                }
+            }
+            mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
+            inv_mm = 1.0 / mm;
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    unit[i] *= inv_mm;
+                }
             }
         }
-        let mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
-        let inv_mm = 1.0 / mm;
         let mut same_dir = prev_valid;
         for i in 0..N_AXES {
-            if moving & (1 << i) != 0 {
-                unit[i] *= inv_mm;
-            }
             same_dir &= unit[i].to_bits() == prev_unit[i].to_bits();
         }
 

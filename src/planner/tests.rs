@@ -519,3 +519,18 @@ fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_pla
     b.clear();
     assert!(b.is_empty());
 }
+
+#[test]
+fn a_move_at_one_steps_per_mm_gets_its_length_from_the_cached_root() {
+    // X, Y, Z share 100 steps/mm: lengths come from √(Σd²) (cached).
+    let st = s();
+    let mut p = Planner::new();
+    let mut at = [0i32; 4];
+    for &(dx, dy, dz) in &[(10, 0, 0), (8, 6, 0), (6, 8, 0), (10, 0, 0), (3, 4, 12), (-7, 9, 0)] {
+        at = [at[0] + dx, at[1] + dy, at[2] + dz, 0];
+        p.push_line(at, 3000.0, false, &st).unwrap();
+        let b = *p.block(p.len() - 1).unwrap();
+        let want = (((dx * dx + dy * dy + dz * dz) as f64).sqrt() / 100.0) as f32;
+        assert_close(b.millimeters, want, 1e-6);
+    }
+}
