@@ -217,6 +217,9 @@ struct Display {
     shown: [u16; ROWS],
     valid: u8,
     frame_start_ms: u32,
+    /// Page and start time of the slice last sent in the background.
+    sent_page: u8,
+    sent_ms: u32,
 }
 
 /// The hardware behind `Io`, plus the UI and the SD job.
@@ -434,8 +437,19 @@ impl Hw {
     /// the current page (pages whose text did not change are skipped).
     #[inline(never)]
     fn draw_step(&mut self, m: &Machine) {
-        if self.display.oled.is_none() {
-            return;
+        let d = &mut self.display;
+        let Some(o) = d.oled.as_mut() else { return };
+        // The last slice goes out in the background (~0.75 ms): come back
+        // when the bus is free; a stuck bus is given up after 20 ms. A slice
+        // that failed leaves its page to be drawn again.
+        if o.busy() {
+            if board::millis().wrapping_sub(d.sent_ms) < 20 {
+                return;
+            }
+            o.abort();
+        }
+        if o.take_failed() {
+            d.valid &= !(1 << d.sent_page);
         }
         if !self.display.drawing {
             let now = board::millis();
@@ -480,9 +494,11 @@ impl Hw {
         let n = SLICE.min(WIDTH - x0);
         d.line.render(x0, &mut buf[..n]);
         let ok = match d.oled.as_mut() {
-            Some(o) => o.write(page, x0 as u8, &buf[..n]).is_ok(),
+            Some(o) => o.write_async(page, x0 as u8, &buf[..n]).is_ok(),
             None => false,
         };
+        d.sent_page = page;
+        d.sent_ms = board::millis();
         d.slice += 1;
         if !ok {
             d.valid &= !(1 << page);
@@ -576,6 +592,8 @@ pub fn run() -> ! {
                 shown: [0; ROWS],
                 valid: 0,
                 frame_start_ms: 0,
+                sent_page: 0,
+                sent_ms: 0,
             },
             names: [Name::EMPTY; 7],
             names_first: 0,
@@ -592,11 +610,14 @@ pub fn run() -> ! {
     unsafe { avr_device::interrupt::enable() };
     wdt::enable_2s();
     m.boot(hw, cause.as_str());
+    // The SD job's line buffer lives here, not in `job_turn`'s frame: zeroing
+    // 96 bytes on every turn of the loop cost ~1.4k cycles per streamed line.
+    let mut job_line = [0u8; MAX_LINE_LEN];
     loop {
         while let Some(b) = serial::read() {
             m.push_byte(b, hw);
         }
-        job_turn(m, hw);
+        job_turn(m, hw, &mut job_line);
         ui_turn(m, hw);
         m.idle(hw);
     }
@@ -604,23 +625,30 @@ pub fn run() -> ! {
 
 /// The SD job's turn: at most one line.
 #[inline(never)]
-fn job_turn(m: &mut Machine, hw: &mut Hw) {
-    let mut line = [0u8; MAX_LINE_LEN];
-    // Up to 4 lines per turn while the planner takes them, as the serial
-    // loop drains every byte that waits: one line per turn left SD jobs
-    // ~10 % slower than streaming (the display slice and the rest of the
-    // turn were paid per line). Segments are prepped after each line so the
-    // ISR's ring never runs dry mid-batch; realtime requests are served in
-    // every line's planner wait.
+fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
+    // Up to four lines per turn while the planner has room, as a serial host
+    // keeps lines coming back to back (one line per turn of the main loop
+    // left the ring emptier than a serial stream's: 10 % slower). Serial
+    // bytes waiting (M27, a status query) end the batch: they go first, as
+    // they did with one line per turn.
     for _ in 0..4 {
         let done = m.motion_done(hw);
-        let turn = hw.job.poll(&mut hw.sd, m, done, &mut line, &mut SerialOut);
+        let turn = hw.job.poll(&mut hw.sd, m, done, line, &mut SerialOut);
         match turn {
             Turn::Run(n) => {
                 let r = m.run_job_line(&line[..n], hw);
                 hw.job.line_done(r, m, &mut SerialOut);
-                // Keep the ISR fed between the lines of a batch.
-                m.fill_segments(hw);
+                if serial::rx_len() != 0 {
+                    return;
+                }
+                // The ISR must not run dry during a batch (a card block read
+                // takes ~5 ms; it did, and the restart showed as a 12 % jump
+                // in the measured acceleration): top its segments up when
+                // less than 5 ms are left. Not after every line: each top-up
+                // runs the look-ahead over the few blocks queued (10 % slower).
+                if !stepper::queued_at_least(mill::F_CPU_HZ / 200) {
+                    m.fill_segments(hw);
+                }
             }
             Turn::SpindleOff => {
                 m.spindle_off(hw);

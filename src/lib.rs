@@ -12,6 +12,7 @@
 //! and `src/main.rs` wires the pieces together. Everything here compiles and is
 //! unit-tested on the host with plain `cargo test`.
 #![cfg_attr(not(test), no_std)]
+#![cfg_attr(target_arch = "avr", feature(asm_experimental_arch))]
 
 #[macro_use]
 pub mod flash;

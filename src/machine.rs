@@ -729,10 +729,12 @@ impl Machine {
         uwrite!(io, "{},{},{}", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
     }
 
-    /// Put `s` in force as the settings (the planner is told).
+    /// Put `s` in force as the settings (the planner and the interpreter's
+    /// caches are told).
     pub fn set_settings(&mut self, s: Settings) {
         self.settings = s;
         self.planner.settings_changed();
+        self.interp.settings_changed();
     }
 
     /// Save the settings image to EEPROM (M500).

@@ -9,9 +9,10 @@
 //! is "write these bytes at page p, column x" plus the power-up sequence
 //! (SH1106 datasheet V2.3, "Commands" 1–23).
 //!
-//! Every transfer is blocking (about 0.8 ms for a 32-byte slice at
-//! 400 kHz). Errors (no display on the bus) are returned, never retried:
-//! the machine runs the same without a display.
+//! [`Sh1106::write`] is blocking (about 0.8 ms for a 32-byte slice at
+//! 400 kHz); [`Sh1106::write_async`] sends the same bytes with the data in
+//! the background. Errors (no display on the bus) are returned, never
+//! retried: the machine runs the same without a display.
 
 use embedded_hal::i2c::I2c;
 
@@ -81,5 +82,37 @@ impl<I: I2c> Sh1106<I> {
         buf[0] = CONTROL_DATA;
         buf[1..=n].copy_from_slice(&data[..n]);
         self.i2c.write(ADDRESS, &buf[..=n])
+    }
+}
+
+impl Sh1106<super::twi::Twi> {
+    /// [`Sh1106::write`], with the data (33 bytes, ~0.75 ms at 400 kHz)
+    /// sent in the background by the TWI interrupt; only the position
+    /// commands (~0.1 ms) block. Call when [`Sh1106::busy`] is false; a
+    /// failure of the background part shows in [`Sh1106::take_failed`].
+    pub fn write_async(&mut self, page: u8, x: u8, data: &[u8]) -> Result<(), super::twi::Error> {
+        let col = x + COLUMN_OFFSET;
+        let cmds = [CONTROL_COMMANDS, 0xB0 | (page & 7), col & 0x0F, 0x10 | (col >> 4)];
+        self.i2c.write(ADDRESS, &cmds)?;
+        let mut buf = [0u8; 33];
+        let n = data.len().min(32);
+        buf[0] = CONTROL_DATA;
+        buf[1..=n].copy_from_slice(&data[..n]);
+        self.i2c.write_async(ADDRESS, &buf[..=n])
+    }
+
+    /// A background write is still on the bus.
+    pub fn busy(&self) -> bool {
+        self.i2c.async_busy()
+    }
+
+    /// True once when the last background write failed.
+    pub fn take_failed(&mut self) -> bool {
+        self.i2c.take_async_failed()
+    }
+
+    /// Give up a background write that is taking too long.
+    pub fn abort(&mut self) {
+        self.i2c.abort_async()
     }
 }

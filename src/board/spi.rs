@@ -173,18 +173,18 @@ impl SpiBus {
         self.spi
     }
 
-    /// Clock one byte out and return the byte clocked in.
-    #[inline]
+    /// Clock one byte out and return the byte clocked in. Always inlined:
+    /// as a call it cost ~45 cycles a byte against the 16 the SPI takes at
+    /// F_CPU / 2 (an SD block is 512 bytes).
+    #[inline(always)]
     fn exchange(&mut self, out: u8) -> Result<u8, Error> {
         self.spi.spdr().write(|w| w.set(out));
-        let mut polls = BYTE_TIMEOUT_POLLS;
-        while self.spi.spsr().read().spif().bit_is_clear() {
-            polls -= 1;
-            if polls == 0 {
-                return Err(self.fault_or(Error::Timeout));
+        for _ in 0..BYTE_TIMEOUT_POLLS {
+            if self.spi.spsr().read().spif().bit_is_set() {
+                return Ok(self.spi.spdr().read().bits());
             }
         }
-        Ok(self.spi.spdr().read().bits())
+        Err(self.fault_or(Error::Timeout))
     }
 
     /// `ModeFault` if the SPI has left master mode, else `other`.

@@ -267,6 +267,11 @@ fn free_slots(m: &mut Main) -> (u8, u8) {
     (seg_free, chunk_free)
 }
 
+/// At least `cycles` CPU cycles of motion wait in the segment ring.
+pub fn queued_at_least(cycles: u32) -> bool {
+    queued_cycles() >= cycles
+}
+
 /// Commands that surely fit now (a `Run` may take 2 segments and a chunk).
 pub fn space() -> usize {
     // SAFETY: MAIN is used by the main loop only.

@@ -22,6 +22,24 @@ use ufmt::{uwrite, uwriteln};
 
 /// Millimetres per inch.
 const MM_PER_INCH: f32 = 25.4;
+/// `v` in mm: × 25.4 under G20. The multiply is a call only made under
+/// G20: LLVM-AVR turned `if inches { v * 25.4 } else { v }` into a select
+/// that multiplied every axis word (~145 cycles each) in millimetres too.
+#[inline]
+fn to_mm(inches: bool, v: f32) -> f32 {
+    if inches {
+        inch_to_mm(v)
+    } else {
+        v
+    }
+}
+
+/// `v` × 25.4, as a call (see [`to_mm`]).
+#[inline(never)]
+fn inch_to_mm(v: f32) -> f32 {
+    v * MM_PER_INCH
+}
+
 /// Number of tool table entries, T0..T12.
 pub const N_TOOLS: usize = 13;
 
@@ -117,12 +135,14 @@ pub struct Interp {
     pub tlo_mm: f32,
     /// Commanded position, machine mm (E in carousel units).
     pub pos_mm: [f32; N_AXES],
-    /// Per axis, the last mm → steps conversion: (bits of the mm value, bits
-    /// of steps/mm, steps). See [`Interp::steps_of`].
-    steps_cache: [(u32, u32, i32); N_AXES],
-    /// Per axis X Y Z, the travel in steps: (bits of travel_mm, bits of
-    /// steps/mm, steps). See [`Interp::travel_steps`].
-    travel_cache: [(u32, u32, i32); 3],
+    /// Per axis, the last mm → steps conversion: (bits of the mm value,
+    /// steps). Valid while `conv_fresh`. See [`Interp::steps_of`].
+    steps_cache: [(u32, i32); N_AXES],
+    /// The travel of X, Y, Z in steps, rounded. Valid while `conv_fresh`.
+    travel_steps: [i32; 3],
+    /// The two caches above match the settings; cleared by
+    /// [`Interp::settings_changed`].
+    conv_fresh: bool,
     /// (bits of the programmed feed, override %, the feed with the override,
     /// mm/min). See [`Interp::feed_with_override`].
     feed_cache: (u32, u16, f32),
@@ -145,27 +165,48 @@ impl Interp {
             g92_mm: [0.0; 3],
             tlo_mm: 0.0,
             pos_mm: [0.0; N_AXES],
-            steps_cache: [(0, 0, 0); N_AXES],
-            travel_cache: [(0, 0, 0); 3],
+            steps_cache: [(0, 0); N_AXES],
+            travel_steps: [0; 3],
+            conv_fresh: false,
             feed_cache: (0, 0, 0.0),
         }
     }
 
     /// Absolute mm → absolute steps, rounded per axis (no accumulated
-    /// error). An axis whose mm value and steps/mm are those of its last
-    /// conversion reuses the result (a float multiply and a rounding, ~330
-    /// cycles on the AVR; a streamed XY move leaves Z and E where they were).
+    /// error). An axis whose mm value is that of its last conversion reuses
+    /// the result (a float multiply and a rounding, ~330 cycles on the AVR;
+    /// a streamed XY move leaves Z and E where they were).
     pub fn steps_of(&mut self, s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
+        }
         let mut st = [0i32; N_AXES];
         for a in 0..N_AXES {
-            st[a] = cached_steps(&mut self.steps_cache[a], mm[a], s.steps_per_mm[a]);
+            let c = &mut self.steps_cache[a];
+            if c.0 != mm[a].to_bits() {
+                *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
+            }
+            st[a] = c.1;
         }
         st
     }
 
-    /// The travel of axis `a` (X, Y, Z) in steps, rounded (cached).
-    fn travel_steps(&mut self, s: &Settings, a: usize) -> i32 {
-        cached_steps(&mut self.travel_cache[a], s.travel_mm[a], s.steps_per_mm[a])
+    /// The settings changed: the step conversions are made afresh.
+    pub fn settings_changed(&mut self) {
+        self.conv_fresh = false;
+    }
+
+    /// Empty the steps cache (an all-ones pattern is a NaN, never a
+    /// position) and convert the travel.
+    #[inline(never)]
+    fn refresh_conv(&mut self, s: &Settings) {
+        for c in self.steps_cache.iter_mut() {
+            c.0 = u32::MAX;
+        }
+        for a in 0..3 {
+            self.travel_steps[a] = to_steps(s.travel_mm[a], s.steps_per_mm[a]);
+        }
+        self.conv_fresh = true;
     }
 
     /// The programmed feed with the override applied, mm/min (cached: both
@@ -228,7 +269,7 @@ const AXIS_WORDS: [Word; 3] = [Word::X, Word::Y, Word::Z];
 
 /// True when a line carries any of X, Y, Z.
 fn has_axis_words(l: &Line) -> bool {
-    AXIS_WORDS.iter().any(|&w| l.word(w).is_some())
+    l.words.has_xyz()
 }
 
 /// True when the line's X, Y, Z words are the arguments of its M code
@@ -396,7 +437,7 @@ fn modal_words(m: &Machine, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
         g.wcs = w;
     }
     if let Some(f) = l.word(Word::F) {
-        g.feed = if g.inches { f * MM_PER_INCH } else { f };
+        g.feed = to_mm(g.inches, f);
     }
     if let Some(mo) = l.motion {
         g.motion = mo;
@@ -427,7 +468,7 @@ fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Opti
             let mut off = m.interp.g92_mm;
             for (a, &w) in AXIS_WORDS.iter().enumerate() {
                 if let Some(v) = l.word(w) {
-                    let v = if g.inches { v * MM_PER_INCH } else { v };
+                    let v = to_mm(g.inches, v);
                     // work = machine - wcs - g92 - tlo  =>  g92 = machine - wcs - tlo - v
                     let tlo = if a == 2 { g.tlo } else { 0.0 };
                     off[a] = m.interp.pos_mm[a] - m.interp.wcs_mm[g.wcs as usize][a] - tlo - v;
@@ -488,7 +529,7 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
     let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
     for (a, &w) in AXIS_WORDS.iter().enumerate() {
         if let Some(v) = l.word(w) {
-            let v = if g.inches { v * MM_PER_INCH } else { v };
+            let v = to_mm(g.inches, v);
             target[a] = if machine_coords {
                 v
             } else if g.incremental {
@@ -539,12 +580,12 @@ fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl
         Plane::Yz => (1, 2, 0),
     };
     let off_words = [Word::I, Word::J, Word::K];
-    let r = l.word(Word::R).map(|r| if g.inches { r * MM_PER_INCH } else { r });
+    let r = l.word(Word::R).map(|r| to_mm(g.inches, r));
     let mut centre_off = [0.0f32; 3];
     let mut any_off = false;
     for (a, &w) in off_words.iter().enumerate() {
         if let Some(v) = l.word(w) {
-            centre_off[a] = if g.inches { v * MM_PER_INCH } else { v };
+            centre_off[a] = to_mm(g.inches, v);
             any_off = true;
         }
     }
@@ -712,17 +753,6 @@ pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f
     Ok(())
 }
 
-/// `round(mm · steps_per_mm)`, through the cache entry `c` = (bits of mm,
-/// bits of steps/mm, steps): recomputed only when either changed.
-#[inline(never)]
-fn cached_steps(c: &mut (u32, u32, i32), mm: f32, steps_per_mm: f32) -> i32 {
-    let key = (mm.to_bits(), steps_per_mm.to_bits());
-    if (c.0, c.1) != key {
-        *c = (key.0, key.1, round_i32(mm * steps_per_mm));
-    }
-    c.2
-}
-
 /// `a == b` for finite floats (+0.0 equals −0.0), on the bit patterns: a
 /// soft-float compare costs ~50 cycles on the AVR.
 #[inline]
@@ -750,6 +780,12 @@ fn add_cold(a: f32, b: f32) -> f32 {
     a + b
 }
 
+/// `round(mm · steps_per_mm)`.
+#[inline(never)]
+fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
+    round_i32(mm * steps_per_mm)
+}
+
 /// Soft limits: the target, rounded to steps as it will be queued, must lie
 /// within 0..=travel (rounded to steps) on X, Y and Z. Integer compares on
 /// the steps [`Interp::steps_of`] caches for the move itself.
@@ -759,8 +795,7 @@ fn check_soft_limits(m: &mut Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
     }
     let st = m.interp.steps_of(&m.settings, t);
     for a in 0..3 {
-        let max = m.interp.travel_steps(&m.settings, a);
-        if st[a] < 0 || st[a] > max {
+        if st[a] < 0 || st[a] > m.interp.travel_steps[a] {
             return Err(Error::SoftLimit);
         }
     }
@@ -793,7 +828,7 @@ fn tool_index(v: f32) -> Option<usize> {
 fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
     let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;
     let p = l.word(Word::P).ok_or(Error::BadWord(F!("G10 needs P")))?;
-    let conv = |v: f32| if g.inches { v * MM_PER_INCH } else { v };
+    let conv = |v: f32| to_mm(g.inches, v);
     match round_i32(lv) {
         1 if lv == 1.0 => {
             let t = tool_index(p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool number 0-12")))?;

@@ -76,6 +76,18 @@ const _: () = assert!(size_of::<Block>() * BLOCK_BUFFER_LEN <= 1536);
 const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
 const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
 
+/// Entries of the square-root cache (a power of two). 8 entries hit 88 % of
+/// the benchmark's 0.1 mm circle (19 distinct lengths).
+const ROOTS_LEN: usize = 8;
+
+/// The square-root cache's entry for `n` ≥ 1: (n, √n, 1/√n). Not inlined:
+/// behind a cache test LLVM-AVR would compute it every time (`math::div_cold`).
+#[inline(never)]
+fn root_entry(n: u32) -> (u32, f32, f32) {
+    let r = sqrtf(n as f32);
+    (n, r, 1.0 / r)
+}
+
 /// Cosine beyond which a junction counts as a full reversal / a straight line.
 const JUNCTION_COS_LIMIT: f32 = 0.999_999;
 /// At a junction where an axis reverses, its speed steps from +v·|u_prev| to
@@ -181,6 +193,12 @@ struct AxisCache {
     /// (1 % above the largest steps/mm over `MAX_STEP_RATE_HZ`), s/mm: such a
     /// move may be planned later ([`Planner::accept_line`]).
     defer_min_inv_feed: f32,
+    /// X, Y and Z have the same steps/mm (bit for bit).
+    xyz_same_steps: bool,
+    /// Bit i: axis i has the acceleration and speed limits of axis 0 (bit
+    /// for bit). A move on such axes alone takes its limits from its
+    /// largest unit component: two multiplies instead of two per axis.
+    uniform: u8,
 }
 
 impl AxisCache {
@@ -190,6 +208,8 @@ impl AxisCache {
         inv_accel: [0.0; N_AXES],
         inv_max_speed: [0.0; N_AXES],
         defer_min_inv_feed: 0.0,
+        xyz_same_steps: false,
+        uniform: 0,
     };
 
     /// Recompute the derived values if `s` differs from what they came from.
@@ -221,6 +241,16 @@ impl AxisCache {
             }
         }
         self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
+        self.xyz_same_steps = s.steps_per_mm[1].to_bits() == s.steps_per_mm[0].to_bits()
+            && s.steps_per_mm[2].to_bits() == s.steps_per_mm[0].to_bits();
+        self.uniform = 0;
+        for i in 0..N_AXES {
+            if self.inv_accel[i].to_bits() == self.inv_accel[0].to_bits()
+                && self.inv_max_speed[i].to_bits() == self.inv_max_speed[0].to_bits()
+            {
+                self.uniform |= 1 << i;
+            }
+        }
         true
     }
 }
@@ -239,6 +269,9 @@ pub struct Planner {
     planned: u8,
     /// A re-plan may have changed the executing block's exit speed.
     exec_replanned: bool,
+    /// Blocks were queued since the last look-ahead pass (see
+    /// [`Planner::settle`]).
+    stale: bool,
     /// Axes (bits) whose last direction is known, for backlash.
     dir_known: u8,
     /// Last direction of each axis (bit set = negative), for backlash.
@@ -268,6 +301,9 @@ pub struct Planner {
     rate_cache: (u32, f32, f32),
     /// Bits of the last junction cap `L` (a speed²) and L².
     cap_sqr_cache: (u32, f32),
+    /// (n, √n, 1/√n) for path lengths in steps, squared (n ≥ 1), direct
+    /// mapped on n's low bits. RAM: 12 B each.
+    roots: [(u32, f32, f32); ROOTS_LEN],
     /// Settings-derived per-axis values.
     axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
@@ -305,6 +341,16 @@ const fn prev_index(i: u8) -> u8 {
 pub(crate) fn lt_nn(a: f32, b: f32) -> bool {
     debug_assert!(a.is_sign_positive() && b.is_sign_positive() && !a.is_nan() && !b.is_nan());
     a.to_bits() < b.to_bits()
+}
+
+/// The larger of two finite floats ≥ +0.0 (see `lt_nn`).
+#[inline(always)]
+fn max_nn(a: f32, b: f32) -> f32 {
+    if lt_nn(a, b) {
+        b
+    } else {
+        a
+    }
 }
 
 /// The smaller of two finite floats ≥ +0.0 (see `lt_nn`).
@@ -358,6 +404,7 @@ impl Planner {
             len: 0,
             planned: 0,
             exec_replanned: false,
+            stale: false,
             dir_known: 0,
             last_dir: 0,
             position: [0; N_AXES],
@@ -371,6 +418,7 @@ impl Planner {
             nominal_cache: (0, 0.0),
             rate_cache: (0, 0.0, 0.0),
             cap_sqr_cache: (0, 0.0),
+            roots: [(0, 0.0, 0.0); ROOTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,
             axis_fresh: false,
@@ -502,6 +550,9 @@ impl Planner {
         self.position = target;
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
+        if !may_defer {
+            self.recalculate();
+        }
         Ok(push)
     }
 
@@ -551,27 +602,59 @@ impl Planner {
             }
             if d != 0 {
                 moving |= 1 << i;
-                unit[i] = d as f32 * ax.mm_per_step[i];
                 if d < 0 {
                     b.direction_bits |= 1 << i;
                 }
             }
         }
-        // Path length: XYZ distance, or the E distance for an E-only move.
-        // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
-        let mut xyz_sqr = 0.0f32;
-        for i in 0..3 {
-            if moving & (1 << i) != 0 {
-                xyz_sqr += unit[i] * unit[i];
+        // Path length and unit vector.
+        let (mm, inv_mm);
+        if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
+            // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
+            // of short moves repeats a few dozen values of the integer Σd²,
+            // whose root and inverse root are cached: no square root and no
+            // division (~1 k cycles on the AVR) on a hit.
+            let mut sum_sqr = 0u32;
+            for i in 0..3 {
+                let n = b.steps[i] as u16 as u32;
+                sum_sqr += n * n;
+            }
+            let e = &mut self.roots[(sum_sqr & (ROOTS_LEN as u32 - 1)) as usize];
+            if e.0 != sum_sqr {
+                *e = root_entry(sum_sqr);
+            }
+            let (root, inv_root) = (e.1, e.2);
+            mm = root * ax.mm_per_step[0];
+            inv_mm = inv_root * s.steps_per_mm[0];
+            for i in 0..3 {
+                if moving & (1 << i) != 0 {
+                    unit[i] = delta[i] as f32 * inv_root;
+                }
+            }
+        } else {
+            // Path length: XYZ distance, or the E distance for an E-only move.
+            // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    unit[i] = delta[i] as f32 * ax.mm_per_step[i];
+                }
+            }
+            let mut xyz_sqr = 0.0f32;
+            for i in 0..3 {
+                if moving & (1 << i) != 0 {
+                    xyz_sqr += unit[i] * unit[i];
+                }
+            }
+            mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
+            inv_mm = 1.0 / mm;
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    unit[i] *= inv_mm;
+                }
             }
         }
-        let mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
-        let inv_mm = 1.0 / mm;
         let mut same_dir = prev_valid;
         for i in 0..N_AXES {
-            if moving & (1 << i) != 0 {
-                unit[i] *= inv_mm;
-            }
             same_dir &= unit[i].to_bits() == prev_unit[i].to_bits();
         }
 
@@ -581,6 +664,16 @@ impl Planner {
         // last one (a stream of collinear moves) reuses them.
         let (acceleration, t_axes) = if same_dir {
             (prev_accel, prev_t_axes)
+        } else if moving & !ax.uniform == 0 {
+            // Every moving axis has axis 0's limits: the largest |u| decides
+            // (exactly: rounding keeps the order of the products).
+            let mut u_max = 0.0f32;
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    u_max = max_nn(u_max, abs_f32(unit[i]));
+                }
+            }
+            (1.0 / (u_max * ax.inv_accel[0]), u_max * ax.inv_max_speed[0])
         } else {
             let mut inv_accel = 0.0f32; // s²/mm along the path
             let mut t_axes = 0.0f32; // s/mm along the path
@@ -701,13 +794,28 @@ impl Planner {
 
         self.head = next_index(self.head);
         self.len += 1;
-        self.recalculate();
+        self.stale = true;
         (capped, floored)
+    }
+
+    /// Run the look-ahead if blocks were queued since the last pass and it
+    /// could change the executing block's exit speed (`planned` is the
+    /// executing block). Otherwise the blocks up to `planned`, the next one
+    /// included, are final, and the newer ones wait: their entry speeds are
+    /// those of a stop at the end of the ring as it was, never too fast, and
+    /// one pass later covers every block queued meanwhile. Prep calls this
+    /// before every segment; with a stream of short moves it saves most
+    /// passes (each visits every block of the final deceleration ramp).
+    pub fn settle(&mut self) {
+        if self.stale && self.planned == self.tail {
+            self.recalculate();
+        }
     }
 
     /// grbl's `planner_recalculate`: backward pass from the newest block to
     /// `planned`, then forward pass from `planned` to the newest block.
     fn recalculate(&mut self) {
+        self.stale = false;
         let mut idx = prev_index(self.head);
         if idx == self.planned {
             return;
@@ -886,6 +994,7 @@ impl Planner {
     /// position. Backlash directions become unknown.
     pub fn clear(&mut self) {
         self.pending = None;
+        self.stale = false;
         self.tail = 0;
         self.head = 0;
         self.len = 0;

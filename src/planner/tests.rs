@@ -497,7 +497,7 @@ fn a_block_between_slower_ones_is_a_trapezoid_from_entry_to_feed_to_exit() {
 }
 
 #[test]
-fn an_accepted_feed_move_is_planned_on_flush_exactly_as_push_line_plans_it() {
+fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_plans_it() {
     let st = s();
     let (mut a, mut b) = (Planner::new(), Planner::new());
     for k in 1..=12i32 {
@@ -508,6 +508,8 @@ fn an_accepted_feed_move_is_planned_on_flush_exactly_as_push_line_plans_it() {
         assert_eq!((b.len(), b.position()), (a.len(), a.position()));
     }
     b.flush(&st);
+    // Accepted moves wait for the look-ahead until prep settles the ring.
+    b.settle();
     assert_eq!(blocks(&a), blocks(&b));
     // Rapids and E moves are planned at once (they may be rate-capped).
     b.accept_line([0, 0, 0, 0], 1.0, true, &st).unwrap();
@@ -516,4 +518,19 @@ fn an_accepted_feed_move_is_planned_on_flush_exactly_as_push_line_plans_it() {
     assert_eq!(blocks(&b).len(), 14);
     b.clear();
     assert!(b.is_empty());
+}
+
+#[test]
+fn a_move_at_one_steps_per_mm_gets_its_length_from_the_cached_root() {
+    // X, Y, Z share 100 steps/mm: lengths come from √(Σd²) (cached).
+    let st = s();
+    let mut p = Planner::new();
+    let mut at = [0i32; 4];
+    for &(dx, dy, dz) in &[(10, 0, 0), (8, 6, 0), (6, 8, 0), (10, 0, 0), (3, 4, 12), (-7, 9, 0)] {
+        at = [at[0] + dx, at[1] + dy, at[2] + dz, 0];
+        p.push_line(at, 3000.0, false, &st).unwrap();
+        let b = *p.block(p.len() - 1).unwrap();
+        let want = (((dx * dx + dy * dy + dz * dz) as f64).sqrt() / 100.0) as f32;
+        assert_close(b.millimeters, want, 1e-6);
+    }
 }

@@ -305,6 +305,8 @@ impl Prep {
             if self.held {
                 return None;
             }
+            // The executing block's exit speed must be final before it is used.
+            pl.settle();
             if self.replan_pending {
                 self.replan_pending = false;
                 if self.active {
