@@ -74,15 +74,27 @@ impl<I: I2c> Sh1106<I> {
     /// Write `data` to `page` (0..8) from visible column `x` on.
     /// At most 32 bytes per call (one UI slice).
     pub fn write(&mut self, page: u8, x: u8, data: &[u8]) -> Result<(), I::Error> {
-        let col = x + COLUMN_OFFSET;
-        let cmds = [CONTROL_COMMANDS, 0xB0 | (page & 7), col & 0x0F, 0x10 | (col >> 4)];
-        self.i2c.write(ADDRESS, &cmds)?;
-        let mut buf = [0u8; 33];
-        let n = data.len().min(32);
-        buf[0] = CONTROL_DATA;
-        buf[1..=n].copy_from_slice(&data[..n]);
+        self.set_position(page, x)?;
+        let (buf, n) = data_frame(data);
         self.i2c.write(ADDRESS, &buf[..=n])
     }
+
+    /// Point the controller at `page` (0..8), visible column `x`.
+    fn set_position(&mut self, page: u8, x: u8) -> Result<(), I::Error> {
+        let col = x + COLUMN_OFFSET;
+        let cmds = [CONTROL_COMMANDS, 0xB0 | (page & 7), col & 0x0F, 0x10 | (col >> 4)];
+        self.i2c.write(ADDRESS, &cmds)
+    }
+}
+
+/// The data transfer of one slice: the data control byte and up to 32
+/// bytes; returns the frame and its data length.
+fn data_frame(data: &[u8]) -> ([u8; 33], usize) {
+    let mut buf = [0u8; 33];
+    let n = data.len().min(32);
+    buf[0] = CONTROL_DATA;
+    buf[1..=n].copy_from_slice(&data[..n]);
+    (buf, n)
 }
 
 impl Sh1106<super::twi::Twi> {
@@ -91,13 +103,8 @@ impl Sh1106<super::twi::Twi> {
     /// commands (~0.1 ms) block. Call when [`Sh1106::busy`] is false; a
     /// failure of the background part shows in [`Sh1106::take_failed`].
     pub fn write_async(&mut self, page: u8, x: u8, data: &[u8]) -> Result<(), super::twi::Error> {
-        let col = x + COLUMN_OFFSET;
-        let cmds = [CONTROL_COMMANDS, 0xB0 | (page & 7), col & 0x0F, 0x10 | (col >> 4)];
-        self.i2c.write(ADDRESS, &cmds)?;
-        let mut buf = [0u8; 33];
-        let n = data.len().min(32);
-        buf[0] = CONTROL_DATA;
-        buf[1..=n].copy_from_slice(&data[..n]);
+        self.set_position(page, x)?;
+        let (buf, n) = data_frame(data);
         self.i2c.write_async(ADDRESS, &buf[..=n])
     }
 
