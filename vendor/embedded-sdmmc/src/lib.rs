@@ -73,6 +73,8 @@
 
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
+// MillFW patch: the AVR CRC loop in `sdcard/spi.rs` is inline assembly.
+#![cfg_attr(target_arch = "avr", feature(asm_experimental_arch))]
 
 // ****************************************************************************
 //
