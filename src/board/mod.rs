@@ -8,11 +8,14 @@
 //! - the millisecond clock (Timer0) and spindle PWM (Timer2) in this file;
 //! - [`twi`] and [`spi`]: bus masters implementing the `embedded-hal` 1.0 traits;
 //! - [`oled`]: the SH1106 display on the TWI (its command set, page writes);
-//! - [`eeprom`] and [`wdt`].
+//! - [`eeprom`] and [`wdt`];
+//! - `mem`: faster `memcpy` and `memset` than avr-libc's (not registers,
+//!   but AVR-only assembly like the rest).
 //!
 //! Everything above this layer (the `mill` library) sees values, never pins.
 
 pub mod eeprom;
+mod mem;
 pub mod oled;
 pub mod pins;
 pub mod serial;
