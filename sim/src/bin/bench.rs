@@ -55,6 +55,11 @@ fn parse_args() -> Result<Args, String> {
 #[derive(Default, serde::Serialize)]
 struct StreamResult {
     flow: String,
+    /// Mid-job rate: segments per second while the middle half of the job
+    /// (by time) runs, from the path length stepped (F3000 = 500/s).
+    sustained_per_s: f64,
+    /// The whole job: 2,000 / job time (ramps included, so below the
+    /// sustained rate even for a perfect run: the ideal job gives 494/s).
     segments_per_s: f64,
     job_s: f64,
     ideal_s: f64,
@@ -265,6 +270,7 @@ impl Bench {
         let (feed, accel) = (50.0, 1000.0);
         self.r.streams.push(StreamResult {
             flow: flow_name.into(),
+            sustained_per_s: mean_path_speed(&vm, 100.0, 0.25, 0.75) / 0.1,
             segments_per_s: 2000.0 / job,
             job_s: job,
             ideal_s: len / feed + feed / accel,
@@ -358,18 +364,12 @@ fn cruise_rate(t: &[u64]) -> f64 {
     (b - a) as f64 * F_CPU / (t[b] - t[a]) as f64
 }
 
-/// Slowest path speed over `bin_s` bins, skipping `skip_s` at both ends, mm/s.
-fn min_path_speed(vm: &Vm, steps_per_mm: f64, bin_s: f64, skip_s: f64) -> f64 {
-    let tr = vm.recorder().trace();
-    let Some((t0, t1)) = vm.recorder().step_span() else { return 0.0 };
+/// XY path stepped in each of `n` bins of `bin_s` from cycle `lo`, mm
+/// (per bin, the steps each axis made, combined as a straight line).
+fn path_bins(vm: &Vm, steps_per_mm: f64, lo: u64, n: usize, bin_s: f64) -> Vec<f64> {
     let bin = (bin_s * F_CPU) as u64;
-    let (lo, hi) = (t0 + (skip_s * F_CPU) as u64, t1.saturating_sub((skip_s * F_CPU) as u64));
-    if hi <= lo + bin {
-        return 0.0;
-    }
-    let n = ((hi - lo) / bin) as usize;
     let mut d = vec![[0i64; 2]; n];
-    for t in tr {
+    for t in vm.recorder().trace() {
         if t.cycle < lo || t.cycle >= lo + n as u64 * bin {
             continue;
         }
@@ -380,7 +380,31 @@ fn min_path_speed(vm: &Vm, steps_per_mm: f64, bin_s: f64, skip_s: f64) -> f64 {
             _ => {}
         }
     }
-    d.iter().map(|c| ((c[0] * c[0] + c[1] * c[1]) as f64).sqrt() / steps_per_mm / bin_s).fold(f64::INFINITY, f64::min)
+    d.iter().map(|c| ((c[0] * c[0] + c[1] * c[1]) as f64).sqrt() / steps_per_mm).collect()
+}
+
+/// Slowest XY path speed over `bin_s` bins, mm/s, leaving out `skip_s` at
+/// each end of the recorded steps (the ramps).
+fn min_path_speed(vm: &Vm, steps_per_mm: f64, bin_s: f64, skip_s: f64) -> f64 {
+    let Some((t0, t1)) = vm.recorder().step_span() else { return 0.0 };
+    let bin = (bin_s * F_CPU) as u64;
+    let (lo, hi) = (t0 + (skip_s * F_CPU) as u64, t1.saturating_sub((skip_s * F_CPU) as u64));
+    if hi <= lo + bin {
+        return 0.0;
+    }
+    let n = ((hi - lo) / bin) as usize;
+    path_bins(vm, steps_per_mm, lo, n, bin_s).into_iter().map(|mm| mm / bin_s).fold(f64::INFINITY, f64::min)
+}
+
+/// Mean XY path speed, mm/s, between the fractions `from` and `to` of the
+/// recorded step span (time).
+fn mean_path_speed(vm: &Vm, steps_per_mm: f64, from: f64, to: f64) -> f64 {
+    let Some((t0, t1)) = vm.recorder().step_span() else { return 0.0 };
+    let span = (t1 - t0) as f64;
+    let bin_s = 0.010;
+    let lo = t0 + (from * span) as u64;
+    let n = (((to - from) * span) / (bin_s * F_CPU)).max(1.0) as usize;
+    path_bins(vm, steps_per_mm, lo, n, bin_s).iter().sum::<f64>() / (n as f64 * bin_s)
 }
 
 /// Largest measured |acceleration| over the axes, mm/s², and its axis name.
@@ -480,9 +504,9 @@ fn main() -> ExitCode {
     for st in &r.streams {
         row(
             &if st.flow == "from SD" { "the same 0.1 mm job from SD".to_string() } else { format!("0.1 mm G1 stream, F3000, 250000 bd, {}", st.flow) },
-            ">= 500 segments/s",
-            format!("{:.0} segments/s", st.segments_per_s),
-            Some(st.segments_per_s >= 500.0),
+            ">= 500 segments/s sustained",
+            format!("{:.0} segments/s mid-job, {:.0} over the whole job", st.sustained_per_s, st.segments_per_s),
+            Some(st.sustained_per_s.round() >= 500.0),
         );
         let ratio = if st.ideal_s > 0.0 { st.job_s / st.ideal_s } else { 0.0 };
         row(
