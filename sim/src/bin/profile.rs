@@ -15,6 +15,9 @@
 //! `--sd` runs the job from a FAT16 card (M23/M24) instead of the serial
 //! line; `--trace FROM:N` then starts FROM ms after M24 and covers N lines
 //! (counted as entries into `Planner::queue_block`).
+//! `--hist NAME` (with `--trace`) also prints the traced cycles per
+//! instruction address inside the functions whose name contains NAME, to
+//! read against `avr-objdump -d`.
 
 use sim::host::prepare_gcode;
 use sim::{CardKind, FatKind, SdCard, SdImage, Vm, VmConfig};
@@ -63,6 +66,7 @@ fn main() {
     let mut trace: Option<(usize, usize)> = None;
     let mut job: Option<PathBuf> = None;
     let mut sd = false;
+    let mut hist_name: Option<String> = None;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -70,6 +74,7 @@ fn main() {
             "--every" => every = it.next().expect("--every N").parse().expect("number"),
             "--count" => window = it.next().expect("--count BYTES").parse().expect("number"),
             "--sd" => sd = true,
+            "--hist" => hist_name = Some(it.next().expect("--hist NAME")),
             "--trace" => {
                 let v = it.next().expect("--trace FROM:N");
                 let (a, b) = v.split_once(':').expect("FROM:N");
@@ -163,6 +168,8 @@ fn main() {
     let mut tincl: HashMap<usize, (u64, u64)> = HashMap::new();
     let mut tself: HashMap<Option<usize>, u64> = HashMap::new();
     let mut prev_pc_fn: Option<usize> = lookup(vm.pc());
+    let mut prev_pc = vm.pc();
+    let mut hist: HashMap<u32, u64> = HashMap::new();
     let mut callers: HashMap<String, (u64, u64)> = HashMap::new();
     let mut oks = 0usize;
     let mut traced_cycles = 0u64;
@@ -200,7 +207,13 @@ fn main() {
                 // Self time: the cycles of the instruction just run, charged
                 // to the function the PC was in before it ran.
                 *tself.entry(prev_pc_fn).or_default() += c - c0;
+                if let (Some(h), Some(k)) = (&hist_name, prev_pc_fn) {
+                    if syms[k].2.contains(h.as_str()) {
+                        *hist.entry(prev_pc).or_default() += c - c0;
+                    }
+                }
                 prev_pc_fn = lookup(pc);
+                prev_pc = pc;
                 while let Some(&(k, entry, fsp)) = tstack.last() {
                     if sp > fsp {
                         tstack.pop();
@@ -296,6 +309,14 @@ fn main() {
         for (k, c) in v.iter().take(70) {
             let name = match k { Some(k) => syms[*k].2.clone(), None => "?".to_string() };
             println!("{:>12} {:>7.1}%  {}", c / n as u64, 100.0 * *c as f64 / traced_cycles as f64, name);
+        }
+        if hist_name.is_some() {
+            let mut v: Vec<_> = hist.into_iter().collect();
+            v.sort();
+            println!("-- cycles per line by instruction address (--hist) --");
+            for (pc, c) in v {
+                println!("{:>8x} {:>8.1}", pc, c as f64 / n as f64);
+            }
         }
         let mut v: Vec<_> = callers.into_iter().collect();
         v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
