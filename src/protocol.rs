@@ -1,7 +1,7 @@
 //! Host line protocol (SPEC §4): bytes in, checked command text out.
 //!
 //! ```text
-//!  USART0 RX ISR ── EstopScanner (M112), is_realtime (? ! ~ taken out)
+//!  USART0 RX ISR ── MCodeScanner (M112, M108), is_realtime (? ! ~ taken out)
 //!       │ 256-byte ring
 //!       ▼
 //!  main loop ─► LineAssembler (lines ≤ MAX_LINE_LEN, garbage and overruns flagged)
@@ -97,6 +97,10 @@ pub const RX_GAP: u8 = 0xFF;
 /// The RX ISR's side of [`RX_GAP`]: stores received bytes into a ring and,
 /// after a loss, a gap marker before the next byte that fits. One byte of
 /// state; the ring is any `enqueue` that can refuse.
+///
+/// With no gap pending, storing a byte other than [`RX_GAP`] is just
+/// `enqueue(b)`, and only a refusal changes the state: the RX ISR's fast
+/// path stores such bytes itself and leaves everything else to `store`.
 #[derive(Default)]
 pub struct RxStore {
     gap: bool,
@@ -105,6 +109,11 @@ pub struct RxStore {
 impl RxStore {
     pub const fn new() -> Self {
         RxStore { gap: false }
+    }
+
+    /// True while a gap marker waits to be stored.
+    pub fn gap_pending(&self) -> bool {
+        self.gap
     }
 
     /// Bytes were lost before the next one (the UART's data overrun flag).
@@ -406,72 +415,95 @@ fn m110_param(cmd: &[u8]) -> Option<i32> {
     parse_i32(rest.get(n + 1..)?).map(|(v, _)| v)
 }
 
-/// Watches the raw RX stream for one M-code inside the ISR (SPEC §4: e-stop
-/// acts as the bytes arrive, not when the line is parsed). One byte of state,
-/// O(1) per byte; the code's digits are const parameters, so they cost no RAM.
+/// What [`MCodeScanner::feed`] spotted on the wire.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Urgent {
+    /// Nothing: the usual answer.
+    Nothing,
+    /// `M112`, emergency stop.
+    Estop,
+    /// `M108`, continue after M0/M1 (Marlin's emergency parser takes it too).
+    Continue,
+}
+
+/// Watches the raw RX stream inside the ISR for the two M-codes that act as
+/// the bytes arrive, not when the line is parsed (SPEC §4): `M112` and
+/// `M108`. One byte of state, O(1) per byte; the caller keeps the previous
+/// byte, which only matters before an `M`.
 ///
-/// Triggers on `M<abc>` (any case, no blanks inside) that does not follow a
-/// letter, once the next byte shows it is not a longer number: for M112,
+/// Triggers on `M112` / `M108` (any case, no blanks inside) that does not
+/// follow a letter, once the next byte shows it is not a longer number:
 /// `M112\n`, `N7 M112*40`, `G0M112 ` trigger; `M1120`, `M11 2`, `AM112.GCO`
 /// do not. It does not know about comments: `(M112)` triggers, which errs on
 /// the safe side.
+///
+/// Most bytes neither start a match (no `M`) nor continue one, and
+/// [`MCodeScanner::ignores`] says so with one compare: the RX ISR's fast
+/// path checks that itself and skips the scanner for those bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct MCodeScanner<const A: u8, const B: u8, const C: u8> {
-    /// Low 3 bits: how many bytes of `M<abc>` matched (0..=4).
-    /// `PREV_LETTER`: the previous byte was a letter.
+pub struct MCodeScanner {
+    /// How much of `M112` / `M108` matched: one of the `S_*` states.
     state: u8,
 }
 
-/// `M112`, emergency stop.
-pub type EstopScanner = MCodeScanner<b'1', b'1', b'2'>;
-/// `M108`, continue after M0/M1 (Marlin's emergency parser takes it too).
-pub type ContinueScanner = MCodeScanner<b'1', b'0', b'8'>;
+/// [`MCodeScanner`] states: the prefix matched so far (0: none).
+const S_M: u8 = 1;
+const S_M1: u8 = 2;
+const S_M11: u8 = 3;
+const S_M112: u8 = 4;
+const S_M10: u8 = 5;
+const S_M108: u8 = 6;
 
-const PREV_LETTER: u8 = 0x80;
-const MATCHED_MASK: u8 = 0x07;
-
-impl<const A: u8, const B: u8, const C: u8> MCodeScanner<A, B, C> {
+impl MCodeScanner {
     /// A scanner that has seen nothing.
     pub const fn new() -> Self {
         MCodeScanner { state: 0 }
     }
 
-    /// Feed one received byte; true when it completes the token.
-    #[inline]
-    pub fn feed(&mut self, b: u8) -> bool {
-        let up = b.to_ascii_uppercase();
-        let matched = self.state & MATCHED_MASK;
-        let letter = if up.is_ascii_uppercase() {
-            PREV_LETTER
-        } else {
-            0
-        };
-        // Most bytes: nothing matched and no `M` to start on (the full
-        // path below gives the same; this one is ~15 cycles in the ISR).
-        if matched == 0 && up != b'M' {
-            self.state = letter;
-            return false;
+    /// True when nothing is matched.
+    pub fn is_idle(&self) -> bool {
+        self.state == 0
+    }
+
+    /// True when feeding `b` changes nothing and finds nothing: nothing is
+    /// matched and `b` is no `M` or `m`.
+    #[inline(always)]
+    pub fn ignores(&self, b: u8) -> bool {
+        self.state == 0 && b | 0x20 != b'm'
+    }
+
+    /// Feed one received byte `b`; `prev` is the byte fed before it (any
+    /// non-letter at the start). Says which code `b` completes, if any.
+    #[inline(always)]
+    pub fn feed(&mut self, prev: u8, b: u8) -> Urgent {
+        if self.ignores(b) {
+            return Urgent::Nothing;
         }
-        let prev_letter = self.state & PREV_LETTER != 0;
-        let mut fire = false;
-        let next = match (matched, up) {
-            (4, b'0'..=b'9') => 0,
-            (4, _) => {
-                fire = true;
+        let mut found = Urgent::Nothing;
+        let next = match (self.state, b) {
+            (S_M112 | S_M108, b'0'..=b'9') => 0,
+            (S_M112, _) => {
+                found = Urgent::Estop;
                 0
             }
-            (1, d) if d == A => 2,
-            (2, d) if d == B => 3,
-            (3, d) if d == C => 4,
+            (S_M108, _) => {
+                found = Urgent::Continue;
+                0
+            }
+            (S_M, b'1') => S_M1,
+            (S_M1, b'1') => S_M11,
+            (S_M1, b'0') => S_M10,
+            (S_M11, b'2') => S_M112,
+            (S_M10, b'8') => S_M108,
             _ => 0,
         };
-        let next = if next == 0 && up == b'M' && !prev_letter {
-            1
+        // Only a non-digit ends a match, so an `M` may start the next one.
+        self.state = if b | 0x20 == b'm' && !prev.is_ascii_alphabetic() {
+            S_M
         } else {
             next
         };
-        self.state = next | letter;
-        fire
+        found
     }
 }
 
@@ -820,9 +852,24 @@ mod tests {
         assert_eq!(ProtoError::Checksum.message(), "checksum mismatch");
     }
 
+    /// (M112s, M108s) that the scanner spots in `stream`.
+    fn urgent_fires(stream: &[u8]) -> (usize, usize) {
+        let mut s = MCodeScanner::new();
+        let (mut estops, mut continues) = (0, 0);
+        let mut prev = 0;
+        for &b in stream {
+            match s.feed(prev, b) {
+                Urgent::Estop => estops += 1,
+                Urgent::Continue => continues += 1,
+                Urgent::Nothing => {}
+            }
+            prev = b;
+        }
+        (estops, continues)
+    }
+
     fn estop_fires(stream: &[u8]) -> usize {
-        let mut s = EstopScanner::new();
-        stream.iter().filter(|&&b| s.feed(b)).count()
+        urgent_fires(stream).0
     }
 
     #[test]
@@ -835,6 +882,7 @@ mod tests {
         assert_eq!(estop_fires(b"MM112\n"), 0);
         assert_eq!(estop_fires(b"M11M112\n"), 1);
         assert_eq!(estop_fires(b"M112\nM112\n"), 2);
+        assert_eq!(estop_fires(b"M112M112 "), 2, "the M that ends one starts the next");
     }
 
     #[test]
@@ -844,12 +892,77 @@ mod tests {
         assert_eq!(estop_fires(b"M 112\n"), 0);
         assert_eq!(estop_fires(b"M111\n"), 0);
         assert_eq!(estop_fires(b"M23 AM112.GCO\n"), 0);
+        assert_eq!(estop_fires(b"zm112\n"), 0, "a lower-case letter before the M counts too");
         assert_eq!(estop_fires(b"M112"), 0, "needs the next byte to decide");
     }
 
     #[test]
-    fn estop_scanner_is_one_byte() {
-        assert_eq!(core::mem::size_of::<EstopScanner>(), 1);
+    fn m_code_scanner_is_one_byte() {
+        assert_eq!(core::mem::size_of::<MCodeScanner>(), 1);
+    }
+
+    /// The RX ISR's fast path skips the scanner for the bytes it ignores:
+    /// in every state, after any byte, those must change nothing.
+    #[test]
+    fn a_byte_the_scanner_ignores_changes_nothing() {
+        let mut skipped = 0;
+        for state in 0..=S_M108 {
+            for prev in 0..=255u8 {
+                for b in 0..=255u8 {
+                    let mut s = MCodeScanner { state };
+                    if s.ignores(b) {
+                        assert_eq!(s.feed(prev, b), Urgent::Nothing);
+                        assert_eq!(s.state, state);
+                        skipped += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(skipped, 254 * 256, "all but M and m when idle, nothing otherwise");
+    }
+
+    /// What the scanner must answer for the newest byte of `hist` (oldest
+    /// first): the code `M<abc>` (any case) not after a letter, then a
+    /// non-digit, spelled out from the rule instead of a state machine.
+    fn urgent_reference(hist: &[u8]) -> Urgent {
+        let n = hist.len();
+        if n < 5 || hist[n - 1].is_ascii_digit() {
+            return Urgent::Nothing;
+        }
+        if n > 5 && hist[n - 6].is_ascii_alphabetic() {
+            return Urgent::Nothing;
+        }
+        match hist[n - 5..n - 1].to_ascii_uppercase().as_slice() {
+            b"M112" => Urgent::Estop,
+            b"M108" => Urgent::Continue,
+            _ => Urgent::Nothing,
+        }
+    }
+
+    /// Random streams of near misses and hits (pieces of both codes in
+    /// both cases, letters, digits, blanks and a few others) agree with
+    /// [`urgent_reference`] byte for byte.
+    #[test]
+    fn the_m_code_scanner_matches_the_rule_on_random_streams() {
+        const PIECES: &[&[u8]] = &[
+            b"M112", b"m108", b"M11", b"M10", b"M1", b"M", b"m", b"1", b"0", b"2", b"8", b"9", b" ",
+            b"\n", b"A", b"z", b"G", b"(", b"*", b"\xff", b"\x00",
+        ];
+        let mut rng = XorShift(0xC0DE);
+        let mut s = MCodeScanner::new();
+        let mut hist: Vec<u8> = Vec::new();
+        let (mut estops, mut continues) = (0, 0);
+        for _ in 0..100_000 {
+            for &b in PIECES[rng.next() as usize % PIECES.len()] {
+                let got = s.feed(hist.last().copied().unwrap_or(0), b);
+                hist.push(b);
+                let tail = &hist[hist.len().saturating_sub(8)..];
+                assert_eq!(got, urgent_reference(&hist), "after {:?}", String::from_utf8_lossy(tail));
+                estops += (got == Urgent::Estop) as u32;
+                continues += (got == Urgent::Continue) as u32;
+            }
+        }
+        assert!(estops > 1000 && continues > 1000, "{estops} M112, {continues} M108");
     }
 
     /// A model of the serial RX path: a 255-byte ring filled by the ISR's
@@ -937,18 +1050,10 @@ mod tests {
 
     #[test]
     fn m108_is_caught_like_m112_and_neither_fires_for_the_other() {
-        let count = |stream: &[u8]| {
-            let (mut e, mut c) = (EstopScanner::new(), ContinueScanner::new());
-            let (mut ne, mut nc) = (0, 0);
-            for &b in stream {
-                ne += e.feed(b) as u32;
-                nc += c.feed(b) as u32;
-            }
-            (ne, nc)
-        };
-        assert_eq!(count(b"M108\n"), (0, 1));
-        assert_eq!(count(b"N3 m108*55\n"), (0, 1));
-        assert_eq!(count(b"M1080\nM10 8\nAM108\n"), (0, 0));
-        assert_eq!(count(b"M112\nM108\nM112 "), (2, 1));
+        assert_eq!(urgent_fires(b"M108\n"), (0, 1));
+        assert_eq!(urgent_fires(b"N3 m108*55\n"), (0, 1));
+        assert_eq!(urgent_fires(b"M1080\nM10 8\nAM108\n"), (0, 0));
+        assert_eq!(urgent_fires(b"M112\nM108\nM112 "), (2, 1));
+        assert_eq!(urgent_fires(b"M118\nM102\nM10M112;M11M108;"), (1, 1));
     }
 }

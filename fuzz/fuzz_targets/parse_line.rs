@@ -1,7 +1,7 @@
 //! Fuzz target: arbitrary bytes through the host input path (SPEC §10).
 //!
 //! ```text
-//!  bytes ─► EstopScanner (checked against a reference)
+//!  bytes ─► MCodeScanner (M112, M108; checked against a reference)
 //!        ─► LineAssembler ─► LineChecker ─► gcode::parse
 //! ```
 //!
@@ -16,7 +16,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use mill::gcode::{self, ParseError, ParseErrorKind, Word};
-use mill::protocol::{Assembled, EstopScanner, LineAssembler, LineChecker, MAX_LINE_LEN};
+use mill::protocol::{Assembled, LineAssembler, LineChecker, MCodeScanner, Urgent, MAX_LINE_LEN};
 
 /// Check the parser's promises for the text `src`.
 fn check_parse(src: &[u8]) {
@@ -49,17 +49,26 @@ fn check_parse(src: &[u8]) {
     }
 }
 
-/// Reference for EstopScanner: `M112` (any case) not after a letter, then a
-/// non-digit, ending at the newest byte of `hist` (oldest first).
-fn estop_reference(hist: &[u8]) -> bool {
+/// Reference for MCodeScanner: `M112` or `M108` (any case) not after a
+/// letter, then a non-digit, ending at the newest byte of `hist` (oldest
+/// first).
+fn urgent_reference(hist: &[u8]) -> Urgent {
     let n = hist.len();
     if n < 5 {
-        return false;
+        return Urgent::Nothing;
     }
     let tok = &hist[n - 5..n - 1];
     let after = hist[n - 1];
     let before_ok = n == 5 || !hist[n - 6].is_ascii_alphabetic();
-    tok.eq_ignore_ascii_case(b"M112") && !after.is_ascii_digit() && before_ok
+    if after.is_ascii_digit() || !before_ok {
+        Urgent::Nothing
+    } else if tok.eq_ignore_ascii_case(b"M112") {
+        Urgent::Estop
+    } else if tok.eq_ignore_ascii_case(b"M108") {
+        Urgent::Continue
+    } else {
+        Urgent::Nothing
+    }
 }
 
 fuzz_target!(|data: &[u8]| {
@@ -68,18 +77,19 @@ fuzz_target!(|data: &[u8]| {
     let mut asm = LineAssembler::new();
     let mut checker = LineChecker::new();
     let mut numbered = LineChecker::new();
-    let mut estop = EstopScanner::new();
+    let mut scanner = MCodeScanner::new();
     let mut hist: Vec<u8> = Vec::new();
 
     for &b in data {
+        let prev = hist.last().copied().unwrap_or(0);
         hist.push(b);
         if hist.len() > 6 {
             hist.remove(0);
         }
         assert_eq!(
-            estop.feed(b),
-            estop_reference(&hist),
-            "estop after {hist:?}"
+            scanner.feed(prev, b),
+            urgent_reference(&hist),
+            "M-code scanner after {hist:?}"
         );
 
         if b == 0xFF {

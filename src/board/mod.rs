@@ -44,6 +44,17 @@ pub mod realtime {
 /// Pending realtime requests (bits of [`realtime`]).
 pub static REALTIME: AtomicU8 = AtomicU8::new(0);
 
+/// Set [`realtime`] request bits from inside an ISR: a plain read-modify-write,
+/// since interrupts are already off there (`fetch_or` would bracket it with
+/// `cli` and a restore of SREG).
+#[inline(always)]
+pub(crate) fn raise_in_isr(bits: u8) {
+    let p = REALTIME.as_ptr();
+    // SAFETY: interrupts are off inside an ISR and ISRs do not nest, so
+    // nothing can run between the load and the store.
+    unsafe { p.write_volatile(p.read_volatile() | bits) };
+}
+
 /// Take and clear all pending realtime requests.
 pub fn take_realtime() -> u8 {
     REALTIME.swap(0, Ordering::AcqRel)
@@ -82,7 +93,7 @@ pub(crate) fn emergency_stop_in_isr() {
         let p = pins::SPINDLE_PWM;
         core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
     }
-    REALTIME.fetch_or(realtime::ESTOP, Ordering::AcqRel);
+    raise_in_isr(realtime::ESTOP);
 }
 
 // ---- Steppers enable -----------------------------------------------------
