@@ -430,6 +430,53 @@ fn a_corrupt_fat_chain_stops_the_job_cleanly_with_the_spindle_off() {
     assert!(vm.resets().len() == 1, "no watchdog reset");
 }
 
+/// Move cluster `k` of file `name` on `card` to a free cluster 300 past the
+/// file's last one (in another FAT block), relinking the first FAT: the
+/// chain then leaves the file's run and comes back to it.
+fn move_cluster(card: &mut SdCard, name: &str, k: usize) {
+    let l = sim::sdimage::locate(card.image(), name).unwrap();
+    let n = l.fat_entry_len;
+    let img = card.image_mut();
+    let read = |img: &[u8], at: usize| (0..n).rev().fold(0, |v, i| v << 8 | img[at + i] as usize);
+    let write = |img: &mut [u8], at: usize, v: usize| (0..n).for_each(|i| img[at + i] = (v >> (8 * i)) as u8);
+    // Entry i holds cluster i + 1: that gives where the FAT starts.
+    let fat_start = l.fat_entry_offsets[1] - read(img, l.fat_entry_offsets[0]) * n;
+    let cluster = |i: usize| (l.fat_entry_offsets[i] - fat_start) / n;
+    let cluster_bytes = l.cluster_offsets[1] - l.cluster_offsets[0];
+    let to = cluster(l.fat_entry_offsets.len() - 1) + 300;
+    let to_data = l.cluster_offsets[0] + (to - cluster(0)) * cluster_bytes;
+    img.copy_within(l.cluster_offsets[k]..l.cluster_offsets[k] + cluster_bytes, to_data);
+    let after = read(img, l.fat_entry_offsets[k]);
+    write(img, fat_start + to * n, after);
+    write(img, l.fat_entry_offsets[k - 1], to);
+    write(img, l.fat_entry_offsets[k], 0);
+}
+
+#[test]
+fn a_fragmented_file_on_fat16_and_fat32_runs_like_the_serial_stream() {
+    // Short moves over 5 clusters; the third cluster is moved away, so the
+    // FAT walk (and its run cache) follows c1 -> far -> c3 and on.
+    let job: String = (0..110).map(|i| format!("G1 X{:.1} Y{:.1} F3000\n", 2.0 + (i % 7) as f32 * 0.3, 2.0 + (i % 5) as f32 * 0.4)).collect();
+    let mut serial = boot_unlocked();
+    let lines: Vec<&str> = job.lines().collect();
+    serial.stream(&lines, StreamOptions::new(Flow::CharCount(120))).unwrap();
+    ok(&mut serial, "M400");
+    for kind in [FatKind::Fat16, FatKind::Fat32] {
+        let mut c = card(&[("FRAG.NC", job.as_bytes())], kind);
+        assert!(sim::sdimage::locate(c.image(), "FRAG.NC").unwrap().cluster_offsets.len() >= 5);
+        move_cluster(&mut c, "FRAG.NC", 2);
+        let moved = sim::sdimage::locate(c.image(), "FRAG.NC").unwrap();
+        let read_back: Vec<u8> = moved.cluster_offsets.iter().flat_map(|&o| c.image()[o..o + 512].to_vec()).collect();
+        assert_eq!(&read_back[..job.len()], job.as_bytes(), "{kind:?}: the moved file reads back whole");
+        let mut vm = boot_unlocked();
+        vm.insert_sd(c);
+        ok(&mut vm, "M23 FRAG.NC");
+        ok(&mut vm, "M24");
+        wait_for(&mut vm, |l| l == "Done printing file", 30.0);
+        assert_eq!(step_list(&vm), step_list(&serial), "{kind:?}");
+    }
+}
+
 #[test]
 fn a_card_without_a_fat_volume_is_reported() {
     let mut img = SdImage::new(FatKind::Fat32).file("A.NC", b"G0 X1\n").build();
