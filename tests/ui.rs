@@ -430,6 +430,44 @@ fn a_corrupt_fat_chain_stops_the_job_cleanly_with_the_spindle_off() {
     assert!(vm.resets().len() == 1, "no watchdog reset");
 }
 
+#[test]
+fn a_data_block_with_a_bad_crc_stops_the_job_cleanly_with_a_read_error() {
+    // The same job as the corrupt FAT chain test; the card sends the block
+    // of the file's third cluster (bytes 1024..1536) with a wrong CRC16,
+    // once. Only the firmware's CRC check can tell: the data is intact.
+    let mut job = String::from("G21 G90\nM3 S8000\n");
+    for i in 0..300 {
+        job += if i % 2 == 0 { "G1 X3 F3000\n" } else { "G1 X2 F3000\n" };
+    }
+    let mut c = card(&[("BIG.NC", job.as_bytes())], FatKind::Fat16);
+    let layout = sim::sdimage::locate(c.image(), "BIG.NC").unwrap();
+    c.corrupt_next_read_crc((layout.cluster_offsets[2] / 512) as u32);
+    let mut vm = boot_unlocked();
+    vm.insert_sd(c);
+    ok(&mut vm, "M23 BIG.NC");
+    ok(&mut vm, "M24");
+    let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 60.0);
+    assert_eq!(vm.sd().unwrap().stats().corrupted_crcs, 1);
+    // The line that straddles byte 1024 is the one that could not be read.
+    let at: u32 = err.split("at SD byte ").nth(1).and_then(|r| r.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("{err}"));
+    assert!(err.starts_with("Error:SD read error at SD byte"), "{err}");
+    assert!((1024 - 12..=1024).contains(&at), "{err}");
+    wait_for(&mut vm, |l| l.contains(&format!("read error at byte {at}")), 5.0);
+    vm.run_for(0.5).unwrap();
+    assert!(!vm.spindle_on());
+    let stopped = steps(&vm);
+    vm.run_for(1.0).unwrap();
+    assert_eq!(steps(&vm), stopped, "nothing moves after the read error");
+    // Only lines before the bad block ran (each move is 100 steps, 12 bytes).
+    let x = vm.recorder().axis_stats(Axis::X);
+    let moves = (x.steps_pos + x.steps_neg) / 100;
+    assert!(moves as usize <= (1024 - 17) / 12 + 1, "{moves} moves ran");
+    assert!(moves > 40, "{moves} moves ran");
+    settle(&mut vm);
+    assert_eq!(screen(&vm)[6], "Read error");
+    assert!(vm.resets().len() == 1, "no watchdog reset");
+}
+
 /// Move cluster `k` of file `name` on `card` to a free cluster 300 past the
 /// file's last one (in another FAT block), relinking the first FAT: the
 /// chain then leaves the file's run and comes back to it.
