@@ -431,6 +431,91 @@ fn a_corrupt_fat_chain_stops_the_job_cleanly_with_the_spindle_off() {
 }
 
 #[test]
+fn a_data_block_with_a_bad_crc_stops_the_job_cleanly_with_a_read_error() {
+    // The same job as the corrupt FAT chain test; the card sends the block
+    // of the file's third cluster (bytes 1024..1536) with a wrong CRC16,
+    // once. Only the firmware's CRC check can tell: the data is intact.
+    let mut job = String::from("G21 G90\nM3 S8000\n");
+    for i in 0..300 {
+        job += if i % 2 == 0 { "G1 X3 F3000\n" } else { "G1 X2 F3000\n" };
+    }
+    let mut c = card(&[("BIG.NC", job.as_bytes())], FatKind::Fat16);
+    let layout = sim::sdimage::locate(c.image(), "BIG.NC").unwrap();
+    c.corrupt_next_read_crc((layout.cluster_offsets[2] / 512) as u32);
+    let mut vm = boot_unlocked();
+    vm.insert_sd(c);
+    ok(&mut vm, "M23 BIG.NC");
+    ok(&mut vm, "M24");
+    let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 60.0);
+    assert_eq!(vm.sd().unwrap().stats().corrupted_crcs, 1);
+    // The line that straddles byte 1024 is the one that could not be read.
+    let at: u32 = err.split("at SD byte ").nth(1).and_then(|r| r.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("{err}"));
+    assert!(err.starts_with("Error:SD read error at SD byte"), "{err}");
+    assert!((1024 - 12..=1024).contains(&at), "{err}");
+    wait_for(&mut vm, |l| l.contains(&format!("read error at byte {at}")), 5.0);
+    vm.run_for(0.5).unwrap();
+    assert!(!vm.spindle_on());
+    let stopped = steps(&vm);
+    vm.run_for(1.0).unwrap();
+    assert_eq!(steps(&vm), stopped, "nothing moves after the read error");
+    // Only lines before the bad block ran (each move is 100 steps, 12 bytes).
+    let x = vm.recorder().axis_stats(Axis::X);
+    let moves = (x.steps_pos + x.steps_neg) / 100;
+    assert!(moves as usize <= (1024 - 17) / 12 + 1, "{moves} moves ran");
+    assert!(moves > 40, "{moves} moves ran");
+    settle(&mut vm);
+    assert_eq!(screen(&vm)[6], "Read error");
+    assert!(vm.resets().len() == 1, "no watchdog reset");
+}
+
+/// Move cluster `k` of file `name` on `card` to a free cluster 300 past the
+/// file's last one (in another FAT block), relinking the first FAT: the
+/// chain then leaves the file's run and comes back to it.
+fn move_cluster(card: &mut SdCard, name: &str, k: usize) {
+    let l = sim::sdimage::locate(card.image(), name).unwrap();
+    let n = l.fat_entry_len;
+    let img = card.image_mut();
+    let read = |img: &[u8], at: usize| (0..n).rev().fold(0, |v, i| v << 8 | img[at + i] as usize);
+    let write = |img: &mut [u8], at: usize, v: usize| (0..n).for_each(|i| img[at + i] = (v >> (8 * i)) as u8);
+    // Entry i holds cluster i + 1: that gives where the FAT starts.
+    let fat_start = l.fat_entry_offsets[1] - read(img, l.fat_entry_offsets[0]) * n;
+    let cluster = |i: usize| (l.fat_entry_offsets[i] - fat_start) / n;
+    let cluster_bytes = l.cluster_offsets[1] - l.cluster_offsets[0];
+    let to = cluster(l.fat_entry_offsets.len() - 1) + 300;
+    let to_data = l.cluster_offsets[0] + (to - cluster(0)) * cluster_bytes;
+    img.copy_within(l.cluster_offsets[k]..l.cluster_offsets[k] + cluster_bytes, to_data);
+    let after = read(img, l.fat_entry_offsets[k]);
+    write(img, fat_start + to * n, after);
+    write(img, l.fat_entry_offsets[k - 1], to);
+    write(img, l.fat_entry_offsets[k], 0);
+}
+
+#[test]
+fn a_fragmented_file_on_fat16_and_fat32_runs_like_the_serial_stream() {
+    // Short moves over 5 clusters; the third cluster is moved away, so the
+    // FAT walk (and its run cache) follows c1 -> far -> c3 and on.
+    let job: String = (0..110).map(|i| format!("G1 X{:.1} Y{:.1} F3000\n", 2.0 + (i % 7) as f32 * 0.3, 2.0 + (i % 5) as f32 * 0.4)).collect();
+    let mut serial = boot_unlocked();
+    let lines: Vec<&str> = job.lines().collect();
+    serial.stream(&lines, StreamOptions::new(Flow::CharCount(120))).unwrap();
+    ok(&mut serial, "M400");
+    for kind in [FatKind::Fat16, FatKind::Fat32] {
+        let mut c = card(&[("FRAG.NC", job.as_bytes())], kind);
+        assert!(sim::sdimage::locate(c.image(), "FRAG.NC").unwrap().cluster_offsets.len() >= 5);
+        move_cluster(&mut c, "FRAG.NC", 2);
+        let moved = sim::sdimage::locate(c.image(), "FRAG.NC").unwrap();
+        let read_back: Vec<u8> = moved.cluster_offsets.iter().flat_map(|&o| c.image()[o..o + 512].to_vec()).collect();
+        assert_eq!(&read_back[..job.len()], job.as_bytes(), "{kind:?}: the moved file reads back whole");
+        let mut vm = boot_unlocked();
+        vm.insert_sd(c);
+        ok(&mut vm, "M23 FRAG.NC");
+        ok(&mut vm, "M24");
+        wait_for(&mut vm, |l| l == "Done printing file", 30.0);
+        assert_eq!(step_list(&vm), step_list(&serial), "{kind:?}");
+    }
+}
+
+#[test]
 fn a_card_without_a_fat_volume_is_reported() {
     let mut img = SdImage::new(FatKind::Fat32).file("A.NC", b"G0 X1\n").build();
     // Wipe the boot sector of the partition.

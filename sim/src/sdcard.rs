@@ -11,7 +11,8 @@
 //! CRC7 on every command frame (CMD0 and CMD8 always, the others once CMD59
 //! turned CRC on) and CRC16 on data blocks both ways; SDHC block addressing or
 //! SDSC byte addressing; a data error token for reads past the end; the card
-//! pulled out (MISO floats high, everything is forgotten).
+//! pulled out (MISO floats high, everything is forgotten); a wrong data CRC
+//! on a chosen read, for tests ([`SdCard::corrupt_next_read_crc`]).
 //!
 //! Not modelled: timing (the card answers after one byte, NCR = 1, and sends
 //! a read token after one more), erase, CSD v1 cards, write protection.
@@ -38,6 +39,8 @@ pub struct SdStats {
     pub blocks_written: u64,
     pub crc_errors: u64,
     pub bytes: u64,
+    /// Data blocks sent with a wrong CRC16 ([`SdCard::corrupt_next_read_crc`]).
+    pub corrupted_crcs: u64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -67,6 +70,8 @@ pub struct SdCard {
     data: Vec<u8>,
     /// CMD18 in progress: next block to stream.
     read_multi: Option<u32>,
+    /// The next read of this block sends a wrong CRC16.
+    corrupt_crc_of: Option<u32>,
     stats: SdStats,
     /// Log of the commands received: (cmd, arg).
     pub log: Vec<(u8, u32)>,
@@ -91,6 +96,7 @@ impl SdCard {
             rx: Rx::Command,
             data: Vec::with_capacity(BLOCK + 3),
             read_multi: None,
+            corrupt_crc_of: None,
             stats: SdStats::default(),
             log: Vec::new(),
         }
@@ -104,6 +110,13 @@ impl SdCard {
     /// The card's contents, mutable (to corrupt it in a test).
     pub fn image_mut(&mut self) -> &mut Vec<u8> {
         &mut self.image
+    }
+
+    /// The next time block `block` is read (CMD17/CMD18), send its data
+    /// with the CRC16 off by one bit, once: a transfer error the host must
+    /// catch by its CRC check (the data itself arrives intact).
+    pub fn corrupt_next_read_crc(&mut self, block: u32) {
+        self.corrupt_crc_of = Some(block);
     }
 
     /// Counters.
@@ -331,7 +344,13 @@ impl SdCard {
         self.out.push_back(0xFE);
         let data = &self.image[at..at + BLOCK];
         self.out.extend(data.iter().copied());
-        self.out.extend(crc16(data).to_be_bytes());
+        let mut crc = crc16(data);
+        if self.corrupt_crc_of == Some(b) {
+            self.corrupt_crc_of = None;
+            self.stats.corrupted_crcs += 1;
+            crc ^= 1;
+        }
+        self.out.extend(crc.to_be_bytes());
     }
 
     /// CSD version 2.0 (SDHC): C_SIZE = blocks / 1024 - 1.
@@ -461,6 +480,28 @@ mod tests {
             tok = c.exchange(0xFF);
         }
         assert_eq!(tok, 0x08);
+    }
+
+    #[test]
+    fn a_corrupted_read_crc_is_wrong_once_and_the_data_intact() {
+        let mut img = vec![0u8; 4 * BLOCK];
+        img[2 * BLOCK..3 * BLOCK].iter_mut().enumerate().for_each(|(i, b)| *b = (i * 7) as u8);
+        let mut c = SdCard::new(img, CardKind::Sdhc);
+        init(&mut c);
+        c.corrupt_next_read_crc(2);
+        let mut read = |c: &mut SdCard| {
+            assert_eq!(cmd(c, 17, 2), 0x00);
+            while c.exchange(0xFF) == 0xFF {}
+            let data: Vec<u8> = (0..BLOCK).map(|_| c.exchange(0xFF)).collect();
+            let crc = u16::from_be_bytes([c.exchange(0xFF), c.exchange(0xFF)]);
+            (data, crc)
+        };
+        let (data, crc) = read(&mut c);
+        assert_eq!(data[5], 35);
+        assert_ne!(crc, crc16(&data));
+        let (data, crc) = read(&mut c);
+        assert_eq!(crc, crc16(&data), "only the next read");
+        assert_eq!(c.stats().corrupted_crcs, 1);
     }
 
     #[test]

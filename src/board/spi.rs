@@ -9,7 +9,9 @@
 //! It provides the three embedded-hal 1.0 pieces that `embedded-sdmmc` needs to
 //! build an `SdCard` over an `ExclusiveDevice`: [`SpiBus`] (mode 0, MSB first,
 //! blocking), [`ChipSelect`] (PB0 as an `OutputPin`) and [`BusyDelay`]
-//! (a cycle-counted `DelayNs` for 16 MHz).
+//! (a cycle-counted `DelayNs` for 16 MHz), and [`SdDevice`], the bus with its
+//! chip select, which also reads data blocks with their CRC16 computed during
+//! the transfer (the vendored crate's `ReadCrc16`).
 //!
 //! PB0 must stay an output: if SS were an input and went low, the SPI would
 //! drop out of master mode (§21 "SS Pin Functionality", master mode). [`SpiBus::new`] makes it an output, high.
@@ -192,6 +194,88 @@ impl SpiBus {
         Err(self.fault_or(Error::Timeout))
     }
 
+    /// Read `words`, clocking out 0xFF for each, and return their
+    /// CRC-16/XMODEM (the SD data CRC).
+    ///
+    /// This is the SD card's data path (512-byte blocks), so the loop is
+    /// assembly, and it computes the CRC of the byte before while the SPI
+    /// shifts the next one: 31 cycles a byte, where reading (25) and then
+    /// the CRC (27, `crc16_fast` in the vendored `embedded-sdmmc`) took 52.
+    /// The CRC step is that of `crc16_fast`, 19 single-cycle instructions;
+    /// the first turn steps a 0 byte, which leaves the CRC at 0, and the
+    /// last byte is stepped after the loop (the T flag marks that turn).
+    ///
+    /// The wait for each byte needs no counter: in master mode SPIF comes
+    /// 16 cycles after the write at F_CPU / 2 (2 × 8 bits; the CRC step
+    /// takes longer, and slower clocks only wait longer), and a mode fault
+    /// sets SPIF as well (§21 "SS Pin Functionality", SPSR), which the check
+    /// after the loop reports. SPDR is read before the next byte is written
+    /// (no reliance on the receive buffer).
+    #[inline(never)]
+    pub fn read_crc16(&mut self, words: &mut [u8]) -> Result<u16, Error> {
+        self.check_master()?;
+        if words.is_empty() {
+            return Ok(0);
+        }
+        let mut crc = 0u16;
+        // SAFETY: writes `words.len()` bytes from `words.as_mut_ptr()` on,
+        // inside `words`; touches SPDR and SPSR, which this SpiBus owns. The
+        // count is non-zero (checked above), so the loop ends.
+        unsafe {
+            core::arch::asm!(
+                "clt",
+                "1:",
+                "out {spdr}, {ff}",
+                // CRC step for the byte before (x): with x = (crc >> 8) ^ x,
+                // x ^= x >> 4: hi = lo ^ (x << 4) ^ (x >> 3), lo = (x << 5) ^ x.
+                "2:",
+                "eor {x}, {crc:h}",
+                "mov {t}, {x}",
+                "swap {t}",
+                "andi {t}, 0x0F",
+                "eor {x}, {t}",
+                "mov {s}, {x}",
+                "swap {s}",
+                "mov {crc:h}, {s}",
+                "andi {crc:h}, 0xF0",
+                "eor {crc:h}, {crc:l}",
+                "mov {t}, {x}",
+                "lsr {t}",
+                "lsr {t}",
+                "lsr {t}",
+                "eor {crc:h}, {t}",
+                "lsl {s}",
+                "andi {s}, 0xE0",
+                "eor {s}, {x}",
+                "mov {crc:l}, {s}",
+                "brts 4f",
+                "3:",
+                "in {t}, {spsr}",
+                "sbrs {t}, 7",
+                "rjmp 3b",
+                "in {x}, {spdr}",
+                "st X+, {x}",
+                "sbiw {n}, 1",
+                "brne 1b",
+                "set",
+                "rjmp 2b",
+                "4:",
+                inout("X") words.as_mut_ptr() => _,
+                n = inout(reg_iw) words.len() as u16 => _,
+                ff = in(reg) FILL_BYTE,
+                x = inout(reg) 0u8 => _,
+                crc = inout(reg_iw) crc,
+                t = out(reg_upper) _,
+                s = out(reg_upper) _,
+                spdr = const SPDR_IO,
+                spsr = const SPSR_IO,
+                options(nostack),
+            );
+        }
+        self.check_master()?;
+        Ok(crc)
+    }
+
     /// `ModeFault` if the SPI has left master mode, else `other`.
     fn fault_or(&self, other: Error) -> Error {
         if self.spi.spcr().read().mstr().bit_is_clear() {
@@ -216,46 +300,10 @@ impl spi::ErrorType for SpiBus {
 }
 
 impl spi::SpiBus<u8> for SpiBus {
-    /// Read `words`, clocking out 0xFF for each.
-    ///
-    /// This is the SD card's data path (512-byte blocks), so the loop is
-    /// assembly: 25 cycles a byte against ~37 for the polled [`exchange`]
-    /// with its timeout counter. The wait needs no counter: in master mode
-    /// SPIF comes 16 cycles after the write at F_CPU / 2 (2 × 8 bits; slower
-    /// clocks only wait longer), and a mode fault sets SPIF as well (§21
-    /// "SS Pin Functionality", SPSR), which the check after the loop reports.
-    ///
-    /// [`exchange`]: SpiBus::exchange
+    /// Read `words`, clocking out 0xFF for each: [`SpiBus::read_crc16`]
+    /// without the CRC (one read loop in flash).
     fn read(&mut self, words: &mut [u8]) -> Result<(), Self::Error> {
-        self.check_master()?;
-        if words.is_empty() {
-            return Ok(());
-        }
-        // SAFETY: writes `words.len()` bytes from `words.as_mut_ptr()` on,
-        // inside `words`; touches SPDR and SPSR, which this SpiBus owns. The
-        // count is non-zero (checked above), so the loop ends.
-        unsafe {
-            core::arch::asm!(
-                "1:",
-                "out {spdr}, {ff}",
-                "2:",
-                "in {t}, {spsr}",
-                "sbrs {t}, 7",
-                "rjmp 2b",
-                "in {t}, {spdr}",
-                "st X+, {t}",
-                "sbiw {n}, 1",
-                "brne 1b",
-                inout("X") words.as_mut_ptr() => _,
-                n = inout(reg_iw) words.len() as u16 => _,
-                ff = in(reg) FILL_BYTE,
-                t = out(reg) _,
-                spdr = const SPDR_IO,
-                spsr = const SPSR_IO,
-                options(nostack),
-            );
-        }
-        self.check_master()
+        self.read_crc16(words).map(|_| ())
     }
 
     /// Write `words`, dropping what comes back.
@@ -394,6 +442,18 @@ impl SdDevice {
 
 impl spi::ErrorType for SdDevice {
     type Error = Error;
+}
+
+/// The SD driver reads data blocks through [`SpiBus::read_crc16`], which
+/// computes their CRC during the transfer (vendor/README.md).
+impl embedded_sdmmc::sdcard::spi::ReadCrc16 for SdDevice {
+    fn read_crc16(&mut self, buffer: &mut [u8]) -> Result<u16, Error> {
+        use digital::OutputPin;
+        let _ = self.cs.set_low();
+        let r = self.bus.read_crc16(buffer);
+        let _ = self.cs.set_high();
+        r
+    }
 }
 
 impl spi::SpiDevice<u8> for SdDevice {

@@ -1787,6 +1787,7 @@ mod tests {
                     free_clusters_count: None,
                     next_free_cluster: None,
                     cluster_count: 965_788,
+                    fat_run: core::cell::Cell::new((0, 0)),
                     fat_specific_info: fat::FatSpecificInfo::Fat32(fat::Fat32Info {
                         first_root_dir_cluster: ClusterId(2),
                         info_location: BlockIdx(1) + BlockCount(1),

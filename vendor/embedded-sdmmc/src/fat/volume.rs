@@ -1,5 +1,6 @@
 //! FAT-specific volume support.
 
+use core::cell::Cell;
 use core::convert::TryFrom;
 use core::ops::ControlFlow;
 
@@ -171,6 +172,12 @@ pub struct FatVolume {
     pub(crate) cluster_count: u32,
     /// Type of FAT
     pub(crate) fat_specific_info: FatSpecificInfo,
+    /// MillFW patch: a run of clusters `(first, len)` whose FAT entry is the
+    /// cluster after them (c + 1 for c in first..first + len), noted by
+    /// `next_cluster` in the last FAT block it read; `next_cluster` answers
+    /// them without reading the FAT again. Emptied (len 0) by every FAT
+    /// write (`update_fat`).
+    pub(crate) fat_run: Cell<(u32, u16)>,
 }
 
 impl FatVolume {
@@ -216,6 +223,12 @@ impl FatVolume {
     }
 
     /// Write a new entry in the FAT
+    ///
+    /// MillFW patch: one path for FAT16 and FAT32 (flash size). The crate
+    /// mapped `INVALID`, `BAD`, `EMPTY` and `END_OF_FILE` to 0xFFF6, 0xFFF7,
+    /// 0 and 0xFFFF (FAT16) or 0x0FFF_FFF6, 0x0FFF_FFF7, 0 and (masked)
+    /// 0x0FFF_FFFF (FAT32): the low 16 or 28 bits of those `ClusterId`s,
+    /// which is what is written here for every value, as before.
     fn update_fat<D>(
         &mut self,
         block_cache: &mut BlockCache<D>,
@@ -225,60 +238,30 @@ impl FatVolume {
     where
         D: BlockDevice,
     {
-        let mut second_fat_block_num = None;
-        match &self.fat_specific_info {
-            FatSpecificInfo::Fat16(_fat16_info) => {
-                let fat_offset = cluster.0 * 2;
-                let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
-                if let Some(second_fat_start) = self.second_fat_start {
-                    second_fat_block_num =
-                        Some(self.lba_start + second_fat_start.offset_bytes(fat_offset));
-                }
-                let this_fat_ent_offset = (fat_offset % Block::LEN_U32) as usize;
-                trace!("Reading FAT for update");
-                let block = block_cache
-                    .read_mut(this_fat_block_num)
-                    .map_err(Error::DeviceError)?;
-                // See <https://en.wikipedia.org/wiki/Design_of_the_FAT_file_system>
-                let entry = match new_value {
-                    ClusterId::INVALID => 0xFFF6,
-                    ClusterId::BAD => 0xFFF7,
-                    ClusterId::EMPTY => 0x0000,
-                    ClusterId::END_OF_FILE => 0xFFFF,
-                    _ => new_value.0 as u16,
-                };
-                LittleEndian::write_u16(
-                    &mut block[this_fat_ent_offset..=this_fat_ent_offset + 1],
-                    entry,
-                );
-            }
-            FatSpecificInfo::Fat32(_fat32_info) => {
-                // FAT32 => 4 bytes per entry
-                let fat_offset = cluster.0 * 4;
-                let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
-                if let Some(second_fat_start) = self.second_fat_start {
-                    second_fat_block_num =
-                        Some(self.lba_start + second_fat_start.offset_bytes(fat_offset));
-                }
-                let this_fat_ent_offset = (fat_offset % Block::LEN_U32) as usize;
-                trace!("Reading FAT for update");
-                let block = block_cache
-                    .read_mut(this_fat_block_num)
-                    .map_err(Error::DeviceError)?;
-                let entry = match new_value {
-                    ClusterId::INVALID => 0x0FFF_FFF6,
-                    ClusterId::BAD => 0x0FFF_FFF7,
-                    ClusterId::EMPTY => 0x0000_0000,
-                    _ => new_value.0,
-                };
-                let existing =
-                    LittleEndian::read_u32(&block[this_fat_ent_offset..=this_fat_ent_offset + 3]);
-                let new = (existing & 0xF000_0000) | (entry & 0x0FFF_FFFF);
-                LittleEndian::write_u32(
-                    &mut block[this_fat_ent_offset..=this_fat_ent_offset + 3],
-                    new,
-                );
-            }
+        // MillFW patch: the FAT changes, so the run `next_cluster` noted may
+        // no longer hold. Every FAT write (allocation, truncation) comes here.
+        self.fat_run.get_mut().1 = 0;
+        let fat32 = matches!(self.fat_specific_info, FatSpecificInfo::Fat32(_));
+        // FAT16 => 2 bytes per entry, FAT32 => 4 bytes per entry
+        let fat_offset = cluster.0 * if fat32 { 4 } else { 2 };
+        let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
+        let second_fat_block_num = self
+            .second_fat_start
+            .map(|second_fat_start| self.lba_start + second_fat_start.offset_bytes(fat_offset));
+        let this_fat_ent_offset = (fat_offset % Block::LEN_U32) as usize;
+        trace!("Reading FAT for update");
+        let block = block_cache
+            .read_mut(this_fat_block_num)
+            .map_err(Error::DeviceError)?;
+        // See <https://en.wikipedia.org/wiki/Design_of_the_FAT_file_system>
+        if fat32 {
+            let entry = &mut block[this_fat_ent_offset..=this_fat_ent_offset + 3];
+            let existing = LittleEndian::read_u32(entry);
+            let new = (existing & 0xF000_0000) | (new_value.0 & 0x0FFF_FFFF);
+            LittleEndian::write_u32(entry, new);
+        } else {
+            let entry = &mut block[this_fat_ent_offset..=this_fat_ent_offset + 1];
+            LittleEndian::write_u16(entry, new_value.0 as u16);
         }
         trace!("Updating FAT");
         if let Some(duplicate) = second_fat_block_num {
@@ -290,6 +273,11 @@ impl FatVolume {
     }
 
     /// Look in the FAT to see which cluster comes next.
+    ///
+    /// MillFW patch: the FAT16 and FAT32 arms share the block read, and the
+    /// run cache `fat_run` answers clusters of a contiguous chain without
+    /// reading the FAT block again for each (see `remember_fat_run`). The
+    /// results are the crate's.
     pub(crate) fn next_cluster<D>(
         &self,
         block_cache: &mut BlockCache<D>,
@@ -301,59 +289,68 @@ impl FatVolume {
         if cluster.0 > (u32::MAX / 4) {
             panic!("next_cluster called on invalid cluster {:x?}", cluster);
         }
-        match &self.fat_specific_info {
-            FatSpecificInfo::Fat16(_fat16_info) => {
-                let fat_offset = cluster.0 * 2;
-                let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
-                let this_fat_ent_offset = (fat_offset % Block::LEN_U32) as usize;
-                trace!("Walking FAT");
-                let block = block_cache.read(this_fat_block_num)?;
-                let fat_entry =
-                    LittleEndian::read_u16(&block[this_fat_ent_offset..=this_fat_ent_offset + 1]);
-                match fat_entry {
-                    0xFFF7 => {
-                        // Bad cluster
-                        Err(Error::BadCluster)
-                    }
-                    0xFFF8..=0xFFFF => {
-                        // There is no next cluster
-                        Err(Error::EndOfFile)
-                    }
-                    f => {
-                        // Seems legit
-                        Ok(ClusterId(u32::from(f)))
-                    }
+        // Inside the run noted last time, the next cluster is the one after.
+        let (first, len) = self.fat_run.get();
+        if cluster.0.wrapping_sub(first) < u32::from(len) {
+            return Ok(ClusterId(cluster.0 + 1));
+        }
+        let fat32 = matches!(self.fat_specific_info, FatSpecificInfo::Fat32(_));
+        // FAT16 => 2 bytes per entry, FAT32 => 4 bytes per entry
+        let fat_offset = cluster.0 * if fat32 { 4 } else { 2 };
+        let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
+        let this_fat_ent_offset = (fat_offset % Block::LEN_U32) as usize;
+        trace!("Walking FAT");
+        let block = block_cache.read(this_fat_block_num)?;
+        self.remember_fat_run(block, this_fat_ent_offset, cluster, fat32);
+        if !fat32 {
+            let fat_entry =
+                LittleEndian::read_u16(&block[this_fat_ent_offset..=this_fat_ent_offset + 1]);
+            match fat_entry {
+                0xFFF7 => {
+                    // Bad cluster
+                    Err(Error::BadCluster)
+                }
+                0xFFF8..=0xFFFF => {
+                    // There is no next cluster
+                    Err(Error::EndOfFile)
+                }
+                f => {
+                    // Seems legit
+                    Ok(ClusterId(u32::from(f)))
                 }
             }
-            FatSpecificInfo::Fat32(_fat32_info) => {
-                let fat_offset = cluster.0 * 4;
-                let this_fat_block_num = self.lba_start + self.fat_start.offset_bytes(fat_offset);
-                let this_fat_ent_offset = (fat_offset % Block::LEN_U32) as usize;
-                trace!("Walking FAT");
-                let block = block_cache.read(this_fat_block_num)?;
-                let fat_entry =
-                    LittleEndian::read_u32(&block[this_fat_ent_offset..=this_fat_ent_offset + 3])
-                        & 0x0FFF_FFFF;
-                match fat_entry {
-                    0x0000_0000 => {
-                        // Jumped to free space
-                        Err(Error::UnterminatedFatChain)
-                    }
-                    0x0FFF_FFF7 => {
-                        // Bad cluster
-                        Err(Error::BadCluster)
-                    }
-                    0x0000_0001 | 0x0FFF_FFF8..=0x0FFF_FFFF => {
-                        // There is no next cluster
-                        Err(Error::EndOfFile)
-                    }
-                    f => {
-                        // Seems legit
-                        Ok(ClusterId(f))
-                    }
+        } else {
+            let fat_entry =
+                LittleEndian::read_u32(&block[this_fat_ent_offset..=this_fat_ent_offset + 3])
+                    & 0x0FFF_FFFF;
+            match fat_entry {
+                0x0000_0000 => {
+                    // Jumped to free space
+                    Err(Error::UnterminatedFatChain)
+                }
+                0x0FFF_FFF7 => {
+                    // Bad cluster
+                    Err(Error::BadCluster)
+                }
+                0x0000_0001 | 0x0FFF_FFF8..=0x0FFF_FFFF => {
+                    // There is no next cluster
+                    Err(Error::EndOfFile)
+                }
+                f => {
+                    // Seems legit
+                    Ok(ClusterId(f))
                 }
             }
         }
+    }
+
+    /// MillFW patch: note in `fat_run` the run of clusters from `cluster`
+    /// on whose FAT entry is the cluster after them, as far as this FAT
+    /// block goes; `cluster`'s entry is at byte `at` of `block`.
+    #[inline(never)]
+    fn remember_fat_run(&self, block: &Block, at: usize, cluster: ClusterId, fat32: bool) {
+        let entries = block.get(at..).unwrap_or_default();
+        self.fat_run.set((cluster.0, fat_run_len(entries, cluster.0, fat32)));
     }
 
     /// Number of bytes in a cluster.
@@ -1415,6 +1412,113 @@ impl FatVolume {
     }
 }
 
+/// MillFW patch: how many FAT entries from the start of `entries` (the
+/// entry of cluster `first`) each hold the cluster after their own (c + 1),
+/// counting only what `next_cluster` reads as that next cluster: none from
+/// the reserved clusters 0 and 1 (FAT32 reads an entry of 1 as end of
+/// file), and none from a c + 1 of 0xFFF7 (FAT16) or 0x0FFF_FFF7 (FAT32)
+/// on, the bad-cluster and end-of-chain values. FAT16 entries are 2 bytes,
+/// FAT32 entries 4 with the top 4 bits ignored, little-endian.
+///
+/// To keep it simple the count also stops where the low 16 bits of c + 1
+/// reach 0xFFF7 in FAT32, a cluster short of what it could be once in 64 Ki
+/// clusters. The high 16 bits of c + 1 then never change within a run.
+///
+/// On the AVR this is an assembly loop (~90 bytes of flash; the same in
+/// Rust took ~350, with 32-bit compares).
+#[cfg(target_arch = "avr")]
+fn fat_run_len(entries: &[u8], first: u32, fat32: bool) -> u16 {
+    // c + 1, the next cluster an entry must hold to continue the run.
+    let (mut next_lo, mut next_hi) = (first as u16, (first >> 16) as u16);
+    // SAFETY: reads whole entries from `entries.as_ptr()` on, at most
+    // `entries.len()` bytes, all inside `entries`; writes only the registers
+    // named here.
+    unsafe {
+        core::arch::asm!(
+            "adiw {lo}, 1",
+            "adc {hi:l}, __zero_reg__",
+            "adc {hi:h}, __zero_reg__",
+            // Whole entries in the slice. A FAT16 block from its first
+            // entry has 256, which is 0 in the low byte and runs the
+            // `dec`/`brne` loop 256 times; more than 256 (not from
+            // `next_cluster`) would only make the run stop early.
+            "bst {fat32}, 0",
+            "lsr {n:h}",
+            "ror {n:l}",
+            "brtc 1f",
+            "lsr {n:h}",
+            "ror {n:l}",
+            "1:",
+            // No whole entry in the slice: no run.
+            "mov {t}, {n:l}",
+            "or {t}, {n:h}",
+            "breq 9f",
+            // No run from the reserved clusters 0 and 1 (c + 1 < 3).
+            "cpi {lo:l}, 3",
+            "cpc {lo:h}, __zero_reg__",
+            "cpc {hi:l}, __zero_reg__",
+            "cpc {hi:h}, __zero_reg__",
+            "brlo 9f",
+            // FAT16 cluster numbers are 16-bit.
+            "brts 2f",
+            "cp {hi:l}, __zero_reg__",
+            "cpc {hi:h}, __zero_reg__",
+            "brne 9f",
+            "2:",
+            // Stop before the reserved values (low 16 bits from 0xFFF7).
+            "cpi {lo:l}, 0xF7",
+            "cpc {lo:h}, {ff}",
+            "brsh 9f",
+            "ld {t}, Z+",
+            "cp {t}, {lo:l}",
+            "ld {t}, Z+",
+            "cpc {t}, {lo:h}",
+            "brne 9f",
+            "brtc 3f",
+            "ld {t}, Z+",
+            "cp {t}, {hi:l}",
+            "ld {t}, Z+",
+            "brne 9f",
+            "andi {t}, 0x0F",
+            "cp {t}, {hi:h}",
+            "brne 9f",
+            "3:",
+            "adiw {lo}, 1",
+            "dec {n:l}",
+            "brne 2b",
+            "9:",
+            inout("Z") entries.as_ptr() => _,
+            n = inout(reg_pair) entries.len() => _,
+            fat32 = in(reg) fat32 as u8,
+            ff = in(reg) 0xFFu8,
+            t = out(reg_upper) _,
+            lo = inout(reg_iw) next_lo,
+            hi = inout(reg_iw) next_hi => _,
+            options(nostack, readonly),
+        );
+    }
+    // The low 16 bits of c + 1 went from first + 1 up one per entry that
+    // matched, without wrapping (they stop below 0xFFF7).
+    next_lo.wrapping_sub(first as u16).wrapping_sub(1)
+}
+
+/// MillFW patch: see the AVR version.
+#[cfg(not(target_arch = "avr"))]
+fn fat_run_len(entries: &[u8], first: u32, fat32: bool) -> u16 {
+    let mut len = 0;
+    let mut next = first + 1;
+    let next_ok = |n: u32| n >= 3 && n & 0xFFFF < 0xFFF7 && (fat32 || n >> 16 == 0);
+    for entry in entries.chunks_exact(if fat32 { 4 } else { 2 }) {
+        let value = entry.iter().rev().fold(0, |v, &b| v << 8 | u32::from(b)) & 0x0FFF_FFFF;
+        if !next_ok(next) || value != next {
+            break;
+        }
+        len += 1;
+        next += 1;
+    }
+    len
+}
+
 /// Load the boot parameter block from the start of the given partition and
 /// determine if the partition contains a valid FAT16 or FAT32 file system.
 pub fn parse_volume<D>(
@@ -1459,6 +1563,7 @@ where
                 free_clusters_count: None,
                 next_free_cluster: None,
                 cluster_count: bpb.total_clusters(),
+                fat_run: Cell::new((0, 0)),
                 fat_specific_info: FatSpecificInfo::Fat16(Fat16Info {
                     root_entries_count: bpb.root_entries_count(),
                     first_root_dir_block,
@@ -1485,6 +1590,7 @@ where
                 free_clusters_count: None,
                 next_free_cluster: None,
                 cluster_count: bpb.total_clusters(),
+                fat_run: Cell::new((0, 0)),
                 fat_specific_info: FatSpecificInfo::Fat32(Fat32Info {
                     info_location: lba_start + info_location,
                     first_root_dir_cluster: ClusterId(bpb.first_root_dir_cluster()),

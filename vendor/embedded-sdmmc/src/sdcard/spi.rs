@@ -10,9 +10,31 @@ use embedded_sdmmc_types::sdcard::*;
 // Types and Implementations
 // ****************************************************************************
 
+/// MillFW patch: the SPI device of an [`SdCard`], which reads a data block
+/// and gives its CRC16 in one call, so that a device can compute the CRC
+/// while it transfers (on the AVR, in the cycles the CPU would otherwise
+/// spend waiting for each byte).
+///
+/// The default reads with [`SpiDevice::read`] and then computes the CRC.
+/// An implementation must read exactly as `SpiDevice::read` does (0xFF
+/// clocked out for each byte, in one transaction) and return the
+/// CRC-16/XMODEM of what it read, so `read_data` checks the same CRC either
+/// way: a block whose CRC does not match is still a [`Error::CrcError`].
+///
+/// [`SpiDevice::read`]: embedded_hal::spi::SpiDevice::read
+pub trait ReadCrc16: embedded_hal::spi::SpiDevice<u8> {
+    /// Fill `buffer` from the device and return its CRC-16/XMODEM.
+    fn read_crc16(&mut self, buffer: &mut [u8]) -> Result<u16, Self::Error> {
+        self.read(buffer)?;
+        Ok(crc16_fast(buffer))
+    }
+}
+
 /// Driver for an SD Card on an SPI bus.
 ///
 /// Built from an [`SpiDevice`] implementation and a Chip Select pin.
+/// (MillFW patch: the device must implement [`ReadCrc16`] too; an empty
+/// `impl` takes the default.)
 ///
 /// Before talking to the SD Card, the caller needs to send 74 clocks cycles on
 /// the SPI Clock line, at 400 kHz, with no chip-select asserted (or at least,
@@ -28,7 +50,7 @@ use embedded_sdmmc_types::sdcard::*;
 /// [`SpiDevice`]: embedded_hal::spi::SpiDevice
 pub struct SdCard<SPI, DELAYER>
 where
-    SPI: embedded_hal::spi::SpiDevice<u8>,
+    SPI: ReadCrc16,
     DELAYER: embedded_hal::delay::DelayNs,
 {
     inner: RefCell<SdCardInner<SPI, DELAYER>>,
@@ -36,7 +58,7 @@ where
 
 impl<SPI, DELAYER> SdCard<SPI, DELAYER>
 where
-    SPI: embedded_hal::spi::SpiDevice<u8>,
+    SPI: ReadCrc16,
     DELAYER: embedded_hal::delay::DelayNs,
 {
     /// Create a new SD/MMC Card driver using a raw SPI interface.
@@ -141,7 +163,7 @@ where
 
 impl<SPI, DELAYER> BlockDevice for SdCard<SPI, DELAYER>
 where
-    SPI: embedded_hal::spi::SpiDevice<u8>,
+    SPI: ReadCrc16,
     DELAYER: embedded_hal::delay::DelayNs,
 {
     type Error = Error;
@@ -181,7 +203,7 @@ where
 /// All the APIs required `&mut self`.
 struct SdCardInner<SPI, DELAYER>
 where
-    SPI: embedded_hal::spi::SpiDevice<u8>,
+    SPI: ReadCrc16,
     DELAYER: embedded_hal::delay::DelayNs,
 {
     spi: SPI,
@@ -192,7 +214,7 @@ where
 
 impl<SPI, DELAYER> SdCardInner<SPI, DELAYER>
 where
-    SPI: embedded_hal::spi::SpiDevice<u8>,
+    SPI: ReadCrc16,
     DELAYER: embedded_hal::delay::DelayNs,
 {
     /// Read one or more blocks, starting at the given block index.
@@ -316,7 +338,10 @@ where
         // filling it with 0xFF and transferring it in place. The board's SPI
         // clocks out 0xFF while reading (embedded-hal leaves that byte to the
         // implementation), and the fill cost ~2.5 k cycles per block on the AVR.
-        self.spi.read(buffer).map_err(|_e| Error::Transport)?;
+        // And (MillFW patch) through `ReadCrc16`, which gives the CRC of what
+        // it read as well: the board computes it during the transfer. It is
+        // computed even with `use_crc` off, and then not looked at.
+        let calc_crc = self.spi.read_crc16(buffer).map_err(|_e| Error::Transport)?;
 
         // These two bytes are always sent. They are either a valid CRC, or
         // junk, depending on whether CRC mode was enabled.
@@ -324,7 +349,6 @@ where
         self.transfer_bytes(&mut crc_bytes)?;
         if self.options.use_crc {
             let crc = u16::from_be_bytes(crc_bytes);
-            let calc_crc = crc16_fast(buffer);
             if crc != calc_crc {
                 return Err(Error::CrcError(crc, calc_crc));
             }
@@ -737,7 +761,9 @@ impl Delay {
 //
 // ****************************************************************************
 
-/// MillFW patch: the data CRC (CRC-16/XMODEM, as `crc16`). On the AVR the
+/// MillFW patch: the data CRC (CRC-16/XMODEM, as `crc16`), for writes and
+/// the default `ReadCrc16::read_crc16` (the board's SPI device computes the
+/// read CRC during the transfer, with the same steps). On the AVR the
 /// crate's `crc16` compiles to ~55 cycles a byte (16-bit shifts by 4, 5 and
 /// 12 become loops), 28 k cycles per 512-byte block; this byte-at-a-time form
 /// of the same formula, with the shifts done by `swap`, takes 25.
