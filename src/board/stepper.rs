@@ -305,8 +305,10 @@ impl Sink for Rings {
         unsafe {
             let h = *addr_of!(SEG_HEAD);
             *addr_of_mut!(SEGS[h as usize]) = *s;
-            let prescale = if s.tccr & 0x07 == 1 { 1 } else { 8 };
-            let cycles = (s.ticks as u32).saturating_mul(s.period as u32).saturating_mul(prescale).min(u32::MAX / 32);
+            // ticks · period < 2³² (16-bit factors), then ×8 for clk/8,
+            // capped at 2³² / 32 (the sum of a full ring must not wrap).
+            let counts = mill::math::mul_u16(s.ticks, s.period);
+            let cycles = if s.tccr & 0x07 == 1 { counts } else { counts.saturating_mul(8) }.min(u32::MAX / 32);
             *addr_of_mut!(SEG_CYCLES[h as usize]) = cycles;
             *addr_of_mut!(SEG_QUEUED) += cycles;
             compiler_fence(FenceOrdering::SeqCst);

@@ -616,8 +616,8 @@ impl Planner {
             // division (~1 k cycles on the AVR) on a hit.
             let mut sum_sqr = 0u32;
             for i in 0..3 {
-                let n = b.steps[i] as u16 as u32;
-                sum_sqr += n * n;
+                let n = b.steps[i] as u16;
+                sum_sqr += crate::math::mul_u16(n, n);
             }
             let e = &mut self.roots[(sum_sqr & (ROOTS_LEN as u32 - 1)) as usize];
             if e.0 != sum_sqr {

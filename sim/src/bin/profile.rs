@@ -233,7 +233,7 @@ fn main() {
                     }
                     // Who calls the copy/fill/float routines, and how much.
                     let name = &syms[k].2;
-                    if matches!(name.as_str(), "memcpy" | "memset" | "__divsf3" | "__mulsf3" | "sqrt" | "__udivmodsi4") {
+                    if matches!(name.as_str(), "memcpy" | "memset" | "__divsf3" | "__mulsf3" | "sqrt" | "__udivmodsi4" | "__mulsi3" | "__floatsisf" | "__floatunsisf" | "__fixsfsi" | "__fixunssfsi" | "__addsf3" | "__subsf3") {
                         let b = vm.read_ram((sp + 1) as u16, 3);
                         let ret = (((b[0] as u32) << 16) | ((b[1] as u32) << 8) | b[2] as u32) * 2;
                         let caller = match lookup(ret) { Some(j) => syms[j].2.clone(), None => format!("?{ret:#x}") };
