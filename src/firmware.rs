@@ -5,7 +5,7 @@
 //! loads the settings from EEPROM, prints the banner, then forever
 //!
 //! ```text
-//!  serial bytes ─► Machine::push_byte
+//!  serial bytes ─► Machine::push_bytes
 //!  SD job       ─► one line per turn while the planner has room ─► Machine::run_job_line
 //!  menu command ─► jog / home / start a file / Tools line (at the top level, never nested in a wait)
 //!  Machine::idle ─► segment prep, realtime ─► Io::background: encoder, one display slice
@@ -614,9 +614,7 @@ pub fn run() -> ! {
     // 96 bytes on every turn of the loop cost ~1.4k cycles per streamed line.
     let mut job_line = [0u8; MAX_LINE_LEN];
     loop {
-        while let Some(b) = serial::read() {
-            m.push_byte(b, hw);
-        }
+        m.push_bytes(core::iter::from_fn(serial::read), hw);
         job_turn(m, hw, &mut job_line);
         ui_turn(m, hw);
         m.idle(hw);
