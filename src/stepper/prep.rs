@@ -164,6 +164,36 @@ fn ceil_u32(x: f32) -> u32 {
     }
 }
 
+/// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
+/// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
+/// of flash).
+#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+static RECIPROCALS: [f32; 13] = {
+    let mut t = [0.0f32; 13];
+    let mut i = 1;
+    while i < 13 {
+        t[i] = 1.0 / i as f32;
+        i += 1;
+    }
+    t
+};
+
+/// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
+/// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12
+/// this multiplies
+/// by 1/n (~140 cycles on the AVR instead of a ~540-cycle division; within
+/// an ulp of it, far below the timer count the period is rounded to).
+#[inline(never)]
+fn per_tick(cycles: f32, n: u32) -> f32 {
+    if (1..13).contains(&n) {
+        // SAFETY: an immutable static in program memory (plain memory on
+        // the host); the index is in bounds.
+        cycles * unsafe { avr_progmem::raw::read_value(&RECIPROCALS[n as usize]) }
+    } else {
+        crate::math::div_cold(cycles, n as f32)
+    }
+}
+
 /// Timer setting for `cycles` CPU cycles per step event. Rounds up (by up to
 /// one timer count), so a segment is never faster than planned.
 fn timer_for(cycles: f32) -> (u16, Prescale) {
@@ -413,7 +443,7 @@ impl Prep {
         if !(mm <= max_mm) || n == 0 || n != self.steps_remaining || n > u16::MAX as u32 {
             return None;
         }
-        let (period, prescale) = timer_for((mm * cycles_per_mm + self.dt_remainder * F_CPU) / n as f32);
+        let (period, prescale) = timer_for(per_tick(mm * cycles_per_mm + self.dt_remainder * F_CPU, n));
         self.profile_stale = false;
         self.current_speed = v;
         self.exit_speed = v;
@@ -473,7 +503,7 @@ impl Prep {
         if !(t <= SEGMENT_TIME_S) || !(t > 0.0) || n == 0 || n > u16::MAX as u32 {
             return None;
         }
-        let (period, prescale) = timer_for((t + self.dt_remainder) * F_CPU / n as f32);
+        let (period, prescale) = timer_for(per_tick((t + self.dt_remainder) * F_CPU, n));
         self.current_speed = v1;
         self.dt_remainder = 0.0;
         self.steps_remaining = 0;
@@ -781,5 +811,23 @@ impl Prep {
 impl Default for Prep {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+#[cfg(test)]
+mod per_tick_tests {
+    use super::per_tick;
+
+    #[test]
+    fn per_tick_is_the_division_within_an_ulp() {
+        let mut x = 1.0f32;
+        for _ in 0..2000 {
+            x = x * 1.37 % 800_000.0 + 31.0;
+            for n in 1..=20u32 {
+                let (got, want) = (per_tick(x, n), x / n as f32);
+                let ulps = (got.to_bits() as i64 - want.to_bits() as i64).abs();
+                assert!(ulps <= 1, "{x} / {n}: {got} vs {want}");
+            }
+        }
     }
 }
