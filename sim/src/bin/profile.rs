@@ -15,6 +15,8 @@
 //! `--sd` runs the job from a FAT16 card (M23/M24) instead of the serial
 //! line; `--trace FROM:N` then starts FROM ms after M24 and covers N lines
 //! (counted as entries into `Planner::queue_block`).
+//! `--feed F` runs the default job at F mm/min (the axes' M203 limit
+//! raised above 3000), to profile it where the CPU is the limit.
 //! `--hist NAME` (with `--trace`) also prints the traced cycles per
 //! instruction address inside the functions whose name contains NAME, to
 //! read against `avr-objdump -d`.
@@ -67,6 +69,7 @@ fn main() {
     let mut job: Option<PathBuf> = None;
     let mut sd = false;
     let mut hist_name: Option<String> = None;
+    let mut feed = 3000.0f64;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -75,6 +78,7 @@ fn main() {
             "--count" => window = it.next().expect("--count BYTES").parse().expect("number"),
             "--sd" => sd = true,
             "--hist" => hist_name = Some(it.next().expect("--hist NAME")),
+            "--feed" => feed = it.next().expect("--feed F").parse().expect("number"),
             "--trace" => {
                 let v = it.next().expect("--trace FROM:N");
                 let (a, b) = v.split_once(':').expect("FROM:N");
@@ -88,7 +92,11 @@ fn main() {
         None => {
             let (cx, cy, r) = (22.5f64, 22.5f64, 20.0f64);
             let dth = 2.0 * (0.05 / r).asin();
-            let mut v = vec!["M999".to_string(), "G1 X42.500 Y22.500 F3000".to_string(), "M400".to_string()];
+            let mut v = vec!["M999".to_string()];
+            if feed > 3000.0 {
+                v.push(format!("M203 X{0} Y{0}", (feed / 60.0).ceil()));
+            }
+            v.extend([format!("G1 X42.500 Y22.500 F{feed}"), "M400".to_string()]);
             for k in 1..=2000 {
                 let th = k as f64 * dth;
                 v.push(format!("G1 X{:.3} Y{:.3}", cx + r * th.cos(), cy + r * th.sin()));
@@ -149,7 +157,8 @@ fn main() {
     let mut sd_start_cycles = 0u64;
     let queue_block = syms.iter().position(|s| s.2.ends_with("Planner::queue_block"));
     if sd {
-        let body: Vec<String> = lines.split_off(lines.len().min(3));
+        let setup = lines.iter().position(|l| l == "M400").map_or(0, |i| i + 1);
+        let body: Vec<String> = lines.split_off(setup);
         for l in &lines {
             vm.send_line(l);
             vm.wait_line(|x| x == "ok", 30.0).expect("ok");
