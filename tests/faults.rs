@@ -147,10 +147,7 @@ fn power_loss_at_random_instants_keeps_the_eeprom_and_refuses_motion_until_homed
         let _ = vm.stream(&job(), StreamOptions::new(Flow::CharCount(120)).timeout(t)).unwrap();
         vm.power_cycle();
         injected += 1;
-        vm.wait_for_start(3.0).expect("boots after the power loss");
-        vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).unwrap();
-        vm.run_for(0.05).unwrap();
-        let banner = vm.take_lines();
+        let banner = vm.wait_banner().expect("boots after the power loss");
         // The EEPROM is what M500 stored, byte for byte, and loads cleanly.
         if vm.eeprom() != stored || banner.iter().any(|l| l.contains("EEPROM settings invalid")) {
             lost += 1;
@@ -209,10 +206,7 @@ fn power_loss_during_tool_changes_leaves_a_record_the_operator_can_confirm() {
         let _ = vm.stream(&job, StreamOptions::new(Flow::PingPong).timeout(t)).unwrap();
         vm.power_cycle();
         injected += 1;
-        vm.wait_for_start(3.0).expect("boots after the power loss");
-        vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).unwrap();
-        vm.run_for(0.05).unwrap();
-        let banner = vm.take_lines();
+        let banner = vm.wait_banner().expect("boots after the power loss");
         let at = vm.positions();
         let (state, journal) = atc_records(&vm);
         assert!(state.is_some(), "round {round}: the tool record does not load");

@@ -234,10 +234,8 @@ fn m500_settings_survive_a_reboot_and_drive_the_motion_after_it() {
     // Changed after M500: lost at the reboot.
     ok(&mut vm, "M201 Z200");
     vm.power_cycle();
-    vm.wait_for_start(3.0).expect("boot after power cycle");
-    vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).unwrap();
-    vm.run_for(0.02).unwrap();
-    assert!(!vm.take_lines().iter().any(|l| l.contains("EEPROM settings invalid")));
+    let banner = vm.wait_banner().expect("boot after power cycle");
+    assert!(!banner.iter().any(|l| l.contains("EEPROM settings invalid")));
     let r = ok(&mut vm, "M503");
     let has = |want: &str| assert!(r.iter().any(|l| l == want), "{want} not in {r:?}");
     // After a power cycle the homing lock ($22) refuses motion until homed

@@ -1379,6 +1379,18 @@ impl Vm {
         Ok(self.take_lines())
     }
 
+    /// Wait for the whole boot banner (`start`, the reset cause and what
+    /// follows within 50 ms: settings and tool-record messages) and return
+    /// it from the reset cause on; the firmware then takes commands.
+    pub fn wait_banner(&mut self) -> Result<Vec<String>, VmError> {
+        self.wait_for_start(3.0)?;
+        let cause = self.wait_line(|l| l.starts_with("echo:reset cause"), 1.0)?;
+        self.run_for(0.05)?;
+        let mut banner = vec![cause];
+        banner.extend(self.take_lines());
+        Ok(banner)
+    }
+
     /// Sends `line\n` and collects lines up to and including the next `ok`
     /// (lines already pending come first). Timeout: `command_timeout_s`.
     pub fn command(&mut self, line: &str) -> Result<Vec<String>, VmError> {

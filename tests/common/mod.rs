@@ -14,10 +14,7 @@ pub fn boot_with(cfg: VmConfig) -> Vm {
     let elf = cfg.elf.clone();
     assert!(elf.exists(), "firmware ELF {} missing: run tools/build-firmware (tools/test does)", elf.display());
     let mut vm = Vm::new(cfg).expect("load firmware");
-    vm.wait_for_start(3.0).expect("firmware prints start");
-    vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).expect("boot banner");
-    vm.run_for(0.02).expect("rest of the banner");
-    vm.take_lines();
+    vm.wait_banner().expect("firmware prints its boot banner");
     vm
 }
 

@@ -129,10 +129,7 @@ impl Bench {
         // Off the switches (an unhomed axis on its closed switch is a hard limit).
         cfg.machine.initial_position = START;
         let mut vm = Vm::new(cfg).map_err(|e| e.to_string())?;
-        vm.wait_for_start(3.0).map_err(|e| e.to_string())?;
-        vm.wait_line(|l| l.starts_with("echo:reset cause"), 1.0).map_err(|e| e.to_string())?;
-        vm.run_for(0.02).map_err(|e| e.to_string())?;
-        vm.take_lines();
+        vm.wait_banner().map_err(|e| e.to_string())?;
         // The homing lock: this machine is not homed; unlock as an operator would.
         self.cmd(&mut vm, "M999")?;
         Ok(vm)
