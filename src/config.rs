@@ -7,6 +7,7 @@
 //! so a blank or corrupt EEPROM falls back to the defaults instead of running
 //! on garbage.
 
+use crate::flash::InFlash;
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
@@ -212,14 +213,13 @@ impl Settings {
 /// The factory settings, kept in flash: a `Settings::DEFAULT` used at run
 /// time would be a 172-byte constant copied into RAM at boot on AVR.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static DEFAULTS_IN_FLASH: Settings = Settings::DEFAULT;
+// SAFETY: in program memory on the AVR (the attribute above).
+static DEFAULTS_IN_FLASH: InFlash<Settings> = unsafe { InFlash::new(Settings::DEFAULT) };
 
 impl Settings {
     /// The factory settings (M502), read from flash.
     pub fn defaults() -> Settings {
-        // SAFETY: DEFAULTS_IN_FLASH is an immutable static in program memory
-        // (plain memory on the host); Settings is Copy.
-        unsafe { avr_progmem::raw::read_value(&DEFAULTS_IN_FLASH) }
+        DEFAULTS_IN_FLASH.get()
     }
 }
 

@@ -15,6 +15,44 @@
 
 use core::fmt;
 
+/// A value kept in program memory: a state machine's transition table, the
+/// factory settings. Read a copy with [`InFlash::get`] (an array's rows with
+/// [`InFlash::row`]).
+///
+/// Declare it as a `static` in `.progmem.data` on the AVR:
+///
+/// ```ignore
+/// #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+/// // SAFETY: in program memory on the AVR (the attribute above).
+/// static ROWS: InFlash<[Row; 12]> = unsafe { InFlash::new(TABLE) };
+/// ```
+pub struct InFlash<T: Copy>(T);
+
+impl<T: Copy> InFlash<T> {
+    /// # Safety
+    /// The value must be a `static` placed in `.progmem.data` on the AVR
+    /// (`#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]`):
+    /// it is read with `lpm`, which reads program memory.
+    pub const unsafe fn new(value: T) -> Self {
+        InFlash(value)
+    }
+
+    /// A copy of the value, read from flash.
+    pub fn get(&'static self) -> T {
+        // SAFETY: `self` is a static in program memory (the promise of
+        // `new`), plain memory on the host; T is Copy.
+        unsafe { avr_progmem::raw::read_value(&self.0) }
+    }
+}
+
+impl<T: Copy, const N: usize> InFlash<[T; N]> {
+    /// Row `i` of a table in flash, `None` past its end.
+    pub fn row(&'static self, i: usize) -> Option<T> {
+        // SAFETY: as in `get`; `r` is an element of the static array.
+        self.0.get(i).map(|r| unsafe { avr_progmem::raw::read_value(r) })
+    }
+}
+
 /// A string in program memory: a pointer into flash and a length.
 #[derive(Clone, Copy)]
 pub struct FStr {

@@ -18,6 +18,7 @@
 //! "Common" is the spindle off, the journal, the way to the station and
 //! (if needed) carousel homing at the start, and the way back at the end.
 
+use crate::flash::InFlash;
 use super::tools::{Journal, ToolState};
 use super::{pocket_position, Fault, STATION};
 
@@ -167,13 +168,12 @@ pub const TABLE: [Row; 20] = [
 /// [`TABLE`] kept in flash: used at run time, a `const` table would be
 /// copied into RAM at boot on AVR (80 bytes).
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static TABLE_IN_FLASH: [Row; TABLE.len()] = TABLE;
+// SAFETY: in program memory on the AVR (the attribute above).
+static TABLE_IN_FLASH: InFlash<[Row; TABLE.len()]> = unsafe { InFlash::new(TABLE) };
 
 /// Row `i` of [`TABLE`], read from flash.
 fn row_at(i: usize) -> Option<Row> {
-    // SAFETY: TABLE_IN_FLASH is an immutable static in program memory (plain
-    // memory on the host); Row is Copy.
-    TABLE_IN_FLASH.get(i).map(|r| unsafe { avr_progmem::raw::read_value(r) })
+    TABLE_IN_FLASH.row(i)
 }
 
 /// What the executor is asked to do next.

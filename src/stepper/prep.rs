@@ -50,6 +50,7 @@
 
 use super::{Prescale, Segment, StBlock, StepperCmd, MIN_STEP_RATE_HZ};
 use crate::config::Settings;
+use crate::flash::InFlash;
 use crate::math::sqrtf;
 use crate::planner::Planner;
 use crate::F_CPU_HZ;
@@ -168,14 +169,15 @@ fn ceil_u32(x: f32) -> u32 {
 /// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
 /// of flash).
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static RECIPROCALS: [f32; 13] = {
+// SAFETY: in program memory on the AVR (the attribute above).
+static RECIPROCALS: InFlash<[f32; 13]> = unsafe {
     let mut t = [0.0f32; 13];
     let mut i = 1;
     while i < 13 {
         t[i] = 1.0 / i as f32;
         i += 1;
     }
-    t
+    InFlash::new(t)
 };
 
 /// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
@@ -185,12 +187,9 @@ static RECIPROCALS: [f32; 13] = {
 /// an ulp of it, far below the timer count the period is rounded to).
 #[inline(never)]
 fn per_tick(cycles: f32, n: u32) -> f32 {
-    if (1..13).contains(&n) {
-        // SAFETY: an immutable static in program memory (plain memory on
-        // the host); the index is in bounds.
-        cycles * unsafe { avr_progmem::raw::read_value(&RECIPROCALS[n as usize]) }
-    } else {
-        crate::math::div_cold(cycles, n as f32)
+    match RECIPROCALS.row(n as usize) {
+        Some(r) if n != 0 => cycles * r,
+        _ => crate::math::div_cold(cycles, n as f32),
     }
 }
 

@@ -32,6 +32,7 @@
 
 pub mod run;
 
+use crate::flash::InFlash;
 use crate::atc::tools::{seal, valid};
 
 /// Fast seek feed, mm/min.
@@ -243,13 +244,12 @@ pub const TABLE: [Row; 12] = [
 
 /// [`TABLE`] kept in flash (a run-time `const` table would sit in RAM on AVR).
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static TABLE_IN_FLASH: [Row; TABLE.len()] = TABLE;
+// SAFETY: in program memory on the AVR (the attribute above).
+static TABLE_IN_FLASH: InFlash<[Row; TABLE.len()]> = unsafe { InFlash::new(TABLE) };
 
 /// Row `i` of [`TABLE`], read from flash.
 fn row_at(i: usize) -> Option<Row> {
-    // SAFETY: TABLE_IN_FLASH is an immutable static in program memory (plain
-    // memory on the host); Row is Copy.
-    TABLE_IN_FLASH.get(i).map(|r| unsafe { avr_progmem::raw::read_value(r) })
+    TABLE_IN_FLASH.row(i)
 }
 
 /// What the executor is asked to do next.
