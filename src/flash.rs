@@ -103,14 +103,6 @@ impl FStr {
         self.len() >= s.len() && self.bytes().zip(s.bytes()).all(|(a, b)| a == b)
     }
 
-    /// Entry `i` of a table of `FStr` kept in flash (see [`flash_messages!`]).
-    #[doc(hidden)]
-    pub fn from_table(table: &'static [FStr], i: usize) -> FStr {
-        // SAFETY: the table is an immutable static in program memory (plain
-        // memory on the host) and FStr is Copy; `&table[i]` is in bounds.
-        unsafe { avr_progmem::raw::read_value(&table[i]) }
-    }
-
     /// Write the text through a `ufmt` writer, 16 bytes at a time.
     pub fn write_to<W: ufmt::uWrite + ?Sized>(&self, w: &mut W) -> Result<(), W::Error> {
         let mut chunk = [0u8; 16];
@@ -241,8 +233,11 @@ macro_rules! flash_messages {
             /// The message of this variant, in flash.
             pub fn message(self) -> $crate::flash::FStr {
                 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-                static TABLE: [$crate::flash::FStr; [$($text),+].len()] = [$( $crate::F!($text) ),+];
-                $crate::flash::FStr::from_table(&TABLE, self as usize)
+                // SAFETY: in program memory on the AVR (the attribute above).
+                static TABLE: $crate::flash::InFlash<[$crate::flash::FStr; [$($text),+].len()]> =
+                    unsafe { $crate::flash::InFlash::new([$( $crate::F!($text) ),+]) };
+                // Every variant has its row.
+                TABLE.row(self as usize).unwrap_or($crate::F!(""))
             }
         }
     };
