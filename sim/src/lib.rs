@@ -42,6 +42,7 @@
 //! ```
 
 pub mod atc;
+pub mod circle;
 pub mod elf;
 pub mod host;
 pub mod isr;

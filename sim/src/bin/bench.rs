@@ -30,7 +30,7 @@
 //! from `avr-size`, the stack high-water from the VM (largest over the runs).
 
 use sim::host::prepare_gcode;
-use sim::{Axis, CardKind, FatKind, Flow, IsrStats, SdCard, SdImage, StreamOptions, Vm, VmConfig};
+use sim::{circle, Axis, CardKind, FatKind, Flow, IsrStats, SdCard, SdImage, StreamOptions, Vm, VmConfig};
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 
@@ -62,9 +62,9 @@ fn parse_args() -> Result<Args, String> {
 struct StreamResult {
     flow: String,
     /// Mid-job rate: segments per second while the middle half of the job
-    /// (by time) runs, from the path length stepped (F3000 = 500/s).
+    /// (by time) runs, from the tool's angle on the circle at both ends.
     sustained_per_s: f64,
-    /// The rate F3000 itself gives on the step-rounded path: what a
+    /// The rate the feed itself gives on the step-rounded path: what a
     /// firmware that never starves runs at.
     feed_per_s: f64,
     /// The whole job: 2,000 / job time (ramps included, so below the
@@ -230,29 +230,16 @@ impl Bench {
     fn stream(&mut self, flow: Flow, flow_name: &str) -> Result<(), String> {
         let from_sd = flow_name == "from SD";
         let mut vm = self.boot()?;
-        let (cx, cy, r) = (22.5f64, 22.5f64, 20.0f64);
-        let dth = 2.0 * (0.05 / r).asin();
-        let pt = |k: usize| {
-            let th = k as f64 * dth;
-            let x = (cx + r * th.cos()) * 1000.0;
-            let y = (cy + r * th.sin()) * 1000.0;
-            (x.round() / 1000.0, y.round() / 1000.0)
-        };
-        let (x0, y0) = pt(0);
-        if self.feed > 3000.0 {
-            // Above the factory 3000 mm/min per axis: raise the axes' limit
-            // (M203 is mm/s) so that the feed alone sets the speed.
-            self.cmd(&mut vm, &format!("M203 X{0} Y{0}", (self.feed / 60.0).ceil()))?;
+        for l in circle::setup(self.feed) {
+            self.cmd(&mut vm, &l)?;
         }
-        self.cmd(&mut vm, &format!("G1 X{x0:.3} Y{y0:.3} F{}", self.feed))?;
-        self.cmd(&mut vm, "M400")?;
         let under0 = read_u16(&vm, "MILL_STEP_UNDERRUNS");
         vm.recorder_mut().clear_trace();
         vm.clear_isr_stats();
         // The circle's centre in the recorder's step counts (100 steps/mm).
+        let (x0, y0) = circle::point(0);
         let p0 = vm.positions();
-        let centre = (p0[0] as f64 - (x0 - cx) * 100.0, p0[1] as f64 - (y0 - cy) * 100.0);
-        let mut lines = Vec::new();
+        let centre = (p0[0] as f64 - (x0 - circle::CENTRE.0) * 100.0, p0[1] as f64 - (y0 - circle::CENTRE.1) * 100.0);
         let mut len = 0.0;
         // The path as the machine runs it: each chord between targets
         // rounded to whole steps (100/mm), at F. Slightly longer than the
@@ -260,14 +247,13 @@ impl Bench {
         let mut step_len = 0.0;
         let steps = |v: f64| (v * 100.0).round();
         let mut prev = (x0, y0);
-        for k in 1..=2000 {
-            let (x, y) = pt(k);
-            lines.push(format!("G1 X{x:.3} Y{y:.3}"));
+        for k in 1..=circle::MOVES {
+            let (x, y) = circle::point(k);
             len += ((x - prev.0).powi(2) + (y - prev.1).powi(2)).sqrt();
             step_len += ((steps(x) - steps(prev.0)).powi(2) + (steps(y) - steps(prev.1)).powi(2)).sqrt() / 100.0;
             prev = (x, y);
         }
-        let lines = prepare_gcode(&lines.join("\n"));
+        let lines = prepare_gcode(&circle::moves().join("\n"));
         let rep = if from_sd {
             let text = lines.join("\n") + "\n";
             vm.insert_sd(SdCard::new(SdImage::new(FatKind::Fat16).file("BENCH.NC", text.as_bytes()).build(), CardKind::Sdhc));
@@ -292,9 +278,9 @@ impl Bench {
         let (feed, accel) = (self.feed / 60.0, 1000.0);
         self.r.streams.push(StreamResult {
             flow: flow_name.into(),
-            sustained_per_s: segment_rate(&vm, p0, centre, dth, 0.25, 0.75),
-            feed_per_s: 2000.0 * feed / step_len,
-            segments_per_s: 2000.0 / job,
+            sustained_per_s: segment_rate(&vm, p0, centre, circle::chord_angle(), 0.25, 0.75),
+            feed_per_s: circle::MOVES as f64 * feed / step_len,
+            segments_per_s: circle::MOVES as f64 / job,
             job_s: job,
             ideal_s: len / feed + feed / accel,
             underruns: read_u16(&vm, "MILL_STEP_UNDERRUNS").wrapping_sub(under0) as u32,
@@ -387,12 +373,19 @@ fn cruise_rate(t: &[u64]) -> f64 {
     (b - a) as f64 * F_CPU / (t[b] - t[a]) as f64
 }
 
-/// XY path stepped in each of `n` bins of `bin_s` from cycle `lo`, mm
-/// (per bin, the steps each axis made, combined as a straight line).
-fn path_bins(vm: &Vm, steps_per_mm: f64, lo: u64, n: usize, bin_s: f64) -> Vec<f64> {
+/// Slowest XY path speed over `bin_s` bins, mm/s, leaving out `skip_s` at
+/// each end of the recorded steps (the ramps).
+fn min_path_speed(vm: &Vm, steps_per_mm: f64, bin_s: f64, skip_s: f64) -> f64 {
+    let tr = vm.recorder().trace();
+    let Some((t0, t1)) = vm.recorder().step_span() else { return 0.0 };
     let bin = (bin_s * F_CPU) as u64;
+    let (lo, hi) = (t0 + (skip_s * F_CPU) as u64, t1.saturating_sub((skip_s * F_CPU) as u64));
+    if hi <= lo + bin {
+        return 0.0;
+    }
+    let n = ((hi - lo) / bin) as usize;
     let mut d = vec![[0i64; 2]; n];
-    for t in vm.recorder().trace() {
+    for t in tr {
         if t.cycle < lo || t.cycle >= lo + n as u64 * bin {
             continue;
         }
@@ -403,20 +396,7 @@ fn path_bins(vm: &Vm, steps_per_mm: f64, lo: u64, n: usize, bin_s: f64) -> Vec<f
             _ => {}
         }
     }
-    d.iter().map(|c| ((c[0] * c[0] + c[1] * c[1]) as f64).sqrt() / steps_per_mm).collect()
-}
-
-/// Slowest XY path speed over `bin_s` bins, mm/s, leaving out `skip_s` at
-/// each end of the recorded steps (the ramps).
-fn min_path_speed(vm: &Vm, steps_per_mm: f64, bin_s: f64, skip_s: f64) -> f64 {
-    let Some((t0, t1)) = vm.recorder().step_span() else { return 0.0 };
-    let bin = (bin_s * F_CPU) as u64;
-    let (lo, hi) = (t0 + (skip_s * F_CPU) as u64, t1.saturating_sub((skip_s * F_CPU) as u64));
-    if hi <= lo + bin {
-        return 0.0;
-    }
-    let n = ((hi - lo) / bin) as usize;
-    path_bins(vm, steps_per_mm, lo, n, bin_s).into_iter().map(|mm| mm / bin_s).fold(f64::INFINITY, f64::min)
+    d.iter().map(|c| ((c[0] * c[0] + c[1] * c[1]) as f64).sqrt() / steps_per_mm / bin_s).fold(f64::INFINITY, f64::min)
 }
 
 /// Segments of the circle job run per second between the fractions `from`

@@ -90,17 +90,9 @@ fn main() {
     let lines: Vec<String> = match job {
         Some(p) => prepare_gcode(&std::fs::read_to_string(p).expect("job")),
         None => {
-            let (cx, cy, r) = (22.5f64, 22.5f64, 20.0f64);
-            let dth = 2.0 * (0.05 / r).asin();
             let mut v = vec!["M999".to_string()];
-            if feed > 3000.0 {
-                v.push(format!("M203 X{0} Y{0}", (feed / 60.0).ceil()));
-            }
-            v.extend([format!("G1 X42.500 Y22.500 F{feed}"), "M400".to_string()]);
-            for k in 1..=2000 {
-                let th = k as f64 * dth;
-                v.push(format!("G1 X{:.3} Y{:.3}", cx + r * th.cos(), cy + r * th.sin()));
-            }
+            v.extend(sim::circle::setup(feed));
+            v.extend(sim::circle::moves());
             v
         }
     };
