@@ -233,9 +233,11 @@ macro_rules! flash_messages {
             /// The message of this variant, in flash.
             pub fn message(self) -> $crate::flash::FStr {
                 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-                // SAFETY: in program memory on the AVR (the attribute above).
-                static TABLE: $crate::flash::InFlash<[$crate::flash::FStr; [$($text),+].len()]> =
-                    unsafe { $crate::flash::InFlash::new([$( $crate::F!($text) ),+]) };
+                static TABLE: $crate::flash::InFlash<[$crate::flash::FStr; [$($text),+].len()]> = {
+                    let rows = [$( $crate::F!($text) ),+];
+                    // SAFETY: in program memory on the AVR (the attribute above).
+                    unsafe { $crate::flash::InFlash::new(rows) }
+                };
                 // Every variant has its row.
                 TABLE.row(self as usize).unwrap_or($crate::F!(""))
             }
