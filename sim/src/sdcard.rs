@@ -489,7 +489,7 @@ mod tests {
         let mut c = SdCard::new(img, CardKind::Sdhc);
         init(&mut c);
         c.corrupt_next_read_crc(2);
-        let mut read = |c: &mut SdCard| {
+        let read = |c: &mut SdCard| {
             assert_eq!(cmd(c, 17, 2), 0x00);
             while c.exchange(0xFF) == 0xFF {}
             let data: Vec<u8> = (0..BLOCK).map(|_| c.exchange(0xFF)).collect();

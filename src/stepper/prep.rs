@@ -182,9 +182,9 @@ static RECIPROCALS: InFlash<[f32; 13]> = unsafe {
 
 /// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
 /// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12
-/// this multiplies
-/// by 1/n (~140 cycles on the AVR instead of a ~540-cycle division; within
-/// an ulp of it, far below the timer count the period is rounded to).
+/// this multiplies by 1/n (~140 cycles on the AVR instead of a ~540-cycle
+/// division; within an ulp of it, far below the timer count the period is
+/// rounded to).
 #[inline(never)]
 fn per_tick(cycles: f32, n: u32) -> f32 {
     match RECIPROCALS.row(n as usize) {

@@ -298,7 +298,6 @@ impl Splitter {
         let dir = self.block.direction_bits & 0x0F;
         let mut c = Chunk { events, axis_dir: dir, take_up: self.block.take_up, ..Chunk::EMPTY };
         let error0 = (events >> 1) - events;
-        let mut moving = 0u8;
         let mut ends_at_zero = 0u8;
         let mut starts_at_zero = 0u8;
         // Pin high = positive, unless the axis is inverted.
@@ -319,7 +318,6 @@ impl Splitter {
             c.steps[i] = s;
             c.error[i] = error0;
             if s != 0 {
-                moving |= bit;
                 if s == events {
                     c.every |= map.step[i];
                 } else {

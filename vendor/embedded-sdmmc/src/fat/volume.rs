@@ -1429,7 +1429,7 @@ impl FatVolume {
 #[cfg(target_arch = "avr")]
 fn fat_run_len(entries: &[u8], first: u32, fat32: bool) -> u16 {
     // c + 1, the next cluster an entry must hold to continue the run.
-    let (mut next_lo, mut next_hi) = (first as u16, (first >> 16) as u16);
+    let (mut next_lo, next_hi) = (first as u16, (first >> 16) as u16);
     // SAFETY: reads whole entries from `entries.as_ptr()` on, at most
     // `entries.len()` bytes, all inside `entries`; writes only the registers
     // named here.
