@@ -112,6 +112,21 @@ mod tests {
     }
 
     #[test]
+    fn work_z_of_the_tip_is_machine_z_less_the_offset_and_the_tool_length() {
+        // G54 at user machine Z −2 (stored internally as +2), a 3 mm tool
+        // (G43), the spindle at user machine Z −8: the tip is at work Z
+        // −8 − (−2) − 3 = −9, as LinuxCNC computes it.
+        let mut i = crate::gcode::interp::Interp::new();
+        i.wcs_mm[0] = internal_from_user([10.0, 5.0, -2.0]);
+        i.tlo_mm = crate::atc::tool_length_offset_mm(3.0);
+        let spindle = internal_from_user([13.0, 9.0, -8.0, 0.0]);
+        assert_eq!(i.work_user(spindle), [3.0, 4.0, -9.0, 0.0]);
+        // A longer tool's tip is lower.
+        i.tlo_mm = crate::atc::tool_length_offset_mm(5.0);
+        assert_eq!(i.work_user(spindle)[Z], -11.0);
+    }
+
+    #[test]
     fn arcs_in_planes_with_z_turn_the_other_way_internally() {
         assert!(internal_clockwise(true, false));
         assert!(!internal_clockwise(false, false));
