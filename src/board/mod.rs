@@ -9,12 +9,14 @@
 //! - [`twi`] and [`spi`]: bus masters implementing the `embedded-hal` 1.0 traits;
 //! - [`oled`]: the SH1106 display on the TWI (its command set, page writes);
 //! - [`eeprom`] and [`wdt`];
+//! - [`halt`]: where every panic and `abort` ends (the M112 state, then halt);
 //! - `mem`: faster `memcpy` and `memset` than avr-libc's (not registers,
 //!   but AVR-only assembly like the rest).
 //!
 //! Everything above this layer (the `mill` library) sees values, never pins.
 
 pub mod eeprom;
+pub mod halt;
 mod mem;
 pub mod oled;
 pub mod pins;
