@@ -37,7 +37,7 @@ fn main() -> ! {
 #[cfg(target_arch = "avr")]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
-    board::halt::halt("firmware panic")
+    board::halt::halt(mill::F!("firmware panic"))
 }
 
 /// `abort` (avr-libc's would only `cli` and spin, leaving the drivers on and
@@ -46,5 +46,5 @@ fn panic(_: &core::panic::PanicInfo) -> ! {
 #[cfg(target_arch = "avr")]
 #[no_mangle]
 pub extern "C" fn abort() -> ! {
-    board::halt::halt("firmware abort")
+    board::halt::halt(mill::F!("firmware abort"))
 }

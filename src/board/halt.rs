@@ -15,10 +15,12 @@
 //! running, so nothing resumes by itself.
 
 use avr_device::atmega2560::USART0;
+use mill::flash::FStr;
+use mill::F;
 
 /// Stop the machine, report `ALARM:<what>, halted: reset the board`, halt.
 #[inline(never)]
-pub fn halt(what: &str) -> ! {
+pub fn halt(what: FStr) -> ! {
     avr_device::interrupt::disable();
     super::emergency_stop_in_isr();
     // SAFETY: interrupts are off for good: nothing else touches USART0 now.
@@ -39,7 +41,8 @@ pub fn halt(what: &str) -> ! {
             }
         };
         // A fresh line: a reply may have been cut mid-line.
-        for &b in b"\nALARM:".iter().chain(what.as_bytes()).chain(b", halted: reset the board\n") {
+        // The text in flash (`F!`): a `&str` would cost its RAM copy.
+        for b in F!("\nALARM:").bytes().chain(what.bytes()).chain(F!(", halted: reset the board\n").bytes()) {
             put(b);
         }
     }
