@@ -153,25 +153,33 @@ impl Settings {
     /// Parse an EEPROM image. `None` if blank, of another version, corrupt,
     /// or holding values no machine could use (NaN, zero steps/mm, …).
     pub fn from_bytes(b: &[u8]) -> Option<Settings> {
+        let mut s = Settings::defaults();
+        s.read_image(b).then_some(s)
+    }
+
+    /// [`Settings::from_bytes`] into `self`; false (and `self` partly
+    /// overwritten) when the image is not valid. Not inlined: it works on
+    /// the settings through a pointer, within AVR's `ldd` reach.
+    #[inline(never)]
+    fn read_image(&mut self, b: &[u8]) -> bool {
         if b.len() < Self::IMAGE_LEN || b[0] != SETTINGS_VERSION {
-            return None;
+            return false;
         }
         if checksum(&b[..Self::IMAGE_LEN - 1]) != b[Self::IMAGE_LEN - 1] {
-            return None;
+            return false;
         }
-        let mut s = Settings::defaults();
         let mut r = Reader { buf: b, at: 1 };
-        for part in s.f32_fields_mut() {
+        for part in self.f32_fields_mut() {
             for v in part.iter_mut() {
                 *v = r.f32();
             }
         }
-        s.invert_dir_mask = r.u8();
-        s.soft_limits = r.u8() != 0;
-        s.hard_limits = r.u8() != 0;
-        s.auto_tool_offset = r.u8() != 0;
-        s.homing_lock = r.u8() != 0;
-        s.is_sane().then_some(s)
+        self.invert_dir_mask = r.u8();
+        self.soft_limits = r.u8() != 0;
+        self.hard_limits = r.u8() != 0;
+        self.auto_tool_offset = r.u8() != 0;
+        self.homing_lock = r.u8() != 0;
+        self.is_sane()
     }
 
     /// True when every value is one the planner can work with.

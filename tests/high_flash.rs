@@ -25,9 +25,13 @@
 //! with `-Wl,--no-stubs`, i.e. function addresses without trampolines (the
 //! link succeeds silently; every stored address is truncated to 16 bits).
 //! [`without_trampolines_the_same_checks_fail`] runs the protocol check on it
-//! and requires it to fail: measured, the firmware prints its `start` and then
-//! ~240 KB of garbage in 30 s and never answers `ok` (it first calls through
-//! a truncated address when the banner fills the TX ring: the TX-wait hook).
+//! and requires it to fail. Measured: the firmware prints `start` and the
+//! first 40-odd characters of its banner again and again (~240 KB in 30 s),
+//! never the reset-cause line nor an `ok`. When the banner fills the TX
+//! ring the TX-wait hook is called through its truncated address, which
+//! lands in the zero-filled gap (`nop`s) and slides into `__init` at
+//! 0x20000: a boot loop without a reset. The test sees
+//! `firmware prints its boot banner: Timeout { what: "a matching line" }`.
 //! Reproduce by hand:
 //!
 //! ```text
@@ -35,6 +39,7 @@
 //! cargo run -p sim --release -- --elf target/variants/avr-atmega2560/release/mill.elf job.gcode
 //! ...
 //! uart      5 bytes in, 239184 out, 0 dropped
+//! (the output: "start\nFIRMWARE_NAME:MillFW 0.1.0 FIRstart\nFIRMWARE_NAME:...")
 //! stream    4 lines, 1 sent, 0 ok, 0 errors, 0 resends, TIMED OUT
 //! ```
 
