@@ -196,7 +196,8 @@ fn homing_lines_and_an_arc(elf: PathBuf) -> Vec<(Axis, i64)> {
     ok(&mut vm, "M400");
     let got = check_arc(&vm, (0, 1, 2), [1750.0, 1000.0], 750.0, [1000, 1000, 100], [1000, 1000, 100], ARC_TOL_MM * SPMM + 1.0);
     assert!((got.swept + 2.0 * std::f64::consts::PI).abs() < 0.01, "swept {}", got.swept);
-    assert_eq!(m114_counts(&mut vm), [1000, 1000, 100]);
+    // M114 counts Z up (+Z is up in user frames): the recorder's 100 is -100 there.
+    assert_eq!(m114_counts(&mut vm), [1000, 1000, -100]);
     assert_no_violations(&vm);
     all.extend(vm.recorder().trace().iter().map(|t| (t.axis, t.position)));
     all
@@ -255,7 +256,7 @@ fn an_sd_job_started_from_the_menu_runs_like_the_same_lines_over_serial() {
 fn a_tool_change_t3_then_t0_matches_the_physical_changer() {
     let mut vm = boot_elf(high_elf());
     ok(&mut vm, "G28");
-    ok(&mut vm, "G0 X10 Y5 Z3");
+    ok(&mut vm, "G0 X10 Y5 Z-3");
     ok(&mut vm, "M400");
     let before = steps(&vm);
     let r = ok(&mut vm, "T3");
