@@ -321,6 +321,10 @@ impl Io for Hw {
         board::spindle_set(duty);
     }
 
+    fn coolant(&mut self, on: bool) {
+        board::coolant_set(on);
+    }
+
     fn switches(&self) -> mill::machine::Switches {
         let i = board::inputs();
         mill::machine::Switches { home: i.home, carousel_home: i.carousel_home, tool_setter: i.tool_setter }

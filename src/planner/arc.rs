@@ -9,8 +9,12 @@
 //!   −`axis_1` as seen from +`axis_linear` (RS274/NGC, grbl).
 //! - Helical motion: the linear axis moves in proportion to the angle.
 //! - Centre by I/J/K offsets from the start, or by R (R > 0: the arc of at most
-//!   180°, R < 0: the longer one, RS274/NGC §3.5.3). Start == end with I/J/K is
-//!   a full circle; with R it is an error.
+//!   180°, R < 0: the longer one, RS274/NGC §3.5.3). Start == end in the
+//!   plane with I/J/K is a full circle, always: the angle is not measured
+//!   then (f32 round-off in `end − centre` made it a few µrad either way, and
+//!   one sign of it turned a full circle into a 2 µrad arc). The interpreter
+//!   sets the end to the start when both round to the same steps. With R,
+//!   start == end is an error.
 //! - Chord count: each chord spans at most φ = √(8·tol/r), whose sagitta
 //!   r(1 − cos φ/2) ≤ r·φ²/8 = tol, so the chord error never exceeds the
 //!   tolerance (grbl's own count rounds down and can exceed it slightly).
@@ -185,7 +189,8 @@ impl Arc {
         // Radius vectors from the centre to the start and to the end.
         let (r0x, r0y) = (-off0, -off1);
         let (r1x, r1y) = (end[a0] - c0, end[a1] - c1);
-        let mut angular_travel = atan2f(r0x * r1y - r0y * r1x, r0x * r1x + r0y * r1y);
+        let full_circle = dx == 0.0 && dy == 0.0;
+        let mut angular_travel = if full_circle { 0.0 } else { atan2f(r0x * r1y - r0y * r1x, r0x * r1x + r0y * r1y) };
         if clockwise {
             if angular_travel >= -ANGULAR_TRAVEL_EPSILON {
                 angular_travel -= TWO_PI;
@@ -380,6 +385,52 @@ mod tests {
             total += (u.0 * v.1 - u.1 * v.0).atan2(u.0 * v.0 + u.1 * v.1);
         }
         total
+    }
+
+    /// Issue 13: `G0 X18.087536 Y33.329412`, `G3 X18.087536 Y33.329412
+    /// I-0.4 J-0.69282` moved 2 µrad instead of a full 0.8 mm circle: the
+    /// angle between start and end came out of `end − centre` with f32
+    /// round-off. Start == end in the plane is a full circle in every plane,
+    /// both ways, helical or not, at any radius and any start.
+    #[test]
+    fn start_equal_to_end_is_always_a_full_circle() {
+        let start = [18.087536f32, 33.329412, 5.0];
+        for cw in [false, true] {
+            let arc = Arc::new(start, start, Centre::Offset([-0.4, -0.69282, 0.0]), G17, cw, TOL).unwrap();
+            let want = if cw { -TWO_PI } else { TWO_PI };
+            assert_eq!(arc.angular_travel(), want);
+            assert!((swept(start, arc) - want).abs() < 1e-3, "cw {cw}: swept {}", swept(start, arc));
+        }
+        let mut skipped = 0;
+        for plane in [G17, G18, G19] {
+            let (a0, a1, al) = plane;
+            for k in 0..36 {
+                for &r in &[0.05f32, 0.8, 2.0, 7.3, 20.0] {
+                    for cw in [false, true] {
+                        for helix in [0.0f32, 1.5] {
+                            let t = (k as f32 * 10.0 + 3.0).to_radians();
+                            let mut start = [0.0f32; 3];
+                            start[a0] = 18.087536 + 0.37 * k as f32;
+                            start[a1] = 33.329412 - 0.11 * k as f32;
+                            start[al] = 5.0;
+                            let mut end = start;
+                            end[al] += helix;
+                            let mut off = [0.0f32; 3];
+                            off[a0] = -r * t.cos();
+                            off[a1] = -r * t.sin();
+                            let arc = Arc::new(start, end, Centre::Offset(off), plane, cw, TOL).unwrap();
+                            let sw = swept(start, arc);
+                            if (sw.abs() - TWO_PI).abs() > 1e-3 || (sw < 0.0) != cw {
+                                skipped += 1;
+                            }
+                            check_chords(start, arc, TOL);
+                            assert_eq!(arc.last(), Some(end));
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(skipped, 0, "arcs that were not full circles");
     }
 
     #[test]
