@@ -152,14 +152,16 @@ pub struct Interp {
 }
 
 impl Interp {
-    /// Power-up modal state: G21 G90 G17 G54 G49 G80, feed unset.
+    /// Power-up modal state: G21 G90 G17 G54 G49 G0 (grbl's G0: a bare
+    /// axis word before any motion code is a rapid; LinuxCNC starts in G80
+    /// and refuses it), feed unset.
     pub const fn new() -> Interp {
         Interp {
             inches: false,
             incremental: false,
             plane: Plane::Xy,
             arc_absolute: false,
-            motion: Motion::Cancel,
+            motion: Motion::Rapid,
             feed_mm_per_min: 0.0,
             feed_override_pct: 100,
             spindle_rpm: 0.0,

@@ -412,3 +412,14 @@ fn m1_is_skipped_unless_optional_stop_is_on_and_m0_always_pauses() {
     run(&mut m, &mut io, "M1");
     assert!(io.out.contains("paused"), "{}", io.out);
 }
+
+/// Power-up motion mode is G0, as grbl (Fusion's generic post writes a bare
+/// `Z10` after its first M6, corpus 05); LinuxCNC starts in G80.
+#[test]
+fn bare_axis_words_at_power_up_are_a_rapid() {
+    let (mut m, mut io) = machine();
+    assert_eq!(m.interp.motion, super::Motion::Rapid);
+    run(&mut m, &mut io, "Z10");
+    assert_eq!(xyz(&io), [0, 0, 1000]);
+    assert!(refused(&mut m, &mut io, "G0 G80 X1").contains("modal group"), "G0 and G80 share group 1, as in LinuxCNC and grbl");
+}
