@@ -36,6 +36,12 @@ pub const ARC_CORRECTION: u32 = 16;
 /// (grbl's ARC_ANGULAR_TRAVEL_EPSILON).
 const ANGULAR_TRAVEL_EPSILON: f32 = 5e-7;
 const TWO_PI: f32 = 2.0 * core::f32::consts::PI;
+/// I/J/K end radius mismatch always accepted, mm: LinuxCNC's
+/// `CENTER_ARC_RADIUS_TOLERANCE_MM` (2 · 0.01 · √2). grbl's 0.005 mm refused
+/// a Fusion 360 HAAS post's 0.3 mm fillet 0.0056 mm off (corpus 06, in
+/// inches: 4 decimals of an inch are 2.5 µm each). Above it the mismatch must
+/// stay within 0.1 % of the radius (both), and never beyond 0.5 mm (grbl).
+pub const RADIUS_ABS_TOLERANCE_MM: f32 = 0.028_284_27;
 
 /// How the arc's centre is given.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,7 +59,8 @@ pub enum ArcError {
     /// R is smaller than half the distance between start and end.
     RadiusTooSmall,
     /// I/J/K: the end point is not on the circle (start and end radius differ by
-    /// more than 0.005 mm and by more than 0.1 % of the radius, or by > 0.5 mm).
+    /// more than [`RADIUS_ABS_TOLERANCE_MM`] and by more than 0.1 % of the
+    /// radius, or by > 0.5 mm).
     RadiusMismatch,
     /// Zero radius (R0, or I/J/K all zero in the plane).
     ZeroRadius,
@@ -178,7 +185,7 @@ impl Arc {
                 }
                 let r1 = hypot(dx - o0, dy - o1);
                 let delta_r = fabsf(r1 - r0);
-                if delta_r > 0.005 && (delta_r > 0.5 || delta_r > 0.001 * r0) {
+                if delta_r > RADIUS_ABS_TOLERANCE_MM && (delta_r > 0.5 || delta_r > 0.001 * r0) {
                     return Err(ArcError::RadiusMismatch);
                 }
                 (o0, o1, r0, r1)
@@ -611,13 +618,21 @@ mod tests {
         // I/J/K end not on the circle: 5 vs 5.099 mm (> 0.005 mm and > 0.1 %).
         let e = [10.0, 1.0, 0.0];
         assert_eq!(Arc::new(o, e, Centre::Offset([5.0, 0.0, 0.0]), G17, true, TOL).unwrap_err(), ArcError::RadiusMismatch);
-        // 0.006 mm off on a 5 mm radius: over 0.005 mm and 0.1 % (0.005 mm).
+        // 0.03 mm off on a 5 mm radius: over 0.0283 mm and 0.1 % (0.005 mm).
         let e = [10.0, 0.0, 0.0];
-        let c = Centre::Offset([5.006, 0.0, 0.0]);
+        let c = Centre::Offset([5.015, 0.0, 0.0]);
         assert_eq!(Arc::new(o, e, c, G17, true, TOL).unwrap_err(), ArcError::RadiusMismatch);
-        // 0.008 mm off on a 20 mm radius: over 0.005 mm but under 0.1 % (0.02 mm).
-        let e = [40.0, 0.0, 0.0];
-        let c = Centre::Offset([20.004, 0.0, 0.0]);
+        // 0.006 mm off on a 5 mm radius: over 0.1 % but under 0.0283 mm (LinuxCNC).
+        let c = Centre::Offset([5.003, 0.0, 0.0]);
+        assert!(Arc::new(o, e, c, G17, true, TOL).is_ok());
+        // Corpus 06 (Fusion 360 HAAS post, inches): a 0.3 mm fillet whose end
+        // radius is 0.0056 mm longer; grbl's 0.005 mm refused it.
+        let s06 = [1.5919 * 25.4, 1.0709 * 25.4, 0.0];
+        let e06 = [1.6139 * 25.4, 1.0797 * 25.4, 0.0];
+        assert!(Arc::new(s06, e06, Centre::Offset([0.0114 * 25.4, 0.0031 * 25.4, 0.0]), G17, true, TOL).is_ok());
+        // 0.04 mm off on a 50 mm radius: over 0.0283 mm but under 0.1 % (0.05 mm).
+        let e = [100.0, 0.0, 0.0];
+        let c = Centre::Offset([50.02, 0.0, 0.0]);
         assert!(Arc::new(o, e, c, G17, true, TOL).is_ok());
         // 0.6 mm off on a 1000 mm radius: under 0.1 % but over 0.5 mm.
         let e = [2000.0, 0.0, 0.0];
