@@ -24,11 +24,11 @@ const ARC_DEV: f64 = ARC_TOL_MM * SPMM + 1.0;
 #[test]
 fn full_circles_in_every_plane_and_direction_from_off_grid_starts() {
     let mut vm = boot_homed();
-    // The reported case (Z grows downward here: Z5 is 5 mm below the top).
-    run(&mut vm, "G17 G0 X18.087536 Y33.329412 Z5");
+    // The reported case (5 mm below the top).
+    run(&mut vm, "G17 G0 X18.087536 Y33.329412 Z-5");
     mark(&mut vm);
     run(&mut vm, "G3 X18.087536 Y33.329412 I-0.4 J-0.69282 F600");
-    let start = mm_to_steps([18.087536, 33.329412, 5.0]);
+    let start = mm_to_steps(user_to_physical_mm([18.087536, 33.329412, -5.0]));
     let c = [(18.087536 - 0.4) * SPMM, (33.329412 - 0.69282) * SPMM];
     let got = check_arc(&vm, (0, 1, 2), c, 80.0, start, start, ARC_DEV);
     assert!((got.swept - TWO_PI).abs() < 0.05, "reported case swept {} rad", got.swept);
@@ -36,16 +36,20 @@ fn full_circles_in_every_plane_and_direction_from_off_grid_starts() {
     let radii = [0.05f64, 0.1, 0.3, 0.8, 2.0, 20.0];
     let letters = ["X", "Y", "Z"];
     let offsets = ["I", "J", "K"];
+    // Centre (user frame, +Z up) and the physical sign of each axis (Z steps
+    // count downward from the top switch).
+    let cu = [22.5f64, 22.5, -22.5];
+    let flip = |a: usize| if a == 2 { -1.0 } else { 1.0 };
     for k in 0..36usize {
         let (code, plane) = [("G17", (0usize, 1usize, 2usize)), ("G18", (2, 0, 1)), ("G19", (1, 2, 0))][k % 3];
         let cw = (k / 3) % 2 == 0;
         let r = radii[(k / 6) % 6];
         let (a0, a1, al) = plane;
         let t = ((k * 10 + 3) as f64).to_radians();
-        let mut s = [22.5f64; 3];
-        s[a0] = 22.5 + r * t.cos();
-        s[a1] = 22.5 + r * t.sin();
-        s[al] = 10.0;
+        let mut s = cu;
+        s[a0] = cu[a0] + r * t.cos();
+        s[a1] = cu[a1] + r * t.sin();
+        s[al] = 10.0 * flip(al);
         let mut e = s;
         if k % 4 == 1 {
             e[al] += 0.5; // helical
@@ -60,15 +64,18 @@ fn full_circles_in_every_plane_and_direction_from_off_grid_starts() {
         for a in 0..3 {
             line += &format!(" {}{:.6}", letters[a], e[a]);
         }
-        line += &format!(" {}{:.6} {}{:.6} F3000", offsets[a0], 22.5 - s[a0], offsets[a1], 22.5 - s[a1]);
+        line += &format!(" {}{:.6} {}{:.6} F3000", offsets[a0], cu[a0] - s[a0], offsets[a1], cu[a1] - s[a1]);
         run(&mut vm, &line);
-        let start = mm_to_steps(s);
-        let end = mm_to_steps(e);
-        let got = check_arc(&vm, plane, [2250.0, 2250.0], r * SPMM, start, end, ARC_DEV);
+        let start = mm_to_steps(user_to_physical_mm(s));
+        let end = mm_to_steps(user_to_physical_mm(e));
+        let c = [cu[a0] * SPMM * flip(a0), cu[a1] * SPMM * flip(a1)];
+        let got = check_arc(&vm, plane, c, r * SPMM, start, end, ARC_DEV);
+        // G2 is clockwise seen from the plane's +normal, in the user's frame.
+        let swept = got.swept * flip(a0) * flip(a1);
         let want = if cw { -TWO_PI } else { TWO_PI };
         // Small circles are a few steps across: the step path's sweep is coarse.
         let slack = if r < 0.2 { 0.8 } else { 0.05 };
-        assert!((got.swept - want).abs() < slack, "{line}: swept {} rad", got.swept);
+        assert!((swept - want).abs() < slack, "{line}: swept {swept} rad");
         let far = events(&vm)
             .iter()
             .map(|p| {

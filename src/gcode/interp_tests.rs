@@ -145,7 +145,7 @@ fn max_dist_from(path: &[[i32; N_AXES]], p: [i32; N_AXES], a0: usize, a1: usize)
 fn the_reported_full_circle_goes_all_the_way_round() {
     for g in ["G3", "G2"] {
         let (mut m, mut io) = machine();
-        run(&mut m, &mut io, "G0 X18.087536 Y33.329412 Z5");
+        run(&mut m, &mut io, "G0 X18.087536 Y33.329412 Z-5");
         let start = io.pos;
         io.path.clear();
         run(&mut m, &mut io, &format!("{g} X18.087536 Y33.329412 I-0.4 J-0.69282 F600"));
@@ -163,6 +163,10 @@ fn the_reported_full_circle_goes_all_the_way_round() {
 fn an_arc_ending_on_its_start_step_is_a_full_circle_in_every_plane() {
     let planes = [("G17", 0usize, 1usize, 2usize, ["I", "J", "K"]), ("G18", 2, 0, 1, ["I", "J", "K"]), ("G19", 1, 2, 0, ["I", "J", "K"])];
     let letters = ["X", "Y", "Z"];
+    // Centre in the user's frame (+Z up; machine Z runs 0 … -45) and the sign
+    // of each axis in the internal frame the fake board counts in.
+    let cu = [22.5f64, 22.5, -22.5];
+    let flip = |a: usize| if a == 2 { -1 } else { 1 };
     let (mut m, mut io) = machine();
     let mut failures = Vec::new();
     let (mut n, mut perturbed) = (0, 0);
@@ -171,10 +175,10 @@ fn an_arc_ending_on_its_start_step_is_a_full_circle_in_every_plane() {
             for (ri, &r) in [0.05f64, 0.8, 2.0, 20.0].iter().enumerate() {
                 for g in ["G2", "G3"] {
                     let t = ((k * 10 + 3) as f64).to_radians();
-                    let mut start = [22.5f64; 3];
-                    start[a0] = 22.5 + r * t.cos();
-                    start[a1] = 22.5 + r * t.sin();
-                    start[al] = 10.0;
+                    let mut start = cu;
+                    start[a0] = cu[a0] + r * t.cos();
+                    start[a1] = cu[a1] + r * t.sin();
+                    start[al] = 10.0 * flip(al) as f64;
                     let mut end = start;
                     // Some ends a little off the start (within half a step),
                     // some helical.
@@ -202,23 +206,26 @@ fn an_arc_ending_on_its_start_step_is_a_full_circle_in_every_plane() {
                     for a in 0..3 {
                         line += &format!(" {}{:.6}", letters[a], end[a]);
                     }
-                    line += &format!(" {}{:.6} {}{:.6} F3000", words[a0], 22.5 - start[a0], words[a1], 22.5 - start[a1]);
+                    line += &format!(" {}{:.6} {}{:.6} F3000", words[a0], cu[a0] - start[a0], words[a1], cu[a1] - start[a1]);
                     run(&mut m, &mut io, &line);
                     n += 1;
                     let d = max_dist_from(&io.path, s, a0, a1);
                     let want = 2.0 * r * 100.0;
                     // Swept angle around the centre, from the block ends.
-                    let c = [2250.0f64, 2250.0];
+                    // In the user's frame: G2 is clockwise seen from +normal.
+                    let user = |q: &[i32; N_AXES]| [q[0] as f64, q[1] as f64, -(q[2] as f64)];
+                    let c = [cu[a0] * 100.0, cu[a1] * 100.0];
                     let mut swept = 0.0;
-                    let mut prev = s;
+                    let mut prev = user(&s);
                     for q in &io.path {
-                        let u = ((prev[a0] as f64) - c[0], (prev[a1] as f64) - c[1]);
-                        let v = ((q[a0] as f64) - c[0], (q[a1] as f64) - c[1]);
+                        let q = user(q);
+                        let u = (prev[a0] - c[0], prev[a1] - c[1]);
+                        let v = (q[a0] - c[0], q[a1] - c[1]);
                         swept += (u.0 * v.1 - u.1 * v.0).atan2(u.0 * v.0 + u.1 * v.1);
-                        prev = *q;
+                        prev = q;
                     }
                     let want_sweep = if g == "G2" { -std::f64::consts::TAU } else { std::f64::consts::TAU };
-                    let end_steps = [(end[0] * 100.0).round() as i32, (end[1] * 100.0).round() as i32, (end[2] * 100.0).round() as i32];
+                    let end_steps = [(end[0] * 100.0).round() as i32, (end[1] * 100.0).round() as i32, -(end[2] * 100.0).round() as i32];
                     perturbed += (end[a0] != start[a0]) as usize;
                     if (d - want).abs() > 1.5 || (swept - want_sweep).abs() > 0.35 || xyz(&io) != end_steps {
                         failures.push(format!("{line}: farthest {d:.1} (want {want}), swept {swept:.3}"));
@@ -235,7 +242,7 @@ fn an_arc_ending_on_its_start_step_is_a_full_circle_in_every_plane() {
 #[test]
 fn g90_1_takes_i_j_k_as_the_absolute_centre_and_g91_1_as_offsets() {
     let (mut m, mut io) = machine();
-    run(&mut m, &mut io, "G0 X10 Y10 Z5");
+    run(&mut m, &mut io, "G0 X10 Y10 Z-5");
     // G90.1: centre (15, 10): a clockwise quarter to (15, 15).
     run(&mut m, &mut io, "G90.1 G2 X15 Y15 I15 J10 F600");
     assert_eq!(xyz(&io), [1500, 1500, 500]);
@@ -419,7 +426,7 @@ fn m1_is_skipped_unless_optional_stop_is_on_and_m0_always_pauses() {
 fn bare_axis_words_at_power_up_are_a_rapid() {
     let (mut m, mut io) = machine();
     assert_eq!(m.interp.motion, super::Motion::Rapid);
-    run(&mut m, &mut io, "Z10");
-    assert_eq!(xyz(&io), [0, 0, 1000]);
+    run(&mut m, &mut io, "Z-10");
+    assert_eq!(xyz(&io), [0, 0, 1000], "10 mm below the top (internal steps count down)");
     assert!(refused(&mut m, &mut io, "G0 G80 X1").contains("modal group"), "G0 and G80 share group 1, as in LinuxCNC and grbl");
 }
