@@ -11,6 +11,7 @@
 //! Meaning (modal state, units, offsets, which words a code needs, tool range)
 //! belongs to the interpreter.
 
+pub mod cycles;
 pub mod interp;
 pub mod parse;
 

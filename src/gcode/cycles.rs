@@ -1,0 +1,505 @@
+//! Canned drilling cycles (G73, G81, G82, G83, G85, G89), LinuxCNC semantics.
+//!
+//! Sits inside the interpreter's motion step: when the motion mode is a
+//! canned cycle, [`super::interp`] resolves the line's words into a
+//! [`Cycle`] (absolute positions in the user's frame, +Z up, mm) and queues
+//! the moves it yields, one at a time, through the same entry point as a
+//! `G0`/`G1`. Nothing here knows the planner or the machine: a cycle is a
+//! small state machine that yields [`Step`]s, so it is tested on the host
+//! move by move.
+//!
+//! The sequence for each hole (LinuxCNC, "Canned cycles", G81–G89):
+//! 0. once, before the first hole: if Z is below the R plane, rapid Z up to R;
+//! 1. rapid X/Y to the hole;
+//! 2. rapid Z down to the R plane;
+//! 3. the cycle's own motion to the bottom Z:
+//!    - G81 feed down; G82 feed down, dwell P;
+//!    - G83 peck: feed down by Q, rapid out to R, rapid back to
+//!      [`PECK_CLEARANCE_MM`] above the depth reached, feed on, until Z;
+//!    - G73 chip break: feed down by Q, rapid up [`PECK_CLEARANCE_MM`], feed on;
+//!    - G85 feed down, feed back up to R; G89 the same with a dwell P at the bottom;
+//! 4. rapid up to the clearance plane: the initial Z under G98 (or R if R is
+//!    higher), R under G99.
+//!
+//! `L` repeats the hole: under G91 each repeat moves by the X/Y increment;
+//! under G90 the same hole is drilled again (as LinuxCNC does).
+
+/// How far above the depth already reached a peck comes back down at rapid
+/// (G83), and how far G73 backs off to break the chip: LinuxCNC's
+/// `G83_RAPID_DELTA`, 0.010 inch.
+pub const PECK_CLEARANCE_MM: f32 = 0.254;
+
+/// The canned cycle (NGC motion group 1, G73 and G81–G89).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// G81: drill.
+    Drill,
+    /// G82: drill, dwell at the bottom.
+    DrillDwell,
+    /// G83: peck drill, full retract to R between pecks.
+    Peck,
+    /// G73: chip-breaking peck, a short back-off between pecks.
+    ChipBreak,
+    /// G85: bore, feed out.
+    Bore,
+    /// G89: bore, dwell at the bottom, feed out.
+    BoreDwell,
+}
+
+impl Kind {
+    /// True for the cycles that need a Q (peck depth).
+    pub fn pecks(self) -> bool {
+        matches!(self, Kind::Peck | Kind::ChipBreak)
+    }
+
+    /// True for the cycles that dwell P seconds at the bottom.
+    pub fn dwells(self) -> bool {
+        matches!(self, Kind::DrillDwell | Kind::BoreDwell)
+    }
+
+    /// True for the cycles that feed (not rapid) back out to R.
+    fn feeds_out(self) -> bool {
+        matches!(self, Kind::Bore | Kind::BoreDwell)
+    }
+}
+
+/// Where a hole ends (NGC group 10).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Retract {
+    /// G98: back to the Z held before the cycles began (or R if higher).
+    Initial,
+    /// G99: back to the R plane.
+    RPlane,
+}
+
+/// One move of a cycle, in the user's frame (mm, +Z up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Step {
+    /// Rapid (G0) to X, Y, Z.
+    Rapid([f32; 3]),
+    /// Feed (G1 at the modal feed) to X, Y, Z.
+    Feed([f32; 3]),
+    /// Dwell, seconds.
+    Dwell(f32),
+}
+
+/// Why a cycle cannot run; the line is refused and nothing moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Error {
+    /// The bottom Z is above the R plane.
+    ZAboveR,
+    /// G73/G83 without a positive Q.
+    BadPeck,
+    /// A negative dwell.
+    BadDwell,
+    /// L is not a whole number from 1 to 1000.
+    BadRepeat,
+}
+
+/// The resolved words of one cycle line (absolute, user frame, mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    pub kind: Kind,
+    pub retract: Retract,
+    /// The first hole's X, Y.
+    pub hole_xy: [f32; 2],
+    /// Added to X, Y for each repeat (G91 `L`); zero under G90.
+    pub repeat_xy: [f32; 2],
+    /// R plane Z, mm.
+    pub r_z: f32,
+    /// Bottom Z, mm.
+    pub bottom_z: f32,
+    /// Peck depth Q, mm (G73/G83).
+    pub peck_mm: f32,
+    /// Dwell P, seconds (G82/G89).
+    pub dwell_s: f32,
+    /// Holes to drill (L), at least 1.
+    pub repeats: u16,
+}
+
+/// Where the state machine is within a hole.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Phase {
+    /// Before the first hole: lift to R if below it.
+    Lift,
+    /// Rapid X/Y to the hole.
+    ToHole,
+    /// Rapid Z down to R.
+    ToR,
+    /// Feed down to `depth` (the next peck's end, or the bottom).
+    Down,
+    /// After a peck that was not the last: the back-off rapid.
+    BackOff,
+    /// G83 after the back-off to R: rapid back down near the depth reached.
+    Reenter,
+    /// At the bottom: dwell (G82/G89) if asked.
+    Bottom,
+    /// Out of the hole: feed to R (G85/G89) or rapid to the clearance plane.
+    Out,
+    /// G85/G89 under G98 with the clearance plane above R: the last rapid.
+    Clear,
+    /// Done with this hole: next hole or the end.
+    Next,
+    Done,
+}
+
+/// A canned cycle in progress: yields its moves one at a time.
+#[derive(Clone, Copy, Debug)]
+pub struct Cycle {
+    p: Params,
+    /// Z of the clearance plane the hole ends at.
+    clear_z: f32,
+    /// Z the cycle started at.
+    start_z: f32,
+    /// The current hole's X, Y.
+    xy: [f32; 2],
+    /// Depth reached so far in this hole.
+    reached_z: f32,
+    /// Holes left after the current one.
+    left: u16,
+    phase: Phase,
+}
+
+impl Cycle {
+    /// Check `p` and start the cycle from the user position `start`.
+    pub fn new(p: Params, start: [f32; 3]) -> Result<Cycle, Error> {
+        if p.bottom_z > p.r_z {
+            return Err(Error::ZAboveR);
+        }
+        if p.kind.pecks() && !(p.peck_mm > 0.0) {
+            return Err(Error::BadPeck);
+        }
+        if p.kind.dwells() && !(p.dwell_s >= 0.0) {
+            return Err(Error::BadDwell);
+        }
+        if p.repeats == 0 || p.repeats > 1000 {
+            return Err(Error::BadRepeat);
+        }
+        let clear_z = match p.retract {
+            Retract::Initial if start[2] > p.r_z => start[2],
+            _ => p.r_z,
+        };
+        Ok(Cycle {
+            p,
+            clear_z,
+            start_z: start[2],
+            xy: p.hole_xy,
+            reached_z: p.r_z,
+            left: p.repeats - 1,
+            phase: Phase::Lift,
+        })
+    }
+
+    /// The Z of the plane each hole ends at.
+    pub fn clearance_z(&self) -> f32 {
+        self.clear_z
+    }
+
+    /// Every X, Y, Z the cycle can reach: (low corner, high corner), for the
+    /// soft-limit check before anything moves.
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let last = [
+            self.p.hole_xy[0] + self.p.repeat_xy[0] * (self.p.repeats - 1) as f32,
+            self.p.hole_xy[1] + self.p.repeat_xy[1] * (self.p.repeats - 1) as f32,
+        ];
+        let top = if self.start_z > self.clear_z { self.start_z } else { self.clear_z };
+        (
+            [min(self.p.hole_xy[0], last[0]), min(self.p.hole_xy[1], last[1]), self.p.bottom_z],
+            [max(self.p.hole_xy[0], last[0]), max(self.p.hole_xy[1], last[1]), top],
+        )
+    }
+
+    /// The next move, `None` when the cycle is done.
+    pub fn next_step(&mut self) -> Option<Step> {
+        loop {
+            let (step, next) = self.transition();
+            self.phase = next;
+            if step.is_some() || next == Phase::Done {
+                return step;
+            }
+        }
+    }
+
+    fn at(&self, z: f32) -> [f32; 3] {
+        [self.xy[0], self.xy[1], z]
+    }
+
+    /// The move of the current phase (if any) and the phase after it.
+    fn transition(&mut self) -> (Option<Step>, Phase) {
+        let p = self.p;
+        match self.phase {
+            Phase::Lift => {
+                if self.start_z < p.r_z {
+                    // The tool is below R: straight up first, where it is.
+                    (Some(Step::Rapid([f32::NAN, f32::NAN, p.r_z])), Phase::ToHole)
+                } else {
+                    (None, Phase::ToHole)
+                }
+            }
+            Phase::ToHole => (Some(Step::Rapid([self.xy[0], self.xy[1], f32::NAN])), Phase::ToR),
+            Phase::ToR => {
+                self.reached_z = p.r_z;
+                (Some(Step::Rapid(self.at(p.r_z))), Phase::Down)
+            }
+            Phase::Down => {
+                let depth = if p.kind.pecks() { max(self.reached_z - p.peck_mm, p.bottom_z) } else { p.bottom_z };
+                self.reached_z = depth;
+                let next = if depth > p.bottom_z { Phase::BackOff } else { Phase::Bottom };
+                (Some(Step::Feed(self.at(depth))), next)
+            }
+            Phase::BackOff => match p.kind {
+                Kind::Peck => (Some(Step::Rapid(self.at(p.r_z))), Phase::Reenter),
+                _ => (Some(Step::Rapid(self.at(self.reached_z + PECK_CLEARANCE_MM))), Phase::Down),
+            },
+            Phase::Reenter => {
+                let z = min(self.reached_z + PECK_CLEARANCE_MM, p.r_z);
+                (Some(Step::Rapid(self.at(z))), Phase::Down)
+            }
+            Phase::Bottom => {
+                if p.kind.dwells() {
+                    (Some(Step::Dwell(p.dwell_s)), Phase::Out)
+                } else {
+                    (None, Phase::Out)
+                }
+            }
+            Phase::Out => {
+                if p.kind.feeds_out() {
+                    (Some(Step::Feed(self.at(p.r_z))), Phase::Clear)
+                } else {
+                    (Some(Step::Rapid(self.at(self.clear_z))), Phase::Next)
+                }
+            }
+            Phase::Clear => {
+                if self.clear_z > p.r_z {
+                    (Some(Step::Rapid(self.at(self.clear_z))), Phase::Next)
+                } else {
+                    (None, Phase::Next)
+                }
+            }
+            Phase::Next => {
+                if self.left == 0 {
+                    (None, Phase::Done)
+                } else {
+                    self.left -= 1;
+                    self.xy = [self.xy[0] + p.repeat_xy[0], self.xy[1] + p.repeat_xy[1]];
+                    (None, Phase::ToHole)
+                }
+            }
+            Phase::Done => (None, Phase::Done),
+        }
+    }
+}
+
+fn min(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+fn max(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(kind: Kind, retract: Retract) -> Params {
+        Params {
+            kind,
+            retract,
+            hole_xy: [10.0, 5.0],
+            repeat_xy: [0.0, 0.0],
+            r_z: 2.0,
+            bottom_z: -3.0,
+            peck_mm: 1.0,
+            dwell_s: 0.5,
+            repeats: 1,
+        }
+    }
+
+    /// Every step of a cycle started at `start`, with NaN (axis unchanged)
+    /// filled in from the position before it, so tests compare plain points.
+    fn run(p: Params, start: [f32; 3]) -> Vec<Step> {
+        let mut c = Cycle::new(p, start).unwrap();
+        let mut pos = start;
+        let mut out = Vec::new();
+        while let Some(s) = c.next_step() {
+            let fill = |t: [f32; 3], pos: &mut [f32; 3]| {
+                for a in 0..3 {
+                    if !t[a].is_nan() {
+                        pos[a] = t[a];
+                    }
+                }
+                *pos
+            };
+            out.push(match s {
+                Step::Rapid(t) => Step::Rapid(fill(t, &mut pos)),
+                Step::Feed(t) => Step::Feed(fill(t, &mut pos)),
+                d => d,
+            });
+            assert!(out.len() < 10_000, "cycle never ends");
+        }
+        out
+    }
+
+    use Step::{Dwell, Feed, Rapid};
+
+    #[test]
+    fn g81_from_above_rapids_to_the_hole_and_r_feeds_to_z_and_returns_to_the_initial_z_under_g98() {
+        let s = run(params(Kind::Drill, Retract::Initial), [0.0, 0.0, 10.0]);
+        assert_eq!(
+            s,
+            vec![Rapid([10.0, 5.0, 10.0]), Rapid([10.0, 5.0, 2.0]), Feed([10.0, 5.0, -3.0]), Rapid([10.0, 5.0, 10.0])]
+        );
+    }
+
+    #[test]
+    fn g81_under_g99_returns_to_the_r_plane() {
+        let s = run(params(Kind::Drill, Retract::RPlane), [0.0, 0.0, 10.0]);
+        assert_eq!(*s.last().unwrap(), Rapid([10.0, 5.0, 2.0]));
+    }
+
+    #[test]
+    fn starting_below_r_lifts_straight_up_to_r_first_and_g98_then_clears_at_r() {
+        let s = run(params(Kind::Drill, Retract::Initial), [0.0, 0.0, 1.0]);
+        assert_eq!(s[0], Rapid([0.0, 0.0, 2.0]));
+        assert_eq!(s[1], Rapid([10.0, 5.0, 2.0]));
+        assert_eq!(*s.last().unwrap(), Rapid([10.0, 5.0, 2.0]));
+    }
+
+    #[test]
+    fn g82_dwells_p_seconds_at_the_bottom() {
+        let s = run(params(Kind::DrillDwell, Retract::RPlane), [0.0, 0.0, 10.0]);
+        assert_eq!(s[2], Feed([10.0, 5.0, -3.0]));
+        assert_eq!(s[3], Dwell(0.5));
+        assert_eq!(s[4], Rapid([10.0, 5.0, 2.0]));
+    }
+
+    #[test]
+    fn g83_pecks_q_deep_with_a_full_retract_to_r_and_a_rapid_back_near_the_depth_reached() {
+        let mut p = params(Kind::Peck, Retract::RPlane);
+        p.peck_mm = 2.0; // R 2 → Z -3: pecks to 0, -2, -3
+        let s = run(p, [0.0, 0.0, 10.0]);
+        let c = PECK_CLEARANCE_MM;
+        let at = |z: f32| [10.0, 5.0, z];
+        assert_eq!(
+            s,
+            vec![
+                Rapid(at(10.0)),
+                Rapid(at(2.0)),
+                Feed(at(0.0)),
+                Rapid(at(2.0)),
+                Rapid(at(0.0 + c)),
+                Feed(at(-2.0)),
+                Rapid(at(2.0)),
+                Rapid(at(-2.0 + c)),
+                Feed(at(-3.0)),
+                Rapid(at(2.0)),
+            ]
+        );
+    }
+
+    #[test]
+    fn g73_breaks_the_chip_with_a_short_back_off_not_a_full_retract() {
+        let mut p = params(Kind::ChipBreak, Retract::RPlane);
+        p.peck_mm = 2.0;
+        let s = run(p, [0.0, 0.0, 10.0]);
+        let c = PECK_CLEARANCE_MM;
+        let at = |z: f32| [10.0, 5.0, z];
+        assert_eq!(
+            s,
+            vec![Rapid(at(10.0)), Rapid(at(2.0)), Feed(at(0.0)), Rapid(at(c)), Feed(at(-2.0)), Rapid(at(-2.0 + c)), Feed(at(-3.0)), Rapid(at(2.0))]
+        );
+    }
+
+    #[test]
+    fn every_peck_is_at_most_q_deeper_than_the_last_and_the_bottom_is_reached_exactly() {
+        for q in [0.1f32, 0.3, 0.7, 1.0, 2.5, 5.0, 10.0] {
+            for kind in [Kind::Peck, Kind::ChipBreak] {
+                let mut p = params(kind, Retract::RPlane);
+                p.peck_mm = q;
+                let mut deepest = p.r_z;
+                for s in run(p, [0.0, 0.0, 10.0]) {
+                    if let Feed(t) = s {
+                        assert!(t[2] < deepest && deepest - t[2] <= q + 1e-5, "q {q}: {deepest} -> {}", t[2]);
+                        deepest = t[2];
+                    }
+                }
+                assert_eq!(deepest, p.bottom_z);
+            }
+        }
+    }
+
+    #[test]
+    fn g85_feeds_out_to_r_and_g89_dwells_first_and_g98_then_rapids_to_the_initial_z() {
+        let s = run(params(Kind::Bore, Retract::Initial), [0.0, 0.0, 10.0]);
+        let at = |z: f32| [10.0, 5.0, z];
+        assert_eq!(s, vec![Rapid(at(10.0)), Rapid(at(2.0)), Feed(at(-3.0)), Feed(at(2.0)), Rapid(at(10.0))]);
+        let s = run(params(Kind::BoreDwell, Retract::RPlane), [0.0, 0.0, 10.0]);
+        assert_eq!(s, vec![Rapid(at(10.0)), Rapid(at(2.0)), Feed(at(-3.0)), Dwell(0.5), Feed(at(2.0))]);
+    }
+
+    #[test]
+    fn l_repeats_step_by_the_increment_and_each_hole_is_drilled_from_the_clearance_plane() {
+        let mut p = params(Kind::Drill, Retract::RPlane);
+        p.repeat_xy = [3.0, 0.0];
+        p.hole_xy = [3.0, 5.0];
+        p.repeats = 3;
+        let s = run(p, [0.0, 5.0, 10.0]);
+        let feeds: Vec<_> = s.iter().filter_map(|s| if let Feed(t) = s { Some(*t) } else { None }).collect();
+        assert_eq!(feeds, vec![[3.0, 5.0, -3.0], [6.0, 5.0, -3.0], [9.0, 5.0, -3.0]]);
+        // Between holes the tool travels at the R plane, never lower.
+        for w in s.windows(2) {
+            if let (Rapid(a), Rapid(b)) = (w[0], w[1]) {
+                if a[0] != b[0] {
+                    assert_eq!(a[2], 2.0);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn nonsense_is_refused_before_anything_moves() {
+        let mut p = params(Kind::Drill, Retract::RPlane);
+        p.bottom_z = 3.0;
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::ZAboveR);
+        let mut p = params(Kind::Peck, Retract::RPlane);
+        p.peck_mm = 0.0;
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::BadPeck);
+        p.peck_mm = f32::NAN;
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::BadPeck);
+        let mut p = params(Kind::DrillDwell, Retract::RPlane);
+        p.dwell_s = -1.0;
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::BadDwell);
+        let mut p = params(Kind::Drill, Retract::RPlane);
+        p.repeats = 0;
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::BadRepeat);
+    }
+
+    #[test]
+    fn bounds_cover_every_point_the_cycle_visits() {
+        let mut p = params(Kind::Peck, Retract::Initial);
+        p.repeat_xy = [-2.0, 1.5];
+        p.repeats = 4;
+        let c = Cycle::new(p, [0.0, 0.0, 12.0]).unwrap();
+        let (lo, hi) = c.bounds();
+        for s in run(p, [0.0, 0.0, 12.0]) {
+            if let Rapid(t) | Feed(t) = s {
+                for a in 0..3 {
+                    // The first rapid starts from where the tool is, which
+                    // the interpreter has already checked.
+                    if t[0] != 0.0 || t[1] != 0.0 {
+                        assert!(t[a] >= lo[a] - 1e-5 && t[a] <= hi[a] + 1e-5, "{t:?} outside {lo:?}..{hi:?}");
+                    }
+                }
+            }
+        }
+    }
+}
