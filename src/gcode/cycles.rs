@@ -17,9 +17,18 @@
 //!    - G83 peck: feed down by Q, rapid out to R, rapid back to
 //!      [`PECK_CLEARANCE_MM`] above the depth reached, feed on, until Z;
 //!    - G73 chip break: feed down by Q, rapid up [`PECK_CLEARANCE_MM`], feed on;
-//!    - G85 feed down, feed back up to R; G89 the same with a dwell P at the bottom;
+//!    - G85 feed down, feed back up to R (then rapid to the clearance plane);
+//!    - G89 feed down, dwell P, feed back up to the clearance plane itself
+//!      (LinuxCNC's `convert_cycle_g89` feeds all the way to clear Z);
 //! 4. rapid up to the clearance plane: the initial Z under G98 (or R if R is
 //!    higher), R under G99.
+//!
+//! The X/Y move to the first hole is made at the current Z when that is above
+//! R, else at the clearance plane; the following holes are reached at the
+//! clearance plane (LinuxCNC's `CYCLE_MACRO`). The initial Z ("initial
+//! level") is the Z where the first cycle line of a run of cycle lines
+//! started; it is kept across lines until a non-cycle motion mode (G80,
+//! G0–G3) ends the run ([`resolve`]).
 //!
 //! `L` repeats the hole: under G91 each repeat moves by the X/Y increment;
 //! under G90 the same hole is drilled again (as LinuxCNC does).
@@ -61,6 +70,18 @@ impl Kind {
     fn feeds_out(self) -> bool {
         matches!(self, Kind::Bore | Kind::BoreDwell)
     }
+
+    /// The G number (for messages and tests).
+    pub fn code(self) -> u8 {
+        match self {
+            Kind::Drill => 81,
+            Kind::DrillDwell => 82,
+            Kind::Peck => 83,
+            Kind::ChipBreak => 73,
+            Kind::Bore => 85,
+            Kind::BoreDwell => 89,
+        }
+    }
 }
 
 /// Where a hole ends (NGC group 10).
@@ -94,6 +115,14 @@ pub enum Error {
     BadDwell,
     /// L is not a whole number from 1 to 1000.
     BadRepeat,
+    /// No Z on the first line of this cycle (it is modal after that).
+    MissingZ,
+    /// No R on the first line of this cycle.
+    MissingR,
+    /// G73/G83 started without Q.
+    MissingQ,
+    /// G82/G89 started without P.
+    MissingP,
 }
 
 /// The resolved words of one cycle line (absolute, user frame, mm).
@@ -109,6 +138,8 @@ pub struct Params {
     pub r_z: f32,
     /// Bottom Z, mm.
     pub bottom_z: f32,
+    /// The initial level: Z where this run of cycle lines began (G98).
+    pub initial_z: f32,
     /// Peck depth Q, mm (G73/G83).
     pub peck_mm: f32,
     /// Dwell P, seconds (G82/G89).
@@ -176,7 +207,7 @@ impl Cycle {
             return Err(Error::BadRepeat);
         }
         let clear_z = match p.retract {
-            Retract::Initial if start[2] > p.r_z => start[2],
+            Retract::Initial if p.initial_z > p.r_z => p.initial_z,
             _ => p.r_z,
         };
         Ok(Cycle {
@@ -236,7 +267,12 @@ impl Cycle {
                     (None, Phase::ToHole)
                 }
             }
-            Phase::ToHole => (Some(Step::Rapid([self.xy[0], self.xy[1], f32::NAN])), Phase::ToR),
+            Phase::ToHole => {
+                // The first hole from the current Z if above R, else (and for
+                // every later hole) at the clearance plane.
+                let z = if self.left + 1 == p.repeats && self.start_z > p.r_z { self.start_z } else { self.clear_z };
+                (Some(Step::Rapid([self.xy[0], self.xy[1], z])), Phase::ToR)
+            }
             Phase::ToR => {
                 self.reached_z = p.r_z;
                 (Some(Step::Rapid(self.at(p.r_z))), Phase::Down)
@@ -263,7 +299,9 @@ impl Cycle {
                 }
             }
             Phase::Out => {
-                if p.kind.feeds_out() {
+                if p.kind == Kind::BoreDwell {
+                    (Some(Step::Feed(self.at(self.clear_z))), Phase::Next)
+                } else if p.kind.feeds_out() {
                     (Some(Step::Feed(self.at(p.r_z))), Phase::Clear)
                 } else {
                     (Some(Step::Rapid(self.at(self.clear_z))), Phase::Next)
@@ -288,6 +326,86 @@ impl Cycle {
             Phase::Done => (None, Phase::Done),
         }
     }
+}
+
+/// The cycle words that stay in force from line to line (LinuxCNC's
+/// `cycle_r`, `cycle_cc`, `cycle_q`, `cycle_p`, `cycle_il`): R and Z as
+/// written (absolute under G90, increments under G91), in mm, user frame;
+/// Q in mm; P in seconds; the initial level Z, absolute.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sticky {
+    pub r: f32,
+    pub z: f32,
+    pub q: f32,
+    pub p: f32,
+    pub initial_z: f32,
+}
+
+impl Sticky {
+    /// Nothing given yet (power-up).
+    pub const NONE: Sticky = Sticky { r: 0.0, z: 0.0, q: 0.0, p: 0.0, initial_z: 0.0 };
+}
+
+/// The words of one cycle line: X, Y, Z, R, Q in mm (user frame, inches
+/// already converted), P in seconds, L as written; `None` when absent.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LineWords {
+    pub x: Option<f32>,
+    pub y: Option<f32>,
+    pub z: Option<f32>,
+    pub r: Option<f32>,
+    pub q: Option<f32>,
+    pub p: Option<f32>,
+    pub l: Option<f32>,
+}
+
+/// Resolve one cycle line into the [`Params`] of its holes and the sticky
+/// words to keep, LinuxCNC's `convert_cycle`/`convert_cycle_xy`:
+/// - `prev`: the cycle in force before the line (`None` after G80, G0–G3 or
+///   at power-up). Z and R must be on the line unless `prev` is this same
+///   cycle; likewise Q for G73/G83 and P for G82/G89;
+/// - the initial level is the Z at `pos` when no cycle was in force,
+///   else the one kept in `sticky`;
+/// - G90: X, Y, R, Z absolute; a missing X or Y is the current one; `L`
+///   drills the same hole L times;
+/// - G91: X, Y are increments, applied once per repeat (`L` holes in a row);
+///   R is relative to the initial level, Z relative to R.
+///
+/// `pos` is the current position (user frame, work coordinates).
+pub fn resolve(
+    kind: Kind,
+    retract: Retract,
+    incremental: bool,
+    prev: Option<Kind>,
+    sticky: &Sticky,
+    w: &LineWords,
+    pos: [f32; 3],
+) -> Result<(Params, Sticky), Error> {
+    let same = prev == Some(kind);
+    let need = |v: Option<f32>, old: f32, needed: bool, e: Error| match v {
+        Some(v) => Ok(v),
+        None if same || !needed => Ok(old),
+        None => Err(e),
+    };
+    let z = need(w.z, sticky.z, true, Error::MissingZ)?;
+    let r = need(w.r, sticky.r, true, Error::MissingR)?;
+    let q = need(w.q, sticky.q, kind.pecks(), Error::MissingQ)?;
+    let p = need(w.p, sticky.p, kind.dwells(), Error::MissingP)?;
+    let repeats = match w.l {
+        None => 1,
+        Some(l) if l >= 1.0 && l <= 1000.0 && (l as u16) as f32 == l => l as u16,
+        Some(_) => return Err(Error::BadRepeat),
+    };
+    let initial_z = if prev.is_some() { sticky.initial_z } else { pos[2] };
+    let (hole_xy, repeat_xy, r_z, bottom_z) = if incremental {
+        let inc = [w.x.unwrap_or(0.0), w.y.unwrap_or(0.0)];
+        let r_z = initial_z + r;
+        ([pos[0] + inc[0], pos[1] + inc[1]], inc, r_z, r_z + z)
+    } else {
+        ([w.x.unwrap_or(pos[0]), w.y.unwrap_or(pos[1])], [0.0, 0.0], r, z)
+    };
+    let params = Params { kind, retract, hole_xy, repeat_xy, r_z, bottom_z, initial_z, peck_mm: q, dwell_s: p, repeats };
+    Ok((params, Sticky { r, z, q, p, initial_z }))
 }
 
 fn min(a: f32, b: f32) -> f32 {
@@ -318,6 +436,7 @@ mod tests {
             repeat_xy: [0.0, 0.0],
             r_z: 2.0,
             bottom_z: -3.0,
+            initial_z: 10.0,
             peck_mm: 1.0,
             dwell_s: 0.5,
             repeats: 1,
@@ -368,7 +487,9 @@ mod tests {
 
     #[test]
     fn starting_below_r_lifts_straight_up_to_r_first_and_g98_then_clears_at_r() {
-        let s = run(params(Kind::Drill, Retract::Initial), [0.0, 0.0, 1.0]);
+        let mut p = params(Kind::Drill, Retract::Initial);
+        p.initial_z = 1.0;
+        let s = run(p, [0.0, 0.0, 1.0]);
         assert_eq!(s[0], Rapid([0.0, 0.0, 2.0]));
         assert_eq!(s[1], Rapid([10.0, 5.0, 2.0]));
         assert_eq!(*s.last().unwrap(), Rapid([10.0, 5.0, 2.0]));
@@ -501,5 +622,66 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn g89_under_g98_feeds_all_the_way_out_to_the_initial_z_as_linuxcnc() {
+        let s = run(params(Kind::BoreDwell, Retract::Initial), [0.0, 0.0, 10.0]);
+        let at = |z: f32| [10.0, 5.0, z];
+        assert_eq!(s, vec![Rapid(at(10.0)), Rapid(at(2.0)), Feed(at(-3.0)), Dwell(0.5), Feed(at(10.0))]);
+    }
+
+    #[test]
+    fn a_later_line_under_g98_reaches_its_hole_at_the_initial_level_even_from_r() {
+        // G99 left the tool at R 2; this G98 line clears at the initial level 10.
+        let s = run(params(Kind::Drill, Retract::Initial), [0.0, 0.0, 2.0]);
+        assert_eq!(s[0], Rapid([10.0, 5.0, 10.0]));
+        assert_eq!(*s.last().unwrap(), Rapid([10.0, 5.0, 10.0]));
+    }
+
+    fn words() -> LineWords {
+        LineWords { x: Some(4.0), y: Some(6.0), z: Some(-3.0), r: Some(2.0), q: Some(1.5), p: Some(0.25), l: None }
+    }
+
+    #[test]
+    fn resolve_g90_takes_absolute_words_and_the_start_z_as_the_initial_level() {
+        let (p, st) = resolve(Kind::Peck, Retract::Initial, false, None, &Sticky::NONE, &words(), [1.0, 1.0, 12.0]).unwrap();
+        assert_eq!((p.hole_xy, p.repeat_xy, p.r_z, p.bottom_z, p.initial_z, p.peck_mm, p.repeats), ([4.0, 6.0], [0.0, 0.0], 2.0, -3.0, 12.0, 1.5, 1));
+        assert_eq!(st, Sticky { r: 2.0, z: -3.0, q: 1.5, p: 0.25, initial_z: 12.0 });
+        // A bare X on the next line: R, Z, Q and the initial level stay.
+        let w = LineWords { x: Some(9.0), ..LineWords::default() };
+        let (p2, st2) = resolve(Kind::Peck, Retract::Initial, false, Some(Kind::Peck), &st, &w, [4.0, 6.0, 12.0]).unwrap();
+        assert_eq!((p2.hole_xy, p2.r_z, p2.bottom_z, p2.peck_mm, p2.initial_z), ([9.0, 6.0], 2.0, -3.0, 1.5, 12.0));
+        assert_eq!(st2, st);
+    }
+
+    #[test]
+    fn resolve_g91_r_from_the_initial_level_z_from_r_and_xy_per_repeat() {
+        let w = LineWords { x: Some(5.0), y: None, z: Some(-4.0), r: Some(-1.0), l: Some(3.0), ..LineWords::default() };
+        let (p, _) = resolve(Kind::Drill, Retract::RPlane, true, None, &Sticky::NONE, &w, [10.0, 20.0, 3.0]).unwrap();
+        assert_eq!((p.hole_xy, p.repeat_xy, p.r_z, p.bottom_z, p.repeats), ([15.0, 20.0], [5.0, 0.0], 2.0, -2.0, 3));
+        let holes: Vec<[f32; 3]> = run(p, [10.0, 20.0, 3.0]).into_iter().filter_map(|s| if let Feed(t) = s { Some(t) } else { None }).collect();
+        assert_eq!(holes, vec![[15.0, 20.0, -2.0], [20.0, 20.0, -2.0], [25.0, 20.0, -2.0]]);
+    }
+
+    #[test]
+    fn resolve_refuses_what_linuxcnc_refuses() {
+        let none = Sticky::NONE;
+        let r = |k, prev, w: LineWords| resolve(k, Retract::Initial, false, prev, &none, &w, [0.0, 0.0, 10.0]).map(|_| ()).unwrap_err();
+        assert_eq!(r(Kind::Drill, None, LineWords { z: None, ..words() }), Error::MissingZ);
+        assert_eq!(r(Kind::Drill, None, LineWords { r: None, ..words() }), Error::MissingR);
+        assert_eq!(r(Kind::Peck, None, LineWords { q: None, ..words() }), Error::MissingQ);
+        assert_eq!(r(Kind::ChipBreak, Some(Kind::Peck), LineWords { q: None, ..words() }), Error::MissingQ);
+        assert_eq!(r(Kind::DrillDwell, None, LineWords { p: None, ..words() }), Error::MissingP);
+        // Switching cycles asks for Z and R again.
+        assert_eq!(r(Kind::Peck, Some(Kind::Drill), LineWords { z: None, ..words() }), Error::MissingZ);
+        for l in [0.0, -1.0, 2.5, 1001.0] {
+            assert_eq!(r(Kind::Drill, None, LineWords { l: Some(l), ..words() }), Error::BadRepeat);
+        }
+        // A valid line passes, and Cycle::new catches the rest.
+        let (p, _) = resolve(Kind::Peck, Retract::Initial, false, None, &none, &LineWords { q: Some(0.0), ..words() }, [0.0; 3]).unwrap();
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::BadPeck);
+        let (p, _) = resolve(Kind::Drill, Retract::Initial, false, None, &none, &LineWords { z: Some(3.0), ..words() }, [0.0; 3]).unwrap();
+        assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::ZAboveR);
     }
 }
