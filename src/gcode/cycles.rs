@@ -125,6 +125,22 @@ pub enum Error {
     MissingP,
 }
 
+impl Error {
+    /// Text printed after `Error:`; the line is refused, nothing moved.
+    pub fn message(self) -> crate::flash::FStr {
+        match self {
+            Error::ZAboveR => F!("canned cycle: Z is above R, nothing moved"),
+            Error::BadPeck => F!("G73/G83: Q (peck depth) must be positive, nothing moved"),
+            Error::BadDwell => F!("G82/G89: P (dwell, seconds) must not be negative, nothing moved"),
+            Error::BadRepeat => F!("canned cycle: L must be a whole number 1-1000, nothing moved"),
+            Error::MissingZ => F!("canned cycle: Z missing (needed on the cycle's first line), nothing moved"),
+            Error::MissingR => F!("canned cycle: R missing (needed on the cycle's first line), nothing moved"),
+            Error::MissingQ => F!("G73/G83: Q (peck depth) missing, nothing moved"),
+            Error::MissingP => F!("G82/G89: P (dwell, seconds) missing, nothing moved"),
+        }
+    }
+}
+
 /// The resolved words of one cycle line (absolute, user frame, mm).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Params {

@@ -12,6 +12,8 @@
 //! belongs to the interpreter.
 
 pub mod cycles;
+#[cfg(test)]
+mod cycle_tests;
 pub mod interp;
 pub mod parse;
 
