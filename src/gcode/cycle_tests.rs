@@ -267,3 +267,28 @@ fn g83_pecks_back_to_r_and_g73_backs_off_a_little() {
     let z = zs(&take(&mut io));
     assert_eq!(z, vec![-8.0, -10.5, -10.25, -13.0, -12.75, -14.0, -8.0]);
 }
+
+#[test]
+fn a_pcb2gcode_drill_block_runs_in_work_coordinates() {
+    // pcb2gcode's pattern (corpus 09), with G54 at machine X5 Y5 Z-20.
+    let (mut m, mut io) = machine();
+    run(&mut m, &mut io, "G10 L2 P1 X5 Y5 Z-20");
+    run(&mut m, &mut io, "G0 Z10");
+    run(&mut m, &mut io, "G0 Z1.5");
+    take(&mut io);
+    run(&mut m, &mut io, "G81 R1.50000 Z-1.75000 F100.00000 X12.00000 Y9.54000");
+    run(&mut m, &mut io, "X12.00000 Y12.00000");
+    run(&mut m, &mut io, "G80");
+    // Machine frame: R at -18.5, the bottom at -21.75, back to R (the start Z).
+    assert_eq!(
+        take(&mut io),
+        vec![
+            [17.0, 14.54, -18.5],
+            [17.0, 14.54, -21.75],
+            [17.0, 14.54, -18.5],
+            [17.0, 17.0, -18.5],
+            [17.0, 17.0, -21.75],
+            [17.0, 17.0, -18.5],
+        ]
+    );
+}
