@@ -700,4 +700,29 @@ mod tests {
         let (p, _) = resolve(Kind::Drill, Retract::Initial, false, None, &none, &LineWords { z: Some(3.0), ..words() }, [0.0; 3]).unwrap();
         assert_eq!(Cycle::new(p, [0.0; 3]).unwrap_err(), Error::ZAboveR);
     }
+
+    #[test]
+    fn linuxcnc_manual_example_g91_g81_g98_l3_move_by_move() {
+        // LinuxCNC manual, G81 example 2: from (1, 2, 3),
+        // `G91 G81 G98 X4 Y5 Z-0.6 R1.8 L3`: clear Z 4.8, bottom 4.2; first
+        // straight up to 4.8 (old Z 3 is below R), then three holes, each
+        // reached at 4.8 and drilled to 4.2.
+        let w = LineWords { x: Some(4.0), y: Some(5.0), z: Some(-0.6), r: Some(1.8), l: Some(3.0), ..LineWords::default() };
+        let (p, _) = resolve(Kind::Drill, Retract::Initial, true, None, &Sticky::NONE, &w, [1.0, 2.0, 3.0]).unwrap();
+        let s = run(p, [1.0, 2.0, 3.0]);
+        let r = |v: [f32; 3]| v.map(|c| (c * 1000.0).round() / 1000.0);
+        let s: Vec<Step> = s
+            .into_iter()
+            .map(|st| match st {
+                Rapid(t) => Rapid(r(t)),
+                Feed(t) => Feed(r(t)),
+                d => d,
+            })
+            .collect();
+        let mut want = vec![Rapid([1.0, 2.0, 4.8])];
+        for (x, y) in [(5.0, 7.0), (9.0, 12.0), (13.0, 17.0)] {
+            want.extend([Rapid([x, y, 4.8]), Rapid([x, y, 4.8]), Feed([x, y, 4.2]), Rapid([x, y, 4.8])]);
+        }
+        assert_eq!(s, want);
+    }
 }
