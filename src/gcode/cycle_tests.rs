@@ -4,6 +4,8 @@
 //! block end points in machine steps (internal frame: Z counts down from
 //! the top switch, so user Z −8 mm is step 800 at 100 steps/mm); step
 //! timing and speeds are the simavr test's business (tests/cycles.rs).
+//! The fake board is `interp_tests.rs`'s, plus the time of each block (for
+//! the dwell).
 
 use super::cycles::{Kind, Retract};
 use super::Motion;
@@ -60,6 +62,7 @@ impl Io for FakeIo {
     fn drivers(&mut self, _on: bool) {}
     fn carousel_driver(&mut self, _on: bool) {}
     fn spindle(&mut self, _duty: u8) {}
+    fn coolant(&mut self, _on: bool) {}
     fn switches(&self) -> Switches {
         Switches::default()
     }
