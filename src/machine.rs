@@ -84,7 +84,9 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     }
     /// What the ISR watches: homing axes, probe input, hard-limit axes,
     /// homed axes, direction inversion mask.
-    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8);
+    /// `release`: steps above 0 where a homed axis' switch may still be
+    /// closed (the homing pull-off, per axis X Y Z).
+    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8, release: [u16; 3]);
     /// Enable or disable the stepper drivers.
     fn drivers(&mut self, on: bool);
     /// Enable or disable the carousel (E0) driver alone (G204).
@@ -701,7 +703,15 @@ impl Machine {
     pub fn apply_watch(&mut self, io: &mut impl Io, homing: u8, probe: bool) {
         let arm = self.settings.hard_limits && homing == 0 && self.state != State::Home;
         let limits = if arm { 0b111 } else { 0 };
-        io.set_watch(homing, probe, limits, self.homed, self.settings.invert_dir_mask);
+        // A real switch that closed at machine 0 may stay closed for its
+        // hysteresis; homing checked that the pull-off clears it.
+        let mut release = [0u16; 3];
+        let pulloff = if self.settings.homing_pulloff_mm >= 0.1 { self.settings.homing_pulloff_mm } else { 0.1 };
+        for (a, r) in release.iter_mut().enumerate() {
+            let steps = crate::math::round_i32(pulloff * self.settings.steps_per_mm[a]);
+            *r = steps.clamp(0, u16::MAX as i32) as u16;
+        }
+        io.set_watch(homing, probe, limits, self.homed, self.settings.invert_dir_mask, release);
     }
 
     /// `?`: one grbl 1.1 status line.
@@ -897,6 +907,9 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     m.apply_watch(io, 0, false);
     r?;
     let p = io.stepper().position;
+    // Also starts the hard-limit bookkeeping afresh: the homed axes left
+    // their switches (`ChunkWatch::release`).
+    io.set_stepper_position(p);
     m.planner.set_position(p);
     m.interp.sync_position(&m.settings, p);
     Ok(())
