@@ -1340,6 +1340,16 @@ impl Vm {
         self.kick_feeder();
     }
 
+    /// Queues bytes for the chip ahead of everything still queued (a
+    /// realtime command passing waiting lines), paced as [`Vm::send`].
+    pub fn send_first(&mut self, bytes: impl AsRef<[u8]>) {
+        let paced = &mut self.inner_mut().host.paced;
+        for &b in bytes.as_ref().iter().rev() {
+            paced.push_front(b);
+        }
+        self.kick_feeder();
+    }
+
     /// Queues `line` + `\n`.
     pub fn send_line(&mut self, line: &str) {
         self.send(line.as_bytes());
