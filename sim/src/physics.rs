@@ -438,6 +438,8 @@ impl Physics {
     /// Connect or disconnect the carousel sensor.
     pub fn set_carousel_connected(&mut self, connected: bool) {
         self.config.carousel.connected = connected;
+        // Plugged or unplugged: the wire changes at once, no contact bounces.
+        self.contacts[Input::CarouselHome.index()] = Contact::default();
     }
 
     /// Force an input active/inactive (`Some`) or hand it back to the model (`None`).
