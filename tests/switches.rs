@@ -55,7 +55,7 @@ fn g28_homes_through_hysteresis_from_0_005_to_0_2_mm_with_bounce() {
             assert_eq!(vm.physics().transitions(inp), 4, "h {h}: {inp:?}");
         }
         // A move after homing raises no hard limit.
-        ok(&mut vm, "G0 X10 Y10 Z10");
+        ok(&mut vm, "G0 X10 Y10 Z-10");
         ok(&mut vm, "M400");
         assert_eq!(vm.positions()[..3], [1000, 1000, 1000], "h {h}");
     }
@@ -70,7 +70,7 @@ fn homing_every_order_and_single_axes_through_real_switches() {
     homes_exactly(&mut vm, "G28 Z", &[Axis::Z]);
     homes_exactly(&mut vm, "G28 X Y", &[Axis::X, Axis::Y]);
     homes_exactly(&mut vm, "$H", &[Axis::X, Axis::Y, Axis::Z]);
-    ok(&mut vm, "G0 X20 Y30 Z5");
+    ok(&mut vm, "G0 X20 Y30 Z-5");
     homes_exactly(&mut vm, "G28", &[Axis::X, Axis::Y, Axis::Z]);
 }
 
@@ -106,7 +106,7 @@ fn machine_zero_repeats_to_the_step_over_ten_homings() {
     ok(&mut vm, "G28");
     let mut zeros = Vec::new();
     for i in 0..10 {
-        ok(&mut vm, &format!("G0 X{} Y{} Z{}", 5 + i, 7 + 2 * i, 3 + i));
+        ok(&mut vm, &format!("G0 X{} Y{} Z-{}", 5 + i, 7 + 2 * i, 3 + i));
         homes_exactly(&mut vm, "G28", &[Axis::X, Axis::Y, Axis::Z]);
         // The firmware's machine 0 is the step where the switch closed on
         // the locate seek: the recorder's physical position, less 1 mm.
