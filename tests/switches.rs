@@ -146,3 +146,22 @@ fn a_hard_limit_still_trips_after_homing_through_real_switches() {
     let l = vm.wait_line(|l| l.starts_with("ALARM"), 10.0).unwrap();
     assert_eq!(l, "ALARM:hard limit");
 }
+
+#[test]
+fn the_carousel_homes_through_hysteresis_and_bounce_to_the_exact_step() {
+    for (start, h) in [(1000, 0.5), (3190, 2.0), (5, 2.0)] {
+        let mut c = VmConfig::default();
+        c.machine.initial_position = [1500, 1200, 900, start];
+        c.machine.switches.carousel = SwitchModel { hysteresis: h, bounce_s: 0.005 };
+        let mut vm = boot_with(c);
+        let r = ok(&mut vm, "G205 P0");
+        assert!(!r.iter().any(|l| l.contains("ALARM")), "{r:?}");
+        // Carousel 0 is the step where the switch closes on the slow seek:
+        // a whole number of revolutions (3200 steps) from the model's 0°.
+        let e = vm.position(Axis::E);
+        assert_eq!(e.rem_euclid(3200), 0, "start {start}, h {h}°: E at {e}");
+        let r = ok(&mut vm, "G203 P0");
+        assert!(r.iter().any(|l| l.starts_with("Motor0 Pos:0.000")), "{r:?}");
+        assert!(vm.physics().transitions(Input::CarouselHome) >= 3, "start {start}");
+    }
+}
