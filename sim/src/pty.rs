@@ -275,8 +275,9 @@ impl PtyBridge {
             self.line_start = Some(self.pending.len());
         }
         self.pending.push_back(b);
-        self.at_line_start = b == b'\n';
-        if b != b'\n' {
+        // A line ends with `\n` or `\r` (some senders end lines with CR).
+        self.at_line_start = matches!(b, b'\n' | b'\r');
+        if !self.at_line_start {
             return;
         }
         let Some(start) = self.line_start else { return };
