@@ -58,7 +58,7 @@ impl Io for FakeIo {
     }
     fn stop_motion(&mut self) {}
     fn clear_stop(&mut self) {}
-    fn set_watch(&mut self, _: u8, _: bool, _: u8, _: u8, _: u8) {}
+    fn set_watch(&mut self, _: u8, _: bool, _: u8, _: u8, _: u8, _: [u16; 3]) {}
     fn drivers(&mut self, _on: bool) {}
     fn carousel_driver(&mut self, _on: bool) {}
     fn spindle(&mut self, _duty: u8) {}
