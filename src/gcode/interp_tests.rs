@@ -334,7 +334,8 @@ fn refusals_name_what_is_not_supported_and_move_nothing() {
         ("G1 X#1 F600", "# parameters"),
         ("o100 sub", "O-word"),
         ("G0 X3. A0.", "X Y Z only"),
-        ("G81 R1 Z-1 X1 Y1 F100", "unsupported code"),
+        ("G84 R-1 Z-2 X1 Y1 F100", "canned cycle not supported"),
+        ("G18 G81 R-1 Z-2 X1 Y1 F100", "G18 (ZX)"),
     ] {
         let e = refused(&mut m, &mut io, l);
         assert!(e.contains(what), "{l}: {e}");
