@@ -1322,4 +1322,4 @@ impl ModalCopy {
 
 #[cfg(test)]
 #[path = "interp_tests.rs"]
-mod tests;
+pub(crate) mod tests;
