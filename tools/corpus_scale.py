@@ -592,7 +592,7 @@ def scale_text(text, z_up):
         t[2] = REGION_DEPTH[0] - s * lo[2]
     t = [round(v, 3) for v in t]
 
-    out = ["G28 (corpus_scale.py: home first; s=%g t=%g,%g,%g mm)" % (s, t[0], t[1], t[2])]
+    out = ["G28 (corpus_scale.py: home first, s=%g t=%g,%g,%g mm)" % (s, t[0], t[1], t[2])]
     st = Interp((0, 0, 0), z_up)  # modal state only
     canned_active = False
     for raw in text.splitlines():
