@@ -56,9 +56,16 @@ const TOL_STEPS: f64 = 1.0 + 0.2 + 0.02 + 1e-6;
 /// How far along the reference path (steps) one step event may move the
 /// match point: a step event moves at most one step per axis.
 const BUDGET_STEPS: f64 = 4.0;
+/// How far back along the path (steps) a match may step, and how much
+/// nearer (steps) another candidate must be to keep the match from going to
+/// the furthest one (see [`check_events`]).
+const BACK_STEPS: f64 = 4.0;
+const SLACK_STEPS: f64 = 0.5;
 /// Simulated time allowed for one job line (a long move queued behind a
 /// full queue, a tool change, a homing), s.
 const LINE_TIMEOUT_S: f64 = 120.0;
+/// Simulated time allowed for a whole SD job, s.
+const JOB_TIMEOUT_S: f64 = 1800.0;
 /// Where the machine stands at power-on, physical steps (near the switches:
 /// the G28 in front of every job then takes ~2 s instead of ~8).
 const START_STEPS: [i64; 3] = [600, 600, 600];
@@ -117,6 +124,9 @@ struct RefPath {
     line: Vec<usize>,
     /// A tool change may happen at this point.
     jump: Vec<bool>,
+    /// No Z word since the last possible tool change: after a real one, Z is
+    /// the changer's travel height.
+    z_stale: Vec<bool>,
     /// The model stops here (line, why).
     unsupported: Option<(usize, String)>,
 }
@@ -125,7 +135,13 @@ impl RefPath {
     /// Only the points of lines before `line` (the refused one).
     fn before(&self, line: usize) -> RefPath {
         let n = self.line.iter().take_while(|&&l| l < line).count();
-        RefPath { pts: self.pts[..n].to_vec(), line: self.line[..n].to_vec(), jump: self.jump[..n].to_vec(), unsupported: None }
+        RefPath {
+            pts: self.pts[..n].to_vec(),
+            line: self.line[..n].to_vec(),
+            jump: self.jump[..n].to_vec(),
+            z_stale: self.z_stale[..n].to_vec(),
+            unsupported: None,
+        }
     }
 }
 
@@ -174,6 +190,7 @@ fn prepare(e: &Entry) -> Prepared {
     r.pts.push(START_STEPS.map(|v| v as f64));
     r.line.push(0);
     r.jump.push(false);
+    r.z_stale.push(false);
     let mut cur = 0usize;
     for l in std::fs::read_to_string(&path).unwrap().lines() {
         let mut w = l.split_whitespace();
@@ -184,6 +201,7 @@ fn prepare(e: &Entry) -> Prepared {
                 r.pts.push(to_physical([v[0], v[1], v[2]]));
                 r.line.push(cur);
                 r.jump.push(false);
+                r.z_stale.push(v[3] != 0.0);
             }
             Some("J") => *r.jump.last_mut().unwrap() = true,
             Some("U") => {
@@ -332,7 +350,8 @@ fn run_sd(p: &Prepared) -> RunResult {
     ok(&mut vm, "M23 JOB.NC");
     ok(&mut vm, "M24");
     loop {
-        let r = match vm.wait_line(|_| true, LINE_TIMEOUT_S) {
+        // A job prints nothing while it runs: wait for the whole job.
+        let r = match vm.wait_line(|_| true, JOB_TIMEOUT_S) {
             Ok(r) => r,
             Err(e) => {
                 problems.push(format!("SD: {e}"));
@@ -531,6 +550,13 @@ fn check_events(evs: &[(u64, [f64; 3])], now: [i64; 3], r: &RefPath, windows: &[
             return Err(format!("the tool change left X/Y at {at:?}, it started at {before:?}"));
         }
         pts[j] = at;
+        // Until the job states Z again, it stays where the changer left it.
+        for i in j + 1..n {
+            if !r.z_stale[i] {
+                break;
+            }
+            pts[i][2] = at[2];
+        }
         *k = j;
         *along = 0.0;
         Ok(())
@@ -555,29 +581,45 @@ fn check_events(evs: &[(u64, [f64; 3])], now: [i64; 3], r: &RefPath, windows: &[
         }
         last_pos = q;
         checked += 1;
-        // The furthest segment within reach that holds the event.
-        let mut best: Option<(usize, f64, f64)> = None;
+        // Candidates: the segments within BUDGET_STEPS of path ahead of the
+        // match point and BACK_STEPS behind it. Among those holding the
+        // event, the furthest of the nearly nearest (within SLACK_STEPS of
+        // the best distance): the furthest follows a path that runs back
+        // over itself (homing, pecks, a retract and plunge 0.01 step apart),
+        // the nearest keeps a tight spiral from running ahead, and the small
+        // step back absorbs a match that ran ahead anyway.
+        let mut cands: Vec<(usize, f64, f64)> = Vec::new();
+        let mut consider = |j: usize, cands: &mut Vec<(usize, f64, f64)>| {
+            let (a, b) = (pts[j], if j + 1 < n { pts[j + 1] } else { pts[j] });
+            let (d, t) = dist(q, a, b);
+            if d <= TOL_STEPS {
+                cands.push((j, d, t * seg_len(a, b)));
+            }
+        };
+        let mut back = along;
+        let mut j = k;
+        while j > 0 && back <= BACK_STEPS {
+            j -= 1;
+            consider(j, &mut cands);
+            back += seg_len(pts[j], pts[j + 1]);
+        }
         let mut reach = 0.0f64;
         let mut j = k;
         loop {
-            let (a, b) = (pts[j], if j + 1 < n { pts[j + 1] } else { pts[j] });
             if j > k {
-                reach += if j == k + 1 { seg_len(pts[k], pts[(k + 1).min(n - 1)]) - along } else { seg_len(pts[j - 1], a) };
+                reach += if j == k + 1 { seg_len(pts[k], pts[(k + 1).min(n - 1)]) - along } else { seg_len(pts[j - 1], pts[j]) };
                 if reach > BUDGET_STEPS {
                     break;
                 }
             }
-            // The nearest segment wins; on a tie (a path that runs back
-            // over itself: homing, pecks) the furthest.
-            let (d, t) = dist(q, a, b);
-            if d <= TOL_STEPS && best.is_none_or(|b: (usize, f64, f64)| d <= b.1 + 1e-9) {
-                best = Some((j, d, t * seg_len(a, b)));
-            }
+            consider(j, &mut cands);
             j += 1;
             if j + 1 > n {
                 break;
             }
         }
+        let dmin = cands.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+        let best = cands.iter().filter(|c| c.1 <= dmin + SLACK_STEPS).max_by_key(|c| c.0).copied();
         match best {
             Some((j, d, a)) => {
                 if j != k || a >= along {
@@ -585,6 +627,7 @@ fn check_events(evs: &[(u64, [f64; 3])], now: [i64; 3], r: &RefPath, windows: &[
                 }
                 k = j;
                 worst = worst.max(d);
+                let _ = d;
             }
             None => {
                 let (a, b) = (pts[k], pts[(k + 1).min(n - 1)]);
@@ -699,7 +742,13 @@ fn walk(evs: &mut Vec<(u64, [f64; 3])>, a: [i64; 3], b: [i64; 3]) {
 }
 
 fn synthetic_ref(pts: &[[f64; 3]]) -> RefPath {
-    RefPath { pts: pts.to_vec(), line: (0..pts.len()).collect(), jump: vec![false; pts.len()], unsupported: None }
+    RefPath {
+        pts: pts.to_vec(),
+        line: (0..pts.len()).collect(),
+        jump: vec![false; pts.len()],
+        z_stale: vec![false; pts.len()],
+        unsupported: None,
+    }
 }
 
 #[test]

@@ -37,8 +37,10 @@ Scaling choices (also in README "Real jobs (corpus)"):
 Usage:
   corpus_scale.py scale IN OUT [--z-down]      prints the parameters as JSON
   corpus_scale.py path JOB OUT --start X,Y,Z [--z-down]
-Path file: ``L <job line>`` before the points of that line, ``P x y z``
-(machine mm, +Z up unless --z-down), ``J`` (a tool change may happen here),
+Path file: ``L <job line>`` before the points of that line, ``P x y z s``
+(machine mm, +Z up unless --z-down; s = 1: no Z word since the last tool
+change, so Z is wherever the changer left it), ``J`` (a tool change may
+happen here),
 ``U <line> <reason>`` (the model stops: unsupported construct).
 """
 
@@ -231,12 +233,14 @@ class Interp:
         self.params = Params()
         self.out = []  # ('L', n) ('P', x, y, z) ('J',)
         self.bbox_only = bbox_only
-        self.points = []
+        # After a tool change Z is where the changer left it (the travel
+        # height) until a Z word: points until then are marked.
+        self.z_stale = False
 
     # -- output
     def emit(self, p):
         self.pos = list(p)
-        self.out.append(("P", p[0], p[1], p[2]))
+        self.out.append(("P", p[0], p[1], p[2], self.z_stale))
 
     def line_to(self, p):
         self.emit(p)
@@ -331,6 +335,10 @@ class Interp:
         # immediate T, and NGC pre-staging): the changer may run here.
         if 6 in m or "T" in val:
             self.out.append(("J",))
+            self.z_stale = True
+        if "Z" in val or (self.motion in CANNED and any(a in val for a in "XY")):
+            # A Z word, or a canned cycle (its moves state Z): Z known again.
+            self.z_stale = False
         axes = [a for a in "XYZ" if a in val]
         if home:
             self.homing(axes or ["X", "Y", "Z"])
@@ -377,6 +385,8 @@ class Interp:
             if a not in axes:
                 continue
             i = "XYZ".index(a)
+            if i == 2:
+                self.z_stale = False
             for v in (0.0, pull[i], 0.0, pull[i]):
                 p = list(self.pos)
                 p[i] = v
@@ -450,7 +460,7 @@ class Interp:
             p[a0] = cx + r * math.cos(t)
             p[a1] = cy + r * math.sin(t)
             p[an] = s[an] + (target[an] - s[an]) * f
-            self.out.append(("P", p[0], p[1], p[2]))
+            self.out.append(("P", p[0], p[1], p[2], self.z_stale))
         self.pos = list(target)
 
     def canned(self, val):
@@ -698,7 +708,7 @@ def main(argv):
         with open(argv[2], "w") as f:
             for e in it.out:
                 if e[0] == "P":
-                    f.write("P %.6f %.6f %.6f\n" % (e[1], e[2], e[3]))
+                    f.write("P %.6f %.6f %.6f %d\n" % (e[1], e[2], e[3], 1 if e[4] else 0))
                 elif e[0] == "L":
                     f.write("L %d\n" % e[1])
                 else:
