@@ -44,7 +44,7 @@ use std::time::Instant;
 /// Z in −38..−4 (the job's highest point 4 mm below the top), the reference
 /// homes to Z −1, and recorded Z steps are read as machine Z = −steps. That
 /// is the only change the harness needs.
-const FIRMWARE_Z_UP: bool = false;
+const FIRMWARE_Z_UP: bool = true;
 
 /// Steps per mm on X, Y, Z (factory settings).
 const SPMM: f64 = 100.0;
