@@ -792,3 +792,13 @@ fn the_path_check_fails_on_a_skipped_circle_an_off_path_step_and_a_wrong_end() {
     assert!(check_events(&shorter, stopped, &r, &[]).unwrap_err().contains("never ran"));
     assert!(check_events(&good, [200, 301, 50], &r, &[]).unwrap_err().contains("final position"));
 }
+
+#[test]
+fn the_reference_interpreter_passes_its_own_checks() {
+    // Full circles in G17/G18/G19 both ways, R arcs short and long, G90.1 vs
+    // G91.1, helix, G20, G91, G92, G28 (this firmware's homing), G81 with
+    // G98/G99 and modal holes, G83 pecks, G91 canned cycles with L, and the
+    // scaler touching only coordinate numbers (tools/corpus_scale.py).
+    let out = python(&["selftest"]);
+    assert!(out.contains("self-test: ok"), "{out}");
+}

@@ -37,6 +37,7 @@ Scaling choices (also in README "Real jobs (corpus)"):
 Usage:
   corpus_scale.py scale IN OUT [--z-down]      prints the parameters as JSON
   corpus_scale.py path JOB OUT --start X,Y,Z [--z-down]
+  corpus_scale.py selftest                     checks of the model itself
 Path file: ``L <job line>`` before the points of that line, ``P x y z s``
 (machine mm, +Z up unless --z-down; s = 1: no Z word since the last tool
 change, so Z is wherever the changer left it), ``J`` (a tool change may
@@ -689,6 +690,88 @@ def scale_text(text, z_up):
     return "\n".join(out) + "\n", params
 
 
+def selftest():
+    """Checks of the reference model on small jobs with known paths
+    (run by tests/corpus.rs)."""
+    def path(text, z_up=True, start=(0.0, 0.0, 0.0)):
+        it, uns = run(text, start, z_up)
+        assert uns is None, uns
+        return [list(e[1:4]) for e in it.out if e[0] == "P"]
+
+    def close(a, b, tol=1e-6):
+        return all(abs(x - y) <= tol for x, y in zip(a, b))
+
+    # Full circle by I/J: ends at its start, every point on the circle, the
+    # chords within REF_CHORD, in every plane and both directions.
+    for plane, (a0, a1) in ((17, (0, 1)), (18, (2, 0)), (19, (1, 2))):
+        for g in (2, 3):
+            off = {17: "I-5 J0", 18: "K-5 I0", 19: "J-5 K0"}[plane]
+            start = [10.0, 10.0, -10.0]
+            pts = path("G21 G90 G%d\nG0 X10 Y10 Z-10\nG%d %s F100\n" % (plane, g, off))
+            arc = pts[1:]
+            assert close(arc[-1], start), (plane, g, arc[-1])
+            c = list(start)
+            c[a0] -= 5
+            for p in arc:
+                assert abs(math.hypot(p[a0] - c[a0], p[a1] - c[a1]) - 5) < 1e-9
+            swept = 0.0
+            prev = math.atan2(start[a1] - c[a1], start[a0] - c[a0])
+            for p in arc:
+                t = math.atan2(p[a1] - c[a1], p[a0] - c[a0])
+                d = (t - prev + math.pi) % (2 * math.pi) - math.pi
+                swept += d
+                prev = t
+            assert abs(abs(swept) - 2 * math.pi) < 1e-6, swept
+            assert (swept < 0) == (g == 2), (plane, g, swept)
+    # R arcs: R > 0 the short way, R < 0 the long way round; G2 clockwise.
+    short = path("G0 X0 Y0\nG2 X10 Y0 R5 F100\n")
+    assert max(p[1] for p in short) > 4.99 and min(p[1] for p in short) > -1e-9
+    long_ = path("G0 X0 Y0\nG2 X10 Y10 R-10 F100\n")
+    assert close(long_[-1], (10, 10, 0))
+    assert max(p[1] for p in long_) > 19.99 and min(p[0] for p in long_) < -9.99, "R<0 goes the long way"
+    short = path("G0 X0 Y0\nG2 X10 Y10 R10 F100\n")
+    assert max(p[0] for p in short) < 10 + 1e-9 and min(p[0] for p in short) > -1e-9, "R>0 the short way"
+    # G90.1 absolute centres vs G91.1 incremental.
+    a = path("G0 X5 Y0\nG90.1 G3 X-5 Y0 I0 J0 F100\n")
+    b = path("G0 X5 Y0\nG91.1 G3 X-5 Y0 I-5 J0 F100\n")
+    assert a == b and max(p[1] for p in a) > 4.99
+    # Helix: Z linear in the angle.
+    h = path("G0 X5 Y0 Z0\nG3 X5 Y0 Z-4 I-5 J0 F100\n")
+    assert close(h[-1], (5, 0, -4))
+    mid = h[len(h) // 2]
+    assert abs(mid[2] + 2) < 0.05
+    # G20, G91, G92.
+    assert close(path("G20 G0 X1 Y2\n")[-1], (25.4, 50.8, 0))
+    assert close(path("G91 G0 X1\nX1\nY-2\n")[-1], (2, -2, 0))
+    assert close(path("G0 X5\nG92 X0\nG0 X1\n")[-1], (6, 0, 0))
+    # G28: Z, Y, X, each to the switch, 1 mm off, back, 1 mm off; +Z up.
+    g28 = path("G28\n", start=(10.0, 20.0, -30.0))
+    assert [p[2] for p in g28[:4]] == [0, -1, 0, -1], g28[:4]
+    assert close(g28[-1], (1, 1, -1))
+    assert path("G28\n", z_up=False, start=(10.0, 20.0, 30.0))[3][2] == 1
+    # Canned cycles (LinuxCNC): G81 from Z5, R1, Z-2, G98 returns to 5,
+    # G99 to R; G83 Q1 pecks back to R; modal holes on bare X/Y.
+    d = path("G0 X0 Y0 Z5\nG98 G81 X3 Y4 R1 Z-2 F100\nX6\nG80\n")
+    assert [tuple(p) for p in d] == [(0, 0, 5), (3, 4, 5), (3, 4, 1), (3, 4, -2), (3, 4, 5),
+                                     (6, 4, 5), (6, 4, 1), (6, 4, -2), (6, 4, 5)], d
+    d = path("G0 X0 Y0 Z5\nG99 G81 X3 Y4 R1 Z-2 F100\n")
+    assert d[-1] == [3, 4, 1]
+    d = path("G0 X0 Y0 Z5\nG99 G83 X0 Y0 R1 Z-2 Q1 F100\n")
+    zs = [round(p[2], 3) for p in d]
+    assert zs == [5, 5, 1, 0, 1, 0.254, -1, 1, -0.746, -2, 1], zs
+    # G91 canned: R relative to the start Z, Z relative to R, L repeats.
+    d = path("G0 X0 Y0 Z5\nG91 G99 G81 X2 R-4 Z-3 L2 F100\n")
+    assert [tuple(round(v, 6) for v in p) for p in d[-3:]] == [(4, 0, 1), (4, 0, -2), (4, 0, 1)], d
+    # Scaling: numbers only, uniform factor, G91 and R only scaled.
+    out, params = scale_text("G21 G90\nG0 X0 Y0 Z0\nG1 X100 Y10 Z-10 F500 (c X1)\nG2 X100 Y30 R10\nG91 G1 X-10\n", True)
+    lines = out.splitlines()
+    s = params["scale"]
+    assert lines[0].startswith("G28") and abs(s - 0.39) < 1e-9, params
+    assert "F500 (c X1)" in lines[3] and lines[4].endswith("R%s" % fmt(10 * s, False)), lines
+    assert lines[5] == "G91 G1 X%s" % fmt(-10 * s, False), lines
+    print("corpus_scale.py self-test: ok")
+
+
 def main(argv):
     if len(argv) >= 3 and argv[0] == "scale":
         z_up = "--z-down" not in argv
@@ -715,6 +798,9 @@ def main(argv):
                     f.write("J\n")
             if uns:
                 f.write("U %d %s\n" % (uns[0], uns[1]))
+        return 0
+    if argv and argv[0] == "selftest":
+        selftest()
         return 0
     print(__doc__, file=sys.stderr)
     return 2
