@@ -1,7 +1,8 @@
 //! Real jobs (issue 13, "A corpus test in CI"): every third-party G-code file
 //! of `../shared/corpus` (read in place, never copied here), scaled into the
 //! machine by `tools/corpus_scale.py`, run on the real ELF in the virtual
-//! machine over serial (ping-pong, as Pronterface sends) and from the SD card
+//! machine over serial (one line in flight, comments stripped, as grbl-style
+//! senders send) and from the SD card
 //! (M23/M24), and checked against the manifest `tests/corpus/manifest.json`:
 //!
 //! - the outcome (`runs`, or the first refused line and its error text) is
@@ -627,7 +628,6 @@ fn check_events(evs: &[(u64, [f64; 3])], now: [i64; 3], r: &RefPath, windows: &[
                 }
                 k = j;
                 worst = worst.max(d);
-                let _ = d;
             }
             None => {
                 let (a, b) = (pts[k], pts[(k + 1).min(n - 1)]);
