@@ -225,8 +225,6 @@ fn prepare(e: &Entry) -> Prepared {
 struct RunResult {
     /// `runs` or `refused: line <original line>: <error>`.
     outcome: String,
-    /// Scaled-file line refused (None: every line accepted).
-    refused_line: Option<usize>,
     steps: usize,
     worst_dev: f64,
     sim_s: f64,
@@ -442,7 +440,6 @@ fn finish(
     };
     RunResult {
         outcome: outcome_of(&refused),
-        refused_line: refused.as_ref().map(|r| r.0),
         steps,
         worst_dev: worst,
         sim_s,
@@ -544,7 +541,7 @@ fn check_events(evs: &[(u64, [f64; 3])], now: [i64; 3], r: &RefPath, windows: &[
     let mut in_window = false;
     let mut checked = 0usize;
     let mut last_pos: [f64; 3] = START_STEPS.map(|v| v as f64);
-    let mut resume = |k: &mut usize, along: &mut f64, pts: &mut Vec<[f64; 3]>, at: [f64; 3]| -> Result<(), String> {
+    let resume = |k: &mut usize, along: &mut f64, pts: &mut Vec<[f64; 3]>, at: [f64; 3]| -> Result<(), String> {
         let j = (*k..n).find(|&j| r.jump[j]).ok_or_else(|| format!("a tool change at {at:?} where the job has no T/M6 ahead"))?;
         let before = pts[j];
         if (before[0] - at[0]).abs() > 0.5 || (before[1] - at[1]).abs() > 0.5 {
@@ -590,7 +587,7 @@ fn check_events(evs: &[(u64, [f64; 3])], now: [i64; 3], r: &RefPath, windows: &[
         // the nearest keeps a tight spiral from running ahead, and the small
         // step back absorbs a match that ran ahead anyway.
         let mut cands: Vec<(usize, f64, f64)> = Vec::new();
-        let mut consider = |j: usize, cands: &mut Vec<(usize, f64, f64)>| {
+        let consider = |j: usize, cands: &mut Vec<(usize, f64, f64)>| {
             let (a, b) = (pts[j], if j + 1 < n { pts[j + 1] } else { pts[j] });
             let (d, t) = dist(q, a, b);
             if d <= TOL_STEPS {
