@@ -321,6 +321,10 @@ impl Io for Hw {
         board::spindle_set(duty);
     }
 
+    fn coolant(&mut self, on: bool) {
+        board::coolant_set(on);
+    }
+
     fn switches(&self) -> mill::machine::Switches {
         let i = board::inputs();
         mill::machine::Switches { home: i.home, carousel_home: i.carousel_home, tool_setter: i.tool_setter }
@@ -421,6 +425,7 @@ impl Hw {
         v.tool = m.atc.spindle();
         v.feed = feed.clamp(0.0, 65535.0) as u16;
         v.override_pct = m.interp.feed_override_pct;
+        v.opt_stop = m.settings.optional_stop;
         v.rpm = rpm.clamp(0.0, 65535.0) as u16;
         v.job = self.job.phase;
         v.job_pct = self.job.percent();
@@ -703,6 +708,12 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         },
         Cmd::Override(pct) => {
             m.interp.feed_override_pct = pct;
+            Ok(())
+        }
+        Cmd::OptionalStop(on) => {
+            // The same setting as `$152`, stored like it.
+            m.settings.optional_stop = on;
+            m.save_settings(hw);
             Ok(())
         }
         Cmd::Jog { axis, delta_um } => {

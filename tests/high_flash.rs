@@ -253,19 +253,19 @@ fn an_sd_job_started_from_the_menu_runs_like_the_same_lines_over_serial() {
 }
 
 #[test]
-fn a_tool_change_t3_then_t0_matches_the_physical_changer() {
+fn a_tool_change_t3_m6_then_t0_m6_matches_the_physical_changer() {
     let mut vm = boot_elf(high_elf());
     ok(&mut vm, "G28");
     ok(&mut vm, "G0 X10 Y5 Z-3");
     ok(&mut vm, "M400");
     let before = steps(&vm);
-    let r = ok(&mut vm, "T3");
+    let r = ok(&mut vm, "T3 M6");
     assert!(r.iter().any(|l| l == "NowSelectedTool:3"), "{r:?}");
     assert_eq!(vm.atc().spindle.map(|t| t.id), Some(3));
     assert_eq!(vm.atc().pocket(3), None);
     let now = steps(&vm);
     assert_eq!((now[0], now[1]), (before[0], before[1]), "back at the pre-change X/Y");
-    let r = ok(&mut vm, "T0");
+    let r = ok(&mut vm, "T0 M6");
     assert!(r.iter().any(|l| l == "NowSelectedTool:0"), "{r:?}");
     assert_eq!(vm.atc().spindle, None);
     assert_eq!(vm.atc().pocket_ids(), [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);

@@ -69,6 +69,11 @@ pub fn emergency_stop() {
         stepper::halt_from_isr();
         drivers_enable_raw(false);
         spindle_off_raw();
+        // SAFETY: RMW of PORTH inside the critical section; coolant off.
+        unsafe {
+            let p = pins::COOLANT;
+            core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
+        }
     });
     REALTIME.fetch_or(realtime::ESTOP, Ordering::AcqRel);
 }
@@ -93,6 +98,11 @@ pub(crate) fn emergency_stop_in_isr() {
     unsafe {
         (*TC2::ptr()).tccr2a().modify(|_, w| w.com2a().disconnected());
         let p = pins::SPINDLE_PWM;
+        core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
+    }
+    // SAFETY: RMW of PORTH with interrupts off (inside an ISR).
+    unsafe {
+        let p = pins::COOLANT;
         core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
     }
     raise_in_isr(realtime::ESTOP);
@@ -208,6 +218,12 @@ fn spindle_init(tc2: &TC2) {
     tc2.tccr2a().write(|w| w.wgm2().pwm_fast());
     tc2.tccr2b().write(|w| w.cs2().prescale_8());
     pins::SPINDLE_PWM.make_output(false);
+    pins::COOLANT.make_output(false);
+}
+
+/// Coolant output (D9, PH6) on or off.
+pub fn coolant_set(on: bool) {
+    pins::COOLANT.set(on);
 }
 
 /// Set spindle PWM duty (0 = off, 255 = full).
