@@ -7,6 +7,11 @@
 //!                (grbl's behaviour; M92/M201/M203 change RAM until M500)
 //!  $H            home all axes (G28)
 //!  $X            unlock an alarm (M999)
+//!  $G            modal state, grbl 1.1's `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`
+//!  $#            offsets: `[G54:x,y,z]` … `[G59:…]`, `[G28:…]`, `[G30:…]`,
+//!                `[G92:…]`, `[TLO:z]`, `[PRB:x,y,z:0]` (G28/G30 hold no
+//!                stored positions here: G28 homes; always 0)
+//!  $I            `[VER:1.1h.MillFW:<version>]`, `[OPT:VNH,15,255]`
 //! ```
 //!
 //! The numbers follow grbl where grbl has the setting ($3, $11, $12, $20,
@@ -57,6 +62,12 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
     List,
+    /// `$G`: the modal state.
+    Modes,
+    /// `$#`: the offsets.
+    Params,
+    /// `$I`: build info.
+    Info,
     Set(u8, f32),
     Home,
     Unlock,
@@ -73,7 +84,7 @@ pub enum DollarError {
 impl DollarError {
     pub fn message(self) -> FStr {
         match self {
-            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H or $X"),
+            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H, $X, $G, $# or $I"),
             DollarError::Unknown => F!("$ command: no such setting (see $$)"),
             DollarError::BadValue => F!("$ command: value out of range, nothing changed"),
         }
@@ -88,6 +99,9 @@ pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
         b"$" => return Ok(Command::List),
         b"H" | b"h" => return Ok(Command::Home),
         b"X" | b"x" => return Ok(Command::Unlock),
+        b"G" | b"g" => return Ok(Command::Modes),
+        b"#" => return Ok(Command::Params),
+        b"I" | b"i" => return Ok(Command::Info),
         _ => {}
     }
     let eq = trimmed.iter().position(|&b| b == b'=').ok_or(DollarError::Syntax)?;
@@ -181,6 +195,72 @@ pub fn list(s: &Settings, w: &mut impl uWrite) {
     }
 }
 
+/// `$G`: grbl 1.1's modal-state line. Coolant is not tracked here (`M9`).
+pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
+    use crate::gcode::parse::{Motion, Plane};
+    let motion = match i.motion {
+        Motion::Rapid => "G0",
+        Motion::Linear => "G1",
+        Motion::ArcCw => "G2",
+        Motion::ArcCcw => "G3",
+        Motion::ProbeToward => "G38.2",
+        Motion::ProbeTowardNoError => "G38.3",
+        Motion::Cancel => "G80",
+    };
+    let plane = match i.plane {
+        Plane::Xy => "G17",
+        Plane::Zx => "G18",
+        Plane::Yz => "G19",
+    };
+    let units = if i.inches { "G20" } else { "G21" };
+    let dist = if i.incremental { "G91" } else { "G90" };
+    let spindle = if i.spindle_on { "M3" } else { "M5" };
+    // F in the current units per minute, S in rpm, whole numbers.
+    let feed = if i.inches { i.feed_mm_per_min / 25.4 } else { i.feed_mm_per_min };
+    uwriteln!(
+        w,
+        "[GC:{} G{} {} {} {} G94 {} M9 T{} F{} S{}]",
+        motion,
+        54 + i.wcs as u16,
+        plane,
+        units,
+        dist,
+        spindle,
+        tool,
+        crate::math::round_i32(feed),
+        crate::math::round_i32(i.spindle_rpm)
+    )
+    .ok();
+}
+
+/// `$#`: grbl 1.1's offset lines (work offsets in machine mm).
+pub fn params(i: &crate::gcode::interp::Interp, w: &mut impl uWrite) {
+    for (n, v) in i.wcs_mm.iter().enumerate() {
+        uwrite!(w, "[G5{}:", 4 + n as u8).ok();
+        xyz(w, *v);
+    }
+    uwrite!(w, "[G28:").ok();
+    xyz(w, [0.0; 3]);
+    uwrite!(w, "[G30:").ok();
+    xyz(w, [0.0; 3]);
+    uwrite!(w, "[G92:").ok();
+    xyz(w, i.g92_mm);
+    uwriteln!(w, "[TLO:{}]", Micros::from_mm(i.tlo_mm)).ok();
+    uwriteln!(w, "{}", F!("[PRB:0.000,0.000,0.000:0]")).ok();
+}
+
+/// `x,y,z]` and the line end, three decimals.
+fn xyz(w: &mut impl uWrite, v: [f32; 3]) {
+    uwriteln!(w, "{},{},{}]", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
+}
+
+/// `$I`: grbl 1.1's build info lines (options: V variable spindle, N line
+/// numbers, H single-axis homing; 16-block planner, 255-byte RX ring).
+pub fn info(w: &mut impl uWrite) {
+    uwriteln!(w, "{}{}]", F!("[VER:1.1h.MillFW:"), crate::FIRMWARE_VERSION).ok();
+    uwriteln!(w, "{}", F!("[OPT:VNH,15,255]")).ok();
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -213,6 +293,9 @@ mod tests {
         assert_eq!(parse(b"$$"), Ok(Command::List));
         assert_eq!(parse(b"$H"), Ok(Command::Home));
         assert_eq!(parse(b"$x"), Ok(Command::Unlock));
+        assert_eq!(parse(b"$G"), Ok(Command::Modes));
+        assert_eq!(parse(b"$#"), Ok(Command::Params));
+        assert_eq!(parse(b"$I"), Ok(Command::Info));
         assert_eq!(parse(b"$100=80"), Ok(Command::Set(100, 80.0)));
         assert_eq!(parse(b"$ 11 = 0.02 "), Ok(Command::Set(11, 0.02)));
         assert_eq!(parse(b"$140=-1.5"), Ok(Command::Set(140, -1.5)));
@@ -225,6 +308,42 @@ mod tests {
         assert_eq!(parse(b"$100=1e99"), Err(DollarError::BadValue));
         assert_eq!(parse(b"$100=1.2.3"), Err(DollarError::BadValue));
         assert_eq!(parse(b"$100=1234567890"), Err(DollarError::BadValue));
+    }
+
+    #[test]
+    fn dollar_g_hash_and_i_answer_in_grbl_1_1_formats() {
+        let mut i = crate::gcode::interp::Interp::new();
+        let mut out = S(String::new());
+        modes(&i, 0, &mut out);
+        assert_eq!(out.0, "[GC:G80 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\n");
+        i.motion = crate::gcode::parse::Motion::Linear;
+        i.wcs = 1;
+        i.incremental = true;
+        i.spindle_on = true;
+        i.spindle_rpm = 8000.0;
+        i.feed_mm_per_min = 600.0;
+        let mut out = S(String::new());
+        modes(&i, 3, &mut out);
+        assert_eq!(out.0, "[GC:G1 G55 G17 G21 G91 G94 M3 M9 T3 F600 S8000]\n");
+        i.wcs_mm[0] = [1.5, -2.0, 0.25];
+        i.g92_mm = [0.0, 1.0, 0.0];
+        i.tlo_mm = -19.5;
+        let mut out = S(String::new());
+        params(&i, &mut out);
+        let l: Vec<&str> = out.0.lines().collect();
+        assert_eq!(l.len(), 11);
+        assert_eq!(l[0], "[G54:1.500,-2.000,0.250]");
+        assert_eq!(l[5], "[G59:0.000,0.000,0.000]");
+        assert_eq!(l[6], "[G28:0.000,0.000,0.000]");
+        assert_eq!(l[7], "[G30:0.000,0.000,0.000]");
+        assert_eq!(l[8], "[G92:0.000,1.000,0.000]");
+        assert_eq!(l[9], "[TLO:-19.500]");
+        assert_eq!(l[10], "[PRB:0.000,0.000,0.000:0]");
+        let mut out = S(String::new());
+        info(&mut out);
+        let l: Vec<&str> = out.0.lines().collect();
+        assert!(l[0].starts_with("[VER:1.1h.MillFW:") && l[0].ends_with(']'), "{l:?}");
+        assert_eq!(l[1], "[OPT:VNH,15,255]");
     }
 
     #[test]

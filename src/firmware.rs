@@ -264,7 +264,13 @@ impl Io for Hw {
             home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
             probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
             abort: ui & req::ABORT != 0,
+            reset: rt & board::realtime::RESET != 0,
+            reset_moving: rt & board::realtime::RESET_MOVING != 0,
         }
+    }
+
+    fn flush_rx(&mut self) {
+        while serial::read().is_some() {}
     }
 
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
@@ -611,10 +617,11 @@ pub fn run() -> ! {
     wdt::enable_2s();
     m.boot(hw, cause.as_str());
     // The SD job's line buffer lives here, not in `job_turn`'s frame: zeroing
-    // 96 bytes on every turn of the loop cost ~1.4k cycles per streamed line.
+    // it on every turn of the loop cost ~1.4k cycles per streamed line. The
+    // serial line runs from it too (`push_bytes`): never both at once.
     let mut job_line = [0u8; MAX_LINE_LEN];
     loop {
-        m.push_bytes(core::iter::from_fn(serial::read), hw);
+        m.push_bytes(core::iter::from_fn(serial::read), hw, &mut job_line);
         job_turn(m, hw, &mut job_line);
         ui_turn(m, hw);
         m.idle(hw);

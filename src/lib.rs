@@ -21,6 +21,7 @@ pub mod config;
 pub mod dollar;
 pub mod fixed;
 pub mod gcode;
+pub mod hostcodes;
 pub mod machine;
 pub mod math;
 pub mod planner;

@@ -503,18 +503,19 @@ fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Opti
     })
 }
 
-/// G4: wait for the queue to drain, then dwell P ms or S seconds.
+/// G4: wait for the queue to drain, then dwell P or S seconds (P in
+/// seconds as in RS274/NGC, grbl and LinuxCNC, and every CAM file of the
+/// corpus; Marlin's P is ms: README "G4"). `busy:processing` keeps the host
+/// waiting (`Machine::wait_step`).
 fn dwell(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
     let ms = match (l.word(Word::P), l.word(Word::S)) {
-        (Some(p), None) if p >= 0.0 => p,
-        (None, Some(s)) if s >= 0.0 => s * 1000.0,
-        _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
+        (Some(s), None) | (None, Some(s)) if s >= 0.0 => s * 1000.0,
+        _ => return Err(Error::BadWord(F!("G4 needs one of P<s> or S<s> (seconds), not negative"))),
     };
     g.commit(&mut m.interp);
     m.wait_idle(io)?;
     let start = io.millis();
     while (io.millis().wrapping_sub(start) as f32) < ms {
-        m.keepalive(io);
         m.wait_step(io)?;
     }
     Ok(())
@@ -878,10 +879,15 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             io.drivers(true);
         }
         18 | 84 => {
+            // Marlin's default (HOME_AFTER_DEACTIVATE off): wait for the
+            // moves, drivers off, the position and the homing are kept
+            // (OctoPrint's cancel script sends M84; README "Cancel").
             m.wait_idle(io)?;
             io.drivers(false);
-            m.homed = 0;
             m.apply_watch(io, 0, false);
+            if m.homed != 0 {
+                uwriteln!(io, "{}", F!("echo:steppers off, position kept: home again (G28) if an axis was turned by hand")).ok();
+            }
         }
         92 | 201 | 203 => {
             m.wait_idle(io)?;
