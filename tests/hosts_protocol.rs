@@ -349,10 +349,13 @@ fn octoprint_cancel_script_stops_cleanly_without_an_alarm() {
     // OctoPrint's cancel: it stops sending the job, may send M108, then its
     // default "after print cancelled" script.
     let mut out = Vec::new();
-    for cmd in ["M108", "M5", "M84", "M104 T0 S0", "M140 S0", "M106 S0"] {
+    // Its script has no M5: M84 turns the spindle off (after the moves).
+    for cmd in ["M108", "M84", "M104 T0 S0", "M104 T5 S0", "M140 S0", "M106 S0"] {
         out.extend(ok(&mut vm, cmd));
     }
     assert!(!out.iter().any(|l| l.starts_with("ALARM") || l.starts_with("Error")), "{out:?}");
+    // `T0` in M104 is a heater index, never a tool change.
+    assert!(!out.iter().any(|l| l.contains("SelectTool")), "{out:?}");
     assert!(!vm.spindle_on());
     assert!(!vm.driver_enabled(Axis::X), "M84: drivers off");
     // No re-homing needed: the next move runs at once.

@@ -200,10 +200,12 @@ const UCSR0A: u16 = 0xC0;
 const UDR0: u16 = 0xC6;
 const DOR0: u8 = 3;
 
-// RX complete (`__vector_25`), fast path. A byte that is neither realtime
-// nor `M`/`m` nor 0x7E and above, with no loss, no M-code match in progress
-// and no gap marker pending, goes straight into the ring and `RX_PREV`:
-// that is what the slow path does for it (`MCodeScanner::ignores` it, and
+// RX complete (`__vector_25`), fast path. A byte from 0x20 to 0x7D other
+// than `!` `?` `(` `)` `;` `M` `m`, with no loss, no M-code match in
+// progress, no gap marker pending and not at the start of a line, goes
+// straight into the ring and `RX_PREV`: that is what the slow path does for
+// it (`MCodeScanner::ignores` it, `RxText::classify` leaves its state alone,
+// `protocol::tests::the_fast_path_bytes_change_nothing`, and
 // `RxStore::store` with no gap pending is a plain enqueue), written out
 // with 4 registers saved instead of the 9 the Rust handler saves (a Rust
 // ISR saves every register any of its paths uses). Any other byte, and a
@@ -212,12 +214,14 @@ const DOR0: u8 = 3;
 // a jump enters the slow path as if the hardware had, so that its `reti`
 // ends the interrupt.
 //
-// Budget: 64 cycles per ordinary byte, entry to `reti` (was 164 in Rust
-// alone), ~1.1 k cycles per streamed G1 line: `__vector_25` in
-// `cargo run -p sim --release --bin profile -- --count 254 --trace 500:300`.
-// A byte for the slow path costs ~38 cycles here plus ~143 in
-// `usart0_rx_slow` (the `M` and `5` of a job of `M5` lines, same command
-// with the job's file name at the end).
+// Budget: 72 cycles per ordinary byte, entry to `reti` (64 before the
+// comment/numbered-line tracking of `RxText`; 164 in Rust alone). Per
+// streamed G1 line (`cargo run -p sim --release --bin profile -- --trace
+// 500:300`, `__vector_25` inclusive): 1550 cycles, of which 331 in
+// `usart0_rx_slow` for the line's two slow bytes (its `\n`, which starts
+// a line, and the first character, which may make it a numbered one);
+// 1144 before `RxText`. A byte for the slow path costs ~38 cycles here
+// plus ~165 in `usart0_rx_slow`.
 //
 // SAFETY: the fast path writes only what the RX interrupt owns (the ring
 // slot at RX_HEAD, then RX_HEAD, and RX_PREV / RX_IN / RX_IN_LOST), keeps

@@ -879,10 +879,12 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             io.drivers(true);
         }
         18 | 84 => {
-            // Marlin's default (HOME_AFTER_DEACTIVATE off): wait for the
-            // moves, drivers off, the position and the homing are kept
-            // (OctoPrint's cancel script sends M84; README "Cancel").
+            // Wait for the moves, then spindle off (a mill with its drivers
+            // off cannot cut: OctoPrint's cancel script has M84 but no M5),
+            // drivers off; the position and the homing are kept (Marlin's
+            // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
             m.wait_idle(io)?;
+            m.spindle_off(io);
             io.drivers(false);
             m.apply_watch(io, 0, false);
             if m.homed != 0 {
