@@ -198,36 +198,37 @@ pub fn list(s: &Settings, w: &mut impl uWrite) {
 /// `$G`: grbl 1.1's modal-state line. Coolant is not tracked here (`M9`).
 pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
     use crate::gcode::parse::{Motion, Plane};
+    // Every text through F!: a plain `&str` from a match is a RAM copy on AVR.
     let motion = match i.motion {
-        Motion::Rapid => "G0",
-        Motion::Linear => "G1",
-        Motion::ArcCw => "G2",
-        Motion::ArcCcw => "G3",
-        Motion::ProbeToward => "G38.2",
-        Motion::ProbeTowardNoError => "G38.3",
-        Motion::Cancel => "G80",
+        Motion::Rapid => F!("G0"),
+        Motion::Linear => F!("G1"),
+        Motion::ArcCw => F!("G2"),
+        Motion::ArcCcw => F!("G3"),
+        Motion::ProbeToward => F!("G38.2"),
+        Motion::ProbeTowardNoError => F!("G38.3"),
+        Motion::Cancel => F!("G80"),
     };
     let plane = match i.plane {
-        Plane::Xy => "G17",
-        Plane::Zx => "G18",
-        Plane::Yz => "G19",
+        Plane::Xy => 17u8,
+        Plane::Zx => 18,
+        Plane::Yz => 19,
     };
-    let units = if i.inches { "G20" } else { "G21" };
-    let dist = if i.incremental { "G91" } else { "G90" };
-    let spindle = if i.spindle_on { "M3" } else { "M5" };
+    let units = if i.inches { 20u8 } else { 21 };
+    let dist = if i.incremental { 91u8 } else { 90 };
+    let spindle = if i.spindle_on { 3u8 } else { 5 };
     // F in the current units per minute, S in rpm, whole numbers.
     let feed = if i.inches { i.feed_mm_per_min / 25.4 } else { i.feed_mm_per_min };
+    uwrite!(w, "{}{} G{} G{} G{} G{}", F!("[GC:"), motion, 54 + i.wcs, plane, units, dist).ok();
     uwriteln!(
         w,
-        "[GC:{} G{} {} {} {} G94 {} M9 T{} F{} S{}]",
-        motion,
-        54 + i.wcs as u16,
-        plane,
-        units,
-        dist,
+        "{}{}{}{}{}{}{}{}]",
+        F!(" G94 M"),
         spindle,
+        F!(" M9 T"),
         tool,
+        F!(" F"),
         crate::math::round_i32(feed),
+        F!(" S"),
         crate::math::round_i32(i.spindle_rpm)
     )
     .ok();
@@ -236,16 +237,16 @@ pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
 /// `$#`: grbl 1.1's offset lines (work offsets in machine mm).
 pub fn params(i: &crate::gcode::interp::Interp, w: &mut impl uWrite) {
     for (n, v) in i.wcs_mm.iter().enumerate() {
-        uwrite!(w, "[G5{}:", 4 + n as u8).ok();
+        uwrite!(w, "{}{}:", F!("[G5"), 4 + n as u8).ok();
         xyz(w, *v);
     }
-    uwrite!(w, "[G28:").ok();
+    uwrite!(w, "{}", F!("[G28:")).ok();
     xyz(w, [0.0; 3]);
-    uwrite!(w, "[G30:").ok();
+    uwrite!(w, "{}", F!("[G30:")).ok();
     xyz(w, [0.0; 3]);
-    uwrite!(w, "[G92:").ok();
+    uwrite!(w, "{}", F!("[G92:")).ok();
     xyz(w, i.g92_mm);
-    uwriteln!(w, "[TLO:{}]", Micros::from_mm(i.tlo_mm)).ok();
+    uwriteln!(w, "{}{}]", F!("[TLO:"), Micros::from_mm(i.tlo_mm)).ok();
     uwriteln!(w, "{}", F!("[PRB:0.000,0.000,0.000:0]")).ok();
 }
 

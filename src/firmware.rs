@@ -253,6 +253,11 @@ impl Io for Hw {
     fn poll(&mut self) -> Realtime {
         wdt::feed();
         let rt = board::take_realtime();
+        if rt & board::realtime::RESET != 0 && self.job.active() {
+            // A soft reset ends an SD job too (its abort finishes at once:
+            // the reset leaves nothing moving).
+            self.job.abort();
+        }
         let ui = self.job.take_requests() | core::mem::take(&mut self.requests);
         let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
         Realtime {

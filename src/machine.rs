@@ -178,10 +178,6 @@ crate::flash_messages! {
 /// Interpreter-level error shown to the host as `Error:<text>`.
 pub type CmdResult = Result<(), interp::Error>;
 
-/// Tries of one numbered line that fail a protocol check before it is given
-/// up (see `Machine::reject_line`).
-pub const MAX_TRIES: u8 = 3;
-
 /// EEPROM address of the settings image.
 pub const EEPROM_SETTINGS_ADDR: u16 = 0;
 
@@ -215,9 +211,7 @@ pub struct Machine {
     /// A soft reset (0x18) happened while the current serial line ran: it
     /// ends without an `ok` or an error (grbl drops it).
     silenced: bool,
-    /// Consecutive failed tries of the next line (checksum, too long, ...),
-    /// see [`MAX_TRIES`].
-    failed_tries: u8,
+
     /// Realtime events of the last poll (trip flags persist until cleared).
     last_rt: Realtime,
     /// The host numbers its lines (so dropped lines get `Resend:`).
@@ -270,7 +264,6 @@ impl Machine {
             host: crate::hostcodes::HostState::new(),
             serial_line: false,
             silenced: false,
-            failed_tries: 0,
             last_rt: Realtime {
                 status: false,
                 hold: false,
@@ -391,26 +384,25 @@ impl Machine {
     }
 
     /// A line failed a protocol check (checksum, too long, overrun, ...).
-    /// A numbered line is asked for again (`Resend:`), at most
-    /// [`MAX_TRIES`] times in a row: then it is given up with an error and
-    /// the line number moves past it, so that no input keeps a host
-    /// resending the same line forever.
+    /// A numbered line is asked for again (`Resend:`), until it has failed
+    /// `protocol::MAX_TRIES` times in a row: then it is given up with an
+    /// error and the line number moves past it (`LineChecker::failed`), so
+    /// that no input keeps a host resending the same line forever.
     fn reject_line(&mut self, io: &mut impl Io, msg: crate::flash::FStr) {
         if !self.numbered {
             uwriteln!(io, "Error:{}", msg).ok();
             return;
         }
-        self.failed_tries = self.failed_tries.saturating_add(1);
-        let n = self.chk.resend_line();
-        if self.failed_tries >= MAX_TRIES {
-            self.failed_tries = 0;
-            self.chk.skip_line();
-            // No checksum or line-number words in this text: OctoPrint must
-            // not take it for a resend request (it stops the job instead).
-            uwriteln!(io, "Error:{}{}{}", F!("gave up on line "), n, F!(" after 3 failed tries; it is NOT run")).ok();
-        } else {
-            uwriteln!(io, "Error:{}, Last Line: {}", msg, self.chk.last_line()).ok();
-            uwriteln!(io, "Resend:{}", n).ok();
+        match self.chk.failed() {
+            crate::protocol::Retry::GiveUp(n) => {
+                // No checksum or line-number words in this text: OctoPrint
+                // must not take it for a resend request (it stops the job).
+                uwriteln!(io, "Error:{}{}{}", F!("gave up on line "), n, F!(" after 3 failed tries; it is NOT run")).ok();
+            }
+            crate::protocol::Retry::Resend(n) => {
+                uwriteln!(io, "Error:{}, Last Line: {}", msg, self.chk.last_line()).ok();
+                uwriteln!(io, "Resend:{}", n).ok();
+            }
         }
     }
 
@@ -432,7 +424,6 @@ impl Machine {
                 self.reject_line(io, e.message());
             }
             Ok(cmd) => {
-                self.failed_tries = 0;
                 self.serial_line = true;
                 self.last_busy_ms = io.millis();
                 self.line_aborts = self.aborts;

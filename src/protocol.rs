@@ -372,23 +372,50 @@ impl LineAssembler {
 pub struct LineChecker {
     /// Number of the last accepted numbered line.
     last: i32,
+    /// Failed tries of line `last + 1` so far (see [`LineChecker::failed`]).
+    tries: u8,
+}
+
+/// Tries of one numbered line that fail a protocol check (checksum, too
+/// long, overrun, binary byte) before it is given up: no input can keep a
+/// host resending the same line forever.
+pub const MAX_TRIES: u8 = 3;
+
+/// What to tell the host after a numbered line failed its checks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Retry {
+    /// `Resend:<n>`: send line `n` again.
+    Resend(i32),
+    /// Line `n` failed [`MAX_TRIES`] times: it is given up (not run) and the
+    /// next line expected is `n + 1`.
+    GiveUp(i32),
 }
 
 impl LineChecker {
     /// A checker whose last line number is 0.
     pub const fn new() -> Self {
-        LineChecker { last: 0 }
+        LineChecker { last: 0, tries: 0 }
+    }
+
+    /// The next line (`last + 1`) failed a protocol check: ask for it again,
+    /// or, at the [`MAX_TRIES`]th failure in a row, give it up and move the
+    /// line number past it. A line-number error (the host sent a later line)
+    /// is not a try and must not be reported here.
+    pub fn failed(&mut self) -> Retry {
+        let n = self.resend_line();
+        self.tries = self.tries.saturating_add(1);
+        if self.tries >= MAX_TRIES {
+            self.tries = 0;
+            self.last = n;
+            Retry::GiveUp(n)
+        } else {
+            Retry::Resend(n)
+        }
     }
 
     /// Number of the last accepted line (printed as `Last Line: <n>`).
     pub fn last_line(&self) -> i32 {
         self.last
-    }
-
-    /// Give up on the next line: the last line number moves past it, so the
-    /// host's following line is accepted (after repeated failed tries).
-    pub fn skip_line(&mut self) {
-        self.last = self.last.wrapping_add(1);
     }
 
     /// Number the host must resend after an error (`Resend: <n>`): last + 1.
@@ -427,6 +454,7 @@ impl LineChecker {
         } else {
             self.last = n;
         }
+        self.tries = 0;
         Ok(command)
     }
 }
@@ -991,6 +1019,64 @@ mod tests {
         let l = format!("{}*{}", body, xor(body.as_bytes()));
         assert_eq!(c.check(l.as_bytes()), Err(ProtoError::BadLineNumber));
         assert_eq!(c.last_line(), 0);
+    }
+
+    /// A host that resends line 1 with the same bad checksum every time.
+    #[test]
+    fn a_line_that_keeps_failing_is_given_up_after_three_tries() {
+        let mut c = LineChecker::new();
+        let mut bad = numbered(1, "G1 X10");
+        let n = bad.len();
+        bad[n - 1] = if bad[n - 1] == b'0' { b'1' } else { b'0' };
+        let mut replies = Vec::new();
+        for _ in 0..3 {
+            assert_eq!(c.check(&bad), Err(ProtoError::Checksum));
+            replies.push(c.failed());
+        }
+        assert_eq!(replies, [Retry::Resend(1), Retry::Resend(1), Retry::GiveUp(1)]);
+        // The host moves on: line 2 is accepted.
+        assert_eq!(c.check(&numbered(2, "G1 X2")), Ok(&b"G1 X2"[..]));
+    }
+
+    #[test]
+    fn a_good_line_resets_the_tries_and_line_number_errors_are_not_tries() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.failed(), Retry::Resend(1));
+        assert_eq!(c.failed(), Retry::Resend(1));
+        // Lines the host had in flight: line-number errors, not reported.
+        assert_eq!(c.check(&numbered(2, "G0")), Err(ProtoError::LineNumber));
+        assert!(c.check(&numbered(1, "G0")).is_ok());
+        // Line 2 starts with a clean slate.
+        assert_eq!(c.failed(), Retry::Resend(2));
+        assert_eq!(c.failed(), Retry::Resend(2));
+        assert_eq!(c.failed(), Retry::GiveUp(2));
+        assert_eq!(c.last_line(), 2);
+        assert_eq!(c.failed(), Retry::Resend(3));
+    }
+
+    /// Whatever a host sends, the same line is never asked for more than
+    /// MAX_TRIES - 1 times in a row by `failed`.
+    #[test]
+    fn random_failures_never_ask_for_the_same_line_more_than_twice() {
+        let mut rng = XorShift(99);
+        let mut c = LineChecker::new();
+        let (mut same, mut last_req) = (0, i32::MIN);
+        for _ in 0..100_000 {
+            let n = c.resend_line();
+            let line = if rng.next() % 3 == 0 { numbered(n, "G0") } else { b"N1 G0*0".to_vec() };
+            match c.check(&line) {
+                Ok(_) => same = 0,
+                Err(ProtoError::LineNumber) => {}
+                Err(_) => match c.failed() {
+                    Retry::Resend(r) => {
+                        same = if r == last_req { same + 1 } else { 1 };
+                        last_req = r;
+                        assert!(same < MAX_TRIES as i32, "line {r} asked for {same} times");
+                    }
+                    Retry::GiveUp(_) => same = 0,
+                },
+            }
+        }
     }
 
     #[test]
