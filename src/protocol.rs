@@ -91,6 +91,8 @@ impl RxText {
     #[inline(always)]
     pub fn classify(&mut self, b: u8) -> bool {
         if b == SOFT_RESET {
+            // The main loop drops the line in progress: a new one starts.
+            self.state = T_START;
             return true;
         }
         let s = self.state;
@@ -694,8 +696,9 @@ mod tests {
         assert_eq!(split_realtime(b"G1 X?1 (a) !\n~G1 Y1 N2\n"), (b"?!~".to_vec(), b"G1 X1 (a) \nG1 Y1 N2\n".to_vec()));
         // The comment and the numbered line end with the line.
         assert_eq!(split_realtime(b"(open\n?N1*3\n!;x\n~").0, b"?!~".to_vec());
-        // Ctrl-X always acts.
+        // Ctrl-X always acts, and the line after it starts afresh.
         assert_eq!(split_realtime(b"N1 (\x18)\x18\n").0, vec![0x18, 0x18]);
+        assert_eq!(split_realtime(b"N1 (a\x18?").0, vec![0x18, b'?']);
     }
 
     #[test]
@@ -749,6 +752,9 @@ mod tests {
                 assert_eq!(t.classify(b), want, "{:?} then {:?}", String::from_utf8_lossy(&line), b as char);
                 if want {
                     acted += 1;
+                    if b == 0x18 {
+                        line.clear();
+                    }
                 } else {
                     if matches!(b, b'?' | b'!' | b'~') {
                         kept += 1;

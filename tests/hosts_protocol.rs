@@ -365,3 +365,35 @@ fn octoprint_cancel_script_stops_cleanly_without_an_alarm() {
     let r = ok(&mut vm, "M114");
     assert!(r[0].starts_with("X:1.000 Y:1.000"), "{r:?}");
 }
+
+#[test]
+fn the_rx_interrupt_sorts_question_marks_as_the_rule_says() {
+    // Each line holds one `?`, in a comment, in a numbered line or in the
+    // open; a status line must come back exactly for the open ones. In a
+    // numbered line outside a comment `?` is text, so the parser refuses it.
+    let mut vm = unlocked();
+    ok(&mut vm, &numbered(0, "M110 N0"));
+    let mut n = 0;
+    let cases: Vec<(String, bool)> = (0..24)
+        .map(|i| match i % 6 {
+            0 => ("G4 S0 (why?)".to_string(), false),
+            1 => ("G4 S0 ; why?".to_string(), false),
+            2 => {
+                n += 1;
+                (numbered(n, "G4 S0 ?"), false)
+            }
+            3 => ("G4 ?S0".to_string(), true),
+            4 => ("(a) G4 S0 ?".to_string(), true),
+            _ => ("  ? G4 S0".to_string(), true),
+        })
+        .collect();
+    for (line, status) in &cases {
+        let r = vm.command(line).unwrap();
+        let text_in_the_open = line.starts_with('N');
+        assert_eq!(r.iter().any(|l| l.starts_with("Error:unexpected character")), text_in_the_open, "{line}: {r:?}");
+        vm.run_for(0.01).unwrap();
+        let mut got = r.iter().filter(|l| l.starts_with('<')).count();
+        got += vm.take_lines().iter().filter(|l| l.starts_with('<')).count();
+        assert_eq!(got, *status as usize, "{line}");
+    }
+}

@@ -89,7 +89,7 @@ static mut RX_TEXT: RxText = RxText::new();
 /// progress in `MCODE_SCAN`, a gap marker pending in `RX_STORE`, or the
 /// start of a line in `RX_TEXT` (written by the slow path, read by the fast
 /// one).
-static mut RX_SLOW: u8 = 0;
+static mut RX_SLOW: u8 = 1; // `RX_TEXT` starts at a line start
 /// The byte the fast path hands to the slow path.
 static mut RX_IN: u8 = 0;
 /// Non-zero when bytes were lost before `RX_IN` (UCSR0A, with DOR0 set).
