@@ -744,11 +744,15 @@ impl Machine {
         self.spindle_off(io);
         self.holding = false;
         self.aborting = false;
+        self.last_rt.home_tripped = false;
+        self.last_rt.probe_tripped = false;
+        self.apply_watch(io, 0, false);
         io.flush_rx();
         self.asm.reset();
         self.aborts = self.aborts.wrapping_add(1);
         self.silenced = self.serial_line;
-        if matches!(self.state, State::Hold | State::Run) {
+        if self.alarm.is_none() {
+            // Whatever ran (a move, homing, a tool change, a probe) is over.
             self.state = State::Idle;
         }
         if moving && self.alarm.is_none() {

@@ -397,3 +397,32 @@ fn the_rx_interrupt_sorts_question_marks_as_the_rule_says() {
         assert_eq!(got, *status as usize, "{line}");
     }
 }
+
+#[test]
+fn homing_keeps_the_host_alive_and_ctrl_x_during_homing_alarms_and_answers() {
+    let mut vm = boot();
+    let c0 = vm.cycles();
+    let r = vm.command_timeout("G28", 60.0).unwrap();
+    let end = vm.seconds();
+    assert!(!r.iter().any(|l| l.starts_with("Error") || l.starts_with("ALARM")), "{r:?}");
+    if end - c0 as f64 / vm.frequency() as f64 > 2.0 {
+        assert_keepalive_every_2s(&vm, c0, end);
+    }
+    // Home again and reset in the middle of the seek.
+    vm.send_line("G28 X");
+    vm.run_for(0.3).unwrap();
+    vm.take_lines();
+    vm.send([0x18]);
+    vm.wait_line(|l| l.starts_with("Grbl 1.1h"), 0.5).unwrap();
+    let out = vm.take_lines();
+    assert!(out.iter().any(|l| l == "ALARM:reset while moving"), "{out:?}");
+    let p = steps(&vm);
+    vm.run_for(0.5).unwrap();
+    assert_eq!(steps(&vm), p, "homing stopped");
+    vm.send(b"?");
+    let l = vm.wait_line(|l| l.starts_with('<'), 0.5).unwrap();
+    assert!(l.starts_with("<Alarm|"), "{l}");
+    ok(&mut vm, "M114");
+    let e = refused(&mut vm, "G0 X1");
+    assert!(e.contains("alarm") || e.contains("home"), "{e}");
+}
