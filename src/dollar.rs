@@ -234,19 +234,21 @@ pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
     .ok();
 }
 
-/// `$#`: grbl 1.1's offset lines (work offsets in machine mm).
+/// `$#`: grbl 1.1's offset lines (work offsets in machine mm), in the
+/// user frame (+Z up, `crate::frame`).
 pub fn params(i: &crate::gcode::interp::Interp, w: &mut impl uWrite) {
+    use crate::frame::{axis_user_from_internal, user_from_internal, Z};
     for (n, v) in i.wcs_mm.iter().enumerate() {
         uwrite!(w, "{}{}:", F!("[G5"), 4 + n as u8).ok();
-        xyz(w, *v);
+        xyz(w, user_from_internal(*v));
     }
     uwrite!(w, "{}", F!("[G28:")).ok();
     xyz(w, [0.0; 3]);
     uwrite!(w, "{}", F!("[G30:")).ok();
     xyz(w, [0.0; 3]);
     uwrite!(w, "{}", F!("[G92:")).ok();
-    xyz(w, i.g92_mm);
-    uwriteln!(w, "{}{}]", F!("[TLO:"), Micros::from_mm(i.tlo_mm)).ok();
+    xyz(w, user_from_internal(i.g92_mm));
+    uwriteln!(w, "{}{}]", F!("[TLO:"), Micros::from_mm(axis_user_from_internal(Z, i.tlo_mm))).ok();
     uwriteln!(w, "{}", F!("[PRB:0.000,0.000,0.000:0]")).ok();
 }
 
@@ -333,12 +335,13 @@ mod tests {
         params(&i, &mut out);
         let l: Vec<&str> = out.0.lines().collect();
         assert_eq!(l.len(), 11);
-        assert_eq!(l[0], "[G54:1.500,-2.000,0.250]");
+        // Internal Z grows downward; reports are +Z up (crate::frame).
+        assert_eq!(l[0], "[G54:1.500,-2.000,-0.250]");
         assert_eq!(l[5], "[G59:0.000,0.000,0.000]");
         assert_eq!(l[6], "[G28:0.000,0.000,0.000]");
         assert_eq!(l[7], "[G30:0.000,0.000,0.000]");
         assert_eq!(l[8], "[G92:0.000,1.000,0.000]");
-        assert_eq!(l[9], "[TLO:-19.500]");
+        assert_eq!(l[9], "[TLO:19.500]");
         assert_eq!(l[10], "[PRB:0.000,0.000,0.000:0]");
         let mut out = S(String::new());
         info(&mut out);
