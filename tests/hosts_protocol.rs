@@ -426,3 +426,16 @@ fn homing_keeps_the_host_alive_and_ctrl_x_during_homing_alarms_and_answers() {
     let e = refused(&mut vm, "G0 X1");
     assert!(e.contains("alarm") || e.contains("home"), "{e}");
 }
+
+#[test]
+fn m0_keeps_the_host_alive_until_resumed() {
+    let mut vm = unlocked();
+    let c0 = vm.cycles();
+    vm.send_line("M0");
+    vm.run_for(5.0).unwrap();
+    let busy = busy_times(&vm, c0);
+    assert_eq!(busy.len(), 2, "{busy:?}");
+    vm.send(b"~");
+    vm.wait_line(|l| l == "ok", 0.5).unwrap();
+    assert_keepalive_every_2s(&vm, c0, vm.seconds());
+}
