@@ -10,7 +10,8 @@
 //!  $G            modal state, grbl 1.1's `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`
 //!  $#            offsets: `[G54:x,y,z]` … `[G59:…]`, `[G28:…]`, `[G30:…]`,
 //!                `[G92:…]`, `[TLO:z]`, `[PRB:x,y,z:0]` (G28/G30 hold no
-//!                stored positions here: G28 homes; always 0)
+//!                stored positions here, G28 homes; the probe result is not
+//!                kept, G38.x prints it: all three always read 0)
 //!  $I            `[VER:1.1h.MillFW:<version>]`, `[OPT:VNH,15,255]`
 //! ```
 //!
