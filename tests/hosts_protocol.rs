@@ -439,3 +439,30 @@ fn m0_keeps_the_host_alive_until_resumed() {
     vm.wait_line(|l| l == "ok", 0.5).unwrap();
     assert_keepalive_every_2s(&vm, c0, vm.seconds());
 }
+
+#[test]
+fn a_line_waiting_for_room_in_the_planner_keeps_the_host_alive() {
+    // 18 moves of 2.5 s each sent at once: the planner holds 16, so the
+    // 17th line's `ok` waits ~2.5 s for room, the 18th ~5 s: busy lines
+    // must fill the silence (OctoPrint's busy timeout is 3 s).
+    let mut vm = unlocked();
+    let p0 = steps(&vm);
+    ok(&mut vm, "G91");
+    let c0 = vm.cycles();
+    for _ in 0..18 {
+        vm.send_line("G1 X1 F24");
+    }
+    let mut oks = 0;
+    let f = vm.frequency() as f64;
+    let mut last = c0 as f64 / f;
+    while oks < 18 {
+        let l = vm.wait_line(|_| true, 3.0).unwrap_or_else(|e| panic!("silence: {e} after {oks} oks"));
+        let t = vm.seconds();
+        assert!(t - last <= 2.1, "{:.3} s of silence before {l:?}", t - last);
+        last = t;
+        oks += (l == "ok") as usize;
+    }
+    assert!(!busy_times(&vm, c0).is_empty());
+    ok(&mut vm, "M400");
+    assert_eq!(moved(&vm, p0)[0], 1800);
+}
