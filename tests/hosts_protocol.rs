@@ -324,7 +324,7 @@ fn ctrl_x_during_a_dwell_ends_the_line_without_an_ok_and_drops_what_was_queued()
 fn dollar_g_hash_and_i_answer_in_grbl_formats() {
     let mut vm = unlocked();
     let r = ok(&mut vm, "$G");
-    assert_eq!(r[0], "[GC:G80 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]");
+    assert_eq!(r[0], "[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]");
     ok(&mut vm, "G1 X1 F500");
     ok(&mut vm, "G91 G55");
     let r = ok(&mut vm, "$G");

@@ -343,8 +343,8 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G2 X20 Y10", "Error:arc needs R or I/J/K"),
         ("G2 X20 Y10 R5 I5", "Error:arc: give R or I/J/K"),
         ("G93 X20", "Error:unsupported code at col 1"),
-        ("G1 X20 G41", "Error:unsupported code at col 8"),
-        ("M7", "Error:unsupported code at col 1"),
+        ("G1 X20 G41", "Error:G41/G42 cutter radius compensation not supported"),
+        ("M11", "Error:unsupported code at col 1"),
         // M104 alone is a printer code hosts send on their own (echo, no
         // error: tests/hosts_protocol.rs); on a line with motion it is refused.
         ("G0 X20 M104 S200", "Error:unsupported code at col 8"),
@@ -357,9 +357,10 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G0 Z0.5", "Error:target outside travel"),
         ("G1 X20 F-5", "Error:feed rate missing or not positive"),
         ("G1 X20 F0", "Error:feed rate missing or not positive"),
-        ("G1 A5", "Error:unknown word at col 4"),
+        ("G1 A5", "Error:axis word for an axis this machine does not have (X Y Z only) at col 4"),
         ("G1 X20 (oops", "Error:unclosed comment at col 8"),
-        ("G1 X20 #", "Error:unexpected character at col 8"),
+        ("G1 X20 #", "Error:# parameters and [expressions] not supported at col 8"),
+        ("G1 X20 @", "Error:unexpected character at col 8"),
         ("M4 S1000", "Error:M4 not supported"),
         ("G4 P-1", "Error:G4 needs one of P<s> or S<s>"),
         ("G10 L3 P1 X0", "Error:G10: L must be 1, 2 or 20"),
