@@ -210,6 +210,17 @@ pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
         Motion::ProbeToward => F!("G38.2"),
         Motion::ProbeTowardNoError => F!("G38.3"),
         Motion::Cancel => F!("G80"),
+        Motion::Cycle(k) => {
+            use crate::gcode::cycles::Kind;
+            match k {
+                Kind::Drill => F!("G81"),
+                Kind::DrillDwell => F!("G82"),
+                Kind::Peck => F!("G83"),
+                Kind::ChipBreak => F!("G73"),
+                Kind::Bore => F!("G85"),
+                Kind::BoreDwell => F!("G89"),
+            }
+        }
     };
     let plane = match i.plane {
         Plane::Xy => 17u8,
