@@ -147,6 +147,8 @@ pub struct Interp {
     /// Spindle speed, rpm (S), and whether it is on.
     pub spindle_rpm: f32,
     pub spindle_on: bool,
+    /// Coolant as its M code: 7 (mist) or 8 (flood) on, 9 off (one output).
+    pub coolant_m: u8,
     /// Active work coordinate system, 0 = G54.
     pub wcs: u8,
     /// Work offsets G54..G59, machine mm (internal frame: the user's
@@ -190,6 +192,7 @@ impl Interp {
             feed_override_pct: 100,
             spindle_rpm: 0.0,
             spindle_on: false,
+            coolant_m: 9,
             wcs: 0,
             wcs_mm: [[0.0; 3]; N_WCS],
             g92_mm: [0.0; 3],
@@ -560,12 +563,14 @@ fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Opti
     })
 }
 
-/// G4: wait for the queue to drain, then dwell P ms or S seconds.
+/// G4: wait for the queue to drain, then dwell P or S seconds (P in
+/// seconds as in RS274/NGC, grbl and LinuxCNC, and every CAM file of the
+/// corpus; Marlin's P is ms: README "G4"). `busy:processing` keeps the host
+/// waiting (`Machine::wait_step`).
 fn dwell(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
     let ms = match (l.word(Word::P), l.word(Word::S)) {
-        (Some(p), None) if p >= 0.0 => p,
-        (None, Some(s)) if s >= 0.0 => s * 1000.0,
-        _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
+        (Some(s), None) | (None, Some(s)) if s >= 0.0 => s * 1000.0,
+        _ => return Err(Error::BadWord(F!("G4 needs one of P<s> or S<s> (seconds), not negative"))),
     };
     g.commit(&mut m.interp);
     wait_ms(m, io, ms)
@@ -577,7 +582,6 @@ fn wait_ms(m: &mut Machine, io: &mut impl Io, ms: f32) -> Result<(), Error> {
     m.wait_idle(io)?;
     let start = io.millis();
     while (io.millis().wrapping_sub(start) as f32) < ms {
-        m.keepalive(io);
         m.wait_step(io)?;
     }
     Ok(())
@@ -878,6 +882,11 @@ fn finish_line(
             m.wait_idle(io)?;
         }
         io.coolant(c != Coolant::Off);
+        m.interp.coolant_m = match c {
+            Coolant::Mist => 7,
+            Coolant::Flood => 8,
+            Coolant::Off => 9,
+        };
     }
 
     if let Some(mo) = do_motion {
@@ -1078,10 +1087,17 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             io.drivers(true);
         }
         18 | 84 => {
+            // Wait for the moves, then spindle off (a mill with its drivers
+            // off cannot cut: OctoPrint's cancel script has M84 but no M5),
+            // drivers off; the position and the homing are kept (Marlin's
+            // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
             m.wait_idle(io)?;
+            m.spindle_off(io);
             io.drivers(false);
-            m.homed = 0;
             m.apply_watch(io, 0, false);
+            if m.homed != 0 {
+                uwriteln!(io, "{}", F!("echo:steppers off, position kept: home again (G28) if an axis was turned by hand")).ok();
+            }
         }
         92 | 201 | 203 => {
             m.wait_idle(io)?;
@@ -1322,4 +1338,4 @@ impl ModalCopy {
 
 #[cfg(test)]
 #[path = "interp_tests.rs"]
-mod tests;
+pub(crate) mod tests;

@@ -2,7 +2,7 @@
 //! [`Machine::execute`] on a fake board whose stepper applies each planner
 //! block at once. The path is the list of block end points (one per chord
 //! of an arc), which is what these tests check; the step timing is the
-//! simavr tests' business.
+//! simavr tests' business. `cycle_tests.rs` drives the same fake board.
 
 use crate::machine::{Io, Machine, Realtime, StepperStatus, Switches};
 use crate::stepper::StepperCmd;
@@ -15,6 +15,8 @@ pub struct FakeIo {
     pub pos: [i32; N_AXES],
     /// Position after each block, in order.
     pub path: Vec<[i32; N_AXES]>,
+    /// The millisecond each block of `path` was queued at (one per poll).
+    pub path_ms: Vec<u32>,
     pub eeprom: Vec<u8>,
     pub ms: u32,
     pub spindle: u8,
@@ -25,7 +27,7 @@ pub struct FakeIo {
 
 impl FakeIo {
     pub fn new() -> FakeIo {
-        FakeIo { out: String::new(), pos: [0; N_AXES], path: Vec::new(), eeprom: vec![0xFF; 4096], ms: 0, spindle: 0, coolant: false, auto_resume: false }
+        FakeIo { out: String::new(), pos: [0; N_AXES], path: Vec::new(), path_ms: Vec::new(), eeprom: vec![0xFF; 4096], ms: 0, spindle: 0, coolant: false, auto_resume: false }
     }
 }
 
@@ -49,6 +51,7 @@ impl Io for FakeIo {
                 self.pos[a] += if b.direction_bits & (1 << a) != 0 { -s } else { s };
             }
             self.path.push(self.pos);
+            self.path_ms.push(self.ms);
         }
         true
     }
@@ -347,13 +350,13 @@ fn refusals_name_what_is_not_supported_and_move_nothing() {
 fn coolant_m7_m8_on_m9_off_and_off_at_program_end_and_alarms() {
     let (mut m, mut io) = machine();
     run(&mut m, &mut io, "M8");
-    assert!(io.coolant);
+    assert!(io.coolant && m.interp.coolant_m == 8, "$G shows M8");
     run(&mut m, &mut io, "M9");
-    assert!(!io.coolant);
+    assert!(!io.coolant && m.interp.coolant_m == 9);
     run(&mut m, &mut io, "M7");
-    assert!(io.coolant);
+    assert!(io.coolant && m.interp.coolant_m == 7);
     run(&mut m, &mut io, "M2");
-    assert!(!io.coolant, "M2");
+    assert!(!io.coolant && m.interp.coolant_m == 9, "M2");
     run(&mut m, &mut io, "S1000 M3 M8");
     assert!(io.coolant && io.spindle > 0);
     run(&mut m, &mut io, "M30");
@@ -361,7 +364,7 @@ fn coolant_m7_m8_on_m9_off_and_off_at_program_end_and_alarms() {
     run(&mut m, &mut io, "M7 M8");
     assert!(io.coolant);
     let _ = m.execute(b"M112", &mut io);
-    assert!(!io.coolant, "M112");
+    assert!(!io.coolant && m.interp.coolant_m == 9, "M112");
     // In alarm M8 is refused, M9 is not.
     assert!(m.execute(b"M8", &mut io).is_err());
     assert!(!io.coolant);
@@ -370,7 +373,7 @@ fn coolant_m7_m8_on_m9_off_and_off_at_program_end_and_alarms() {
     m.homed = 0b111;
     run(&mut m, &mut io, "M8");
     m.raise(&mut io, crate::machine::Alarm::HardLimit);
-    assert!(!io.coolant, "alarm");
+    assert!(!io.coolant && m.interp.coolant_m == 9, "alarm");
 }
 
 #[test]
