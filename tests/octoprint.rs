@@ -73,9 +73,10 @@ fn pause_job() -> (String, [i64; 2]) {
     (job, [(x * 100.0).round() as i64, (y * 100.0).round() as i64])
 }
 
-/// Job 3, cancelled a third of the way: spindle on, then 2 mm moves.
+/// Job 3, cancelled a third of the way: a tool change in the `T3 M6` form,
+/// spindle on, then 2 mm moves.
 fn cancel_job() -> (String, [i64; 2]) {
-    let mut job = String::from("; cancelled by tests/octoprint.rs\nG21 G90\nG0 X10 Y10\nM3 S8000\nG1 F600\n");
+    let mut job = String::from("; cancelled by tests/octoprint.rs\nG21 G90\nT3 M6\nG0 X10 Y10\nM3 S8000\nG1 F600\n");
     let mut x = 10.0f64;
     for i in 0..60 {
         x += if i % 2 == 0 { 2.0 } else { -1.5 };
@@ -127,6 +128,12 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
         .stdout(Stdio::piped())
         .stderr(Stdio::from(std::fs::File::create(dir.join("driver.err")).unwrap()))
         .process_group(0);
+    // For investigations only: extra OctoPrint settings (YAML) to get past a
+    // known failure and see the next one. The test can never pass with it.
+    let extra = std::env::var("MILL_OCTOPRINT_EXTRA_CONFIG").ok();
+    if let Some(e) = &extra {
+        child.arg("--extra-config").arg(e);
+    }
     let mut driver = Driver(child.spawn().expect("start the OctoPrint driver"));
     let mut to_driver = driver.0.stdin.take().unwrap();
     let from_driver = driver.0.stdout.take().unwrap();
@@ -141,6 +148,9 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     });
 
     let mut problems: Vec<String> = Vec::new();
+    if let Some(e) = &extra {
+        problems.push(format!("MILL_OCTOPRINT_EXTRA_CONFIG={e}: not the settings README tells a user to set"));
+    }
     let mut transcript: Vec<String> = Vec::new();
     let mut result = None;
     let mut at_pause = None;
@@ -198,6 +208,9 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
                     }
                 }
                 "cancel-before" => {
+                    if vm.atc().spindle.map(|t| t.id) != Some(3) {
+                        bad.push(format!("cancel job: spindle holds {:?} after T3 M6", vm.atc().spindle.map(|t| t.id)));
+                    }
                     if !vm.spindle_on() {
                         bad.push("cancel job: the spindle is not on before the cancel".into());
                     }
@@ -208,6 +221,11 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
                     }
                     if pos[..2] == cancel_end {
                         bad.push("cancelled: the whole job ran (at its end point)".into());
+                    }
+                    // The cancel script's `M104 T0 S0` is a heater index, not
+                    // a tool change: T3 stays in the spindle.
+                    if vm.atc().spindle.map(|t| t.id) != Some(3) {
+                        bad.push(format!("cancelled: spindle holds {:?}, expected T3", vm.atc().spindle.map(|t| t.id)));
                     }
                     at_cancel = Some(pos);
                 }

@@ -463,6 +463,8 @@ def scan(op, base):
             fail("terminal: " + line)
         if line.startswith("Recv:") and re.match(r"(?i)(error|!!|alarm)", body):
             fail("terminal: " + line)
+        if line.startswith("Warn:"):  # e.g. "Warn: Not queuing T5, that tool doesn't exist..."
+            fail("terminal: " + line)
         if re.search(r"(?i)communication timeout|No response from printer", line):
             fail("terminal: " + line)
     events = op.events if op.disconnect_at is None else op.events[: op.disconnect_at]
