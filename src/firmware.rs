@@ -412,7 +412,7 @@ impl Hw {
     fn capture(&mut self, m: &Machine) {
         let v = &mut self.view;
         let mm = m.steps_to_mm(stepper::position());
-        let w = m.interp.machine_to_work(mm);
+        let w = m.interp.work_user(mm);
         for a in 0..3 {
             v.wpos_um[a] = mill::math::round_i32(w[a] * 1000.0);
         }

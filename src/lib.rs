@@ -20,6 +20,7 @@ pub mod atc;
 pub mod config;
 pub mod dollar;
 pub mod fixed;
+pub mod frame;
 pub mod gcode;
 pub mod machine;
 pub mod math;

@@ -706,9 +706,9 @@ impl Machine {
         let st = io.stepper();
         uwrite!(io, "<{}|MPos:", self.state.name()).ok();
         let mpos = self.steps_to_mm(st.position);
-        self.write_xyz(io, mpos);
+        self.write_xyz(io, crate::frame::user_from_internal(mpos));
         uwrite!(io, "|WPos:").ok();
-        let wpos = self.interp.machine_to_work(mpos);
+        let wpos = self.interp.work_user(mpos);
         self.write_xyz(io, wpos);
         let (feed, rpm) = self.interp.feed_and_speed();
         uwrite!(io, "|FS:{},{}|T:{}", feed as i32, rpm as i32, self.atc.spindle()).ok();

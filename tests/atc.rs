@@ -20,7 +20,7 @@ fn atc_vm() -> Vm {
 /// Home X, Y, Z and move somewhere in the work area.
 fn ready(vm: &mut Vm) {
     ok(vm, "G28");
-    ok(vm, "G0 X10 Y5 Z3");
+    ok(vm, "G0 X10 Y5 Z-3");
     ok(vm, "M400");
 }
 
@@ -340,10 +340,14 @@ fn power_cycle_keeps_the_tool_and_its_offset() {
     let st = status(&mut vm);
     assert!(st.contains("|T:4|"), "{st}");
     ok(&mut vm, "G28");
-    // Work Z is the tip: Z40 puts the spindle 30 mm higher, at machine Z 10.
-    ok(&mut vm, "G0 Z40");
+    // Work Z is the tip, 30 mm below the spindle (LinuxCNC's G43, +Z up):
+    // Z-40 puts the spindle 30 mm higher, at machine Z −10 (physical step
+    // 1000 below the top switch).
+    ok(&mut vm, "G0 Z-40");
     ok(&mut vm, "M400");
     assert_eq!(vm.position(Axis::Z), 1000);
+    let st = status(&mut vm);
+    assert!(st.contains("|MPos:1.000,1.000,-10.000|WPos:1.000,1.000,-40.000|"), "{st}");
     assert_eq!(spindle_id(&vm), 4);
     assert_records_match_the_machine(&vm);
 }

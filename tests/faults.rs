@@ -24,10 +24,11 @@ fn uniform(rng: &mut Rng, lo: f64, hi: f64) -> f64 {
     lo + (hi - lo) * (rng.next() as f64 / u32::MAX as f64)
 }
 
-/// A job of long moves around the work area (mm, absolute), with the spindle on.
+/// A job of long moves around the work area (mm, absolute; +Z up, so the
+/// work area's Z is below the top switch, negative), with the spindle on.
 fn job() -> Vec<String> {
     let mut j = vec!["G21 G90".to_string(), "M3 S6000".to_string(), "G1 F2400".to_string()];
-    for (x, y, z) in [(30.0, 5.0, 10.0), (30.0, 30.0, 20.0), (5.0, 30.0, 10.0), (5.0, 5.0, 5.0), (40.0, 40.0, 30.0), (10.0, 20.0, 15.0)] {
+    for (x, y, z) in [(30.0, 5.0, -10.0), (30.0, 30.0, -20.0), (5.0, 30.0, -10.0), (5.0, 5.0, -5.0), (40.0, 40.0, -30.0), (10.0, 20.0, -15.0)] {
         j.push(format!("G1 X{x} Y{y} Z{z}"));
     }
     j.push("M5".to_string());

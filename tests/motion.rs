@@ -2,6 +2,10 @@
 //! machine: homing, straight lines, arcs, units, offsets and soft limits, each
 //! checked against the steps the recorder saw, not only the firmware's replies.
 //! Faults, feed hold, settings and streams are in `tests/motion_faults.rs`.
+//!
+//! G-code and reports are in the user's frame (+Z up, machine Z 0 at the top
+//! switch, negative below it); the recorder's physical steps count Z downward
+//! from the switch, so G-code `Z-5` is physical Z step 500.
 
 mod common;
 #[path = "common/motion.rs"]
@@ -66,8 +70,9 @@ fn g28_homes_z_then_y_then_x_and_machine_zero_is_where_each_switch_trips() {
         assert!((fast * 2000.0 - 1.0).abs() < 0.05, "{a}: fast seek step interval {fast} s");
     }
     assert_eq!(steps(&vm), [100, 100, 100, 0]);
-    assert_eq!(m114_counts(&mut vm), [100, 100, 100]);
-    assert_eq!(m114_work(&mut vm), [1.0, 1.0, 1.0]);
+    // Z 1 mm below its top switch: −1 with +Z up.
+    assert_eq!(m114_counts(&mut vm), [100, 100, -100]);
+    assert_eq!(m114_work(&mut vm), [1.0, 1.0, -1.0]);
     // Machine 0 is exactly the switch point: at X0 the switch reads closed,
     // one step off it reads open (and going to 0 raises no hard limit).
     mark(&mut vm);
@@ -77,7 +82,7 @@ fn g28_homes_z_then_y_then_x_and_machine_zero_is_where_each_switch_trips() {
     for axis in ["x_min", "y_min", "z_min"] {
         assert!(r.iter().any(|l| l == &format!("{axis}: TRIGGERED")), "{r:?}");
     }
-    run(&mut vm, "G0 X0.01 Y0.01 Z0.01");
+    run(&mut vm, "G0 X0.01 Y0.01 Z-0.01");
     assert_eq!(steps(&vm), [1, 1, 1, 0]);
     let r = ok(&mut vm, "M119");
     for axis in ["x_min", "y_min", "z_min"] {
@@ -104,8 +109,9 @@ fn g28_with_named_axes_homes_only_those_still_in_z_y_x_order() {
     let last_z = tr.iter().filter(|t| t.axis == Axis::Z).map(|t| t.cycle).max().unwrap();
     let first_x = tr.iter().filter(|t| t.axis == Axis::X).map(|t| t.cycle).min().unwrap();
     assert!(last_z < first_x, "X homed before Z");
-    // The homed axes report 1 mm; the work position follows the machine's.
-    assert_eq!(m114_counts(&mut vm), [100, 100, 100]);
+    // The homed axes report 1 mm off their switches (Z below its top one);
+    // the work position follows the machine's.
+    assert_eq!(m114_counts(&mut vm), [100, 100, -100]);
     assert_no_violations(&vm);
 }
 
@@ -136,7 +142,7 @@ fn g28_raises_an_alarm_when_a_switch_is_not_found_within_travel_plus_10_percent(
     // Z searched exactly 49.5 mm (45 mm + 10 %) and stopped; Y and X never moved.
     assert_eq!(steps(&vm), [300, 300, 300 - 4950, 0]);
     assert!(vm.recorder().trace().iter().all(|t| t.axis == Axis::Z));
-    let e = refused(&mut vm, "G0 Z10");
+    let e = refused(&mut vm, "G0 Z-10");
     assert!(e.starts_with("Error:alarm homing failed"), "{e}");
 }
 
@@ -158,24 +164,24 @@ fn a_square_stays_within_one_step_of_its_sides_and_closes_exactly() {
     // Each side is exactly 2000 steps on one axis, no step lost or added.
     assert_eq!(steps_pos_neg(&vm, Axis::X), (2000, 2000));
     assert_eq!(steps_pos_neg(&vm, Axis::Y), (2000, 2000));
-    assert_eq!(m114_counts(&mut vm), [1000, 1000, 100]);
+    assert_eq!(m114_counts(&mut vm), [1000, 1000, -100]);
     assert_no_violations(&vm);
 }
 
 #[test]
 fn diagonals_in_two_and_three_axes_stay_within_one_step_and_end_exactly() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X5 Y5 Z5");
+    run(&mut vm, "G0 X5 Y5 Z-5");
     mark(&mut vm);
     // Slopes that never divide evenly: every minor-axis step is a rounding.
     ok(&mut vm, "G1 X38.73 Y17.29 F2000");
-    ok(&mut vm, "X12.34 Y41.07 Z23.45");
-    ok(&mut vm, "X5 Y5 Z5");
+    ok(&mut vm, "X12.34 Y41.07 Z-23.45");
+    ok(&mut vm, "X5 Y5 Z-5");
     ok(&mut vm, "M400");
     let corners = [[500, 500, 500], [3873, 1729, 500], [1234, 4107, 2345], [500, 500, 500]];
     let worst = check_polyline(&vm, &corners, 1.0);
     assert!(worst > 0.0);
-    assert_eq!(m114_counts(&mut vm), [500, 500, 500]);
+    assert_eq!(m114_counts(&mut vm), [500, 500, -500]);
     assert_no_violations(&vm);
 }
 
@@ -186,7 +192,10 @@ const ARC_DEV: f64 = ARC_TOL_MM * SPMM + 1.0;
 const TWO_PI: f64 = 2.0 * std::f64::consts::PI;
 
 /// Runs a full circle (one command, or two half circles with R) and checks
-/// every recorded step against the ideal circle.
+/// every recorded step against the ideal circle. `start_mm`, `centre_mm`
+/// and `expect_sweep` (signed, in the plane's (axis_0, axis_1)) are in the
+/// user's frame (+Z up); the check runs on the physical steps (Z down),
+/// where a plane containing Z (G18, G19) is mirrored and turns the other way.
 fn circle(
     plane_code: &str,
     plane: (usize, usize, usize),
@@ -203,12 +212,14 @@ fn circle(
         ok(&mut vm, c);
     }
     ok(&mut vm, "M400");
-    let start = mm_to_steps(start_mm);
+    let start = mm_to_steps(user_to_physical_mm(start_mm));
     let (a0, a1, _) = plane;
     let r = ((start_mm[a0] - centre_mm[0]).powi(2) + (start_mm[a1] - centre_mm[1]).powi(2)).sqrt() * SPMM;
-    let c = [centre_mm[0] * SPMM, centre_mm[1] * SPMM];
+    let flip = |a: usize| if a == 2 { -1.0 } else { 1.0 };
+    let c = [centre_mm[0] * SPMM * flip(a0), centre_mm[1] * SPMM * flip(a1)];
     let got = check_arc(&vm, plane, c, r, start, start, ARC_DEV);
-    assert!((got.swept - expect_sweep).abs() < 0.01, "{plane_code} {cmds:?}: swept {} rad, want {expect_sweep}", got.swept);
+    let user_swept = got.swept * flip(a0) * flip(a1);
+    assert!((user_swept - expect_sweep).abs() < 0.01, "{plane_code} {cmds:?}: swept {user_swept} rad (+Z up), want {expect_sweep}");
     // The off-plane axis never moves.
     let normal = plane.2;
     assert!(vm.recorder().trace().iter().all(|t| t.axis.index() != normal), "{plane_code}: normal axis moved");
@@ -218,32 +229,33 @@ fn circle(
 #[test]
 fn g17_full_circles_g2_ijk_and_g3_by_two_r_halves_follow_the_ideal_circle() {
     // G2 is clockwise seen from +Z: the angle in (X, Y) decreases.
-    circle("G17", (0, 1, 2), [30.0, 22.5, 10.0], [22.5, 22.5], &["G2 X30 Y22.5 I-7.5 J0 F1500"], -TWO_PI);
-    circle("G17", (0, 1, 2), [30.0, 22.5, 10.0], [22.5, 22.5], &["G3 X15 Y22.5 R7.5 F1500", "G3 X30 Y22.5 R7.5"], TWO_PI);
+    circle("G17", (0, 1, 2), [30.0, 22.5, -10.0], [22.5, 22.5], &["G2 X30 Y22.5 I-7.5 J0 F1500"], -TWO_PI);
+    circle("G17", (0, 1, 2), [30.0, 22.5, -10.0], [22.5, 22.5], &["G3 X15 Y22.5 R7.5 F1500", "G3 X30 Y22.5 R7.5"], TWO_PI);
 }
 
 #[test]
 fn g18_full_circles_g2_ijk_and_g3_by_two_r_halves_follow_the_ideal_circle() {
-    // G18 is the ZX plane: angles are measured in (Z, X).
-    circle("G18", (2, 0, 1), [22.5, 10.0, 30.0], [22.5, 22.5], &["G2 X22.5 Z30 I0 K-7.5 F1500"], -TWO_PI);
-    circle("G18", (2, 0, 1), [22.5, 10.0, 30.0], [22.5, 22.5], &["G3 Z15 R7.5 F1500", "G3 Z30 R7.5"], TWO_PI);
+    // G18 is the ZX plane: angles are measured in (Z, X); G2 is clockwise
+    // seen from +Y (RS274/NGC, right-handed with +Z up): the angle decreases.
+    circle("G18", (2, 0, 1), [22.5, 10.0, -30.0], [-22.5, 22.5], &["G2 X22.5 Z-30 I0 K7.5 F1500"], -TWO_PI);
+    circle("G18", (2, 0, 1), [22.5, 10.0, -30.0], [-22.5, 22.5], &["G3 Z-15 R7.5 F1500", "G3 Z-30 R7.5"], TWO_PI);
 }
 
 #[test]
 fn g19_full_circles_g2_ijk_and_g3_by_two_r_halves_follow_the_ideal_circle() {
-    // G19 is the YZ plane: angles in (Y, Z).
-    circle("G19", (1, 2, 0), [10.0, 30.0, 22.5], [22.5, 22.5], &["G2 Y30 Z22.5 J-7.5 K0 F1500"], -TWO_PI);
-    circle("G19", (1, 2, 0), [10.0, 30.0, 22.5], [22.5, 22.5], &["G3 Y15 R7.5 F1500", "G3 Y30 R7.5"], TWO_PI);
+    // G19 is the YZ plane: angles in (Y, Z); G2 is clockwise seen from +X.
+    circle("G19", (1, 2, 0), [10.0, 30.0, -22.5], [22.5, -22.5], &["G2 Y30 Z-22.5 J-7.5 K0 F1500"], -TWO_PI);
+    circle("G19", (1, 2, 0), [10.0, 30.0, -22.5], [22.5, -22.5], &["G3 Y15 R7.5 F1500", "G3 Y30 R7.5"], TWO_PI);
 }
 
 #[test]
 fn a_helix_follows_the_circle_and_descends_in_proportion_to_the_angle() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X30 Y22.5 Z5");
+    run(&mut vm, "G0 X30 Y22.5 Z-5");
     mark(&mut vm);
     // One and a bit turns are not expressible in one G2: a full turn that
-    // moves Z by 6 mm (Z grows downward on this machine).
-    ok(&mut vm, "G17 G2 X30 Y22.5 Z11 I-7.5 J0 F1200");
+    // moves Z down by 6 mm (physical Z steps grow downward).
+    ok(&mut vm, "G17 G2 X30 Y22.5 Z-11 I-7.5 J0 F1200");
     ok(&mut vm, "M400");
     let got = check_arc(&vm, (0, 1, 2), [2250.0, 2250.0], 750.0, [3000, 2250, 500], [3000, 2250, 1100], ARC_DEV);
     assert!((got.swept + TWO_PI).abs() < 0.01, "swept {}", got.swept);
@@ -255,7 +267,7 @@ fn a_helix_follows_the_circle_and_descends_in_proportion_to_the_angle() {
 #[test]
 fn a_quarter_arc_with_r_takes_the_short_way_and_negative_r_the_long_way() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X30 Y22.5 Z5");
+    run(&mut vm, "G0 X30 Y22.5 Z-5");
     mark(&mut vm);
     // From (30, 22.5) to (22.5, 30) counter-clockwise: R+ is the quarter
     // around (22.5, 22.5), R- the three quarters around (30, 30).
@@ -292,18 +304,19 @@ fn g20_takes_inches_for_positions_and_feed() {
     run(&mut vm, "G21 G1 X1.2 Y0.3");
     assert_eq!(xyz_now(&vm), [120, 30, 100]);
     // M114 reports in mm.
-    assert_eq!(m114_work(&mut vm), [1.2, 0.3, 1.0]);
+    assert_eq!(m114_work(&mut vm), [1.2, 0.3, -1.0]);
     assert_no_violations(&vm);
 }
 
 #[test]
 fn g91_moves_are_relative_to_the_last_position_and_g90_restores_absolute() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X10 Y10 Z10");
+    run(&mut vm, "G0 X10 Y10 Z-10");
     mark(&mut vm);
     ok(&mut vm, "G91 G1 X5 Y-2.5 F1500");
     ok(&mut vm, "X5 Y-2.5");
-    ok(&mut vm, "Z0.01");
+    // An increment of −0.01 mm goes down: one physical step further from the switch.
+    ok(&mut vm, "Z-0.01");
     ok(&mut vm, "M400");
     let corners = [[1000, 1000, 1000], [1500, 750, 1000], [2000, 500, 1000], [2000, 500, 1001]];
     check_polyline(&vm, &corners, 1.0);
@@ -340,32 +353,32 @@ fn a_thousand_g91_moves_of_a_micrometre_end_where_one_millimetre_ends() {
 #[test]
 fn g54_to_g59_offsets_from_g10_l2_and_l20_shift_moves_and_g53_ignores_them() {
     let mut vm = boot_homed();
-    // G10 L2: G54 origin at machine (10, 5, 2).
-    ok(&mut vm, "G10 L2 P1 X10 Y5 Z2");
+    // G10 L2: G54 origin at machine (10, 5, −2): 2 mm below the top switch.
+    ok(&mut vm, "G10 L2 P1 X10 Y5 Z-2");
     run(&mut vm, "G0 X0 Y0 Z0");
     assert_eq!(xyz_now(&vm), [1000, 500, 200]);
     assert_eq!(m114_work(&mut vm), [0.0, 0.0, 0.0]);
-    run(&mut vm, "G1 X3 Y4 Z1 F1200");
+    run(&mut vm, "G1 X3 Y4 Z-1 F1200");
     assert_eq!(xyz_now(&vm), [1300, 900, 300]);
-    assert_eq!(m114_work(&mut vm), [3.0, 4.0, 1.0]);
-    // G10 L20 P2: make the current point G55 (1, 2, 3).
-    ok(&mut vm, "G10 L20 P2 X1 Y2 Z3");
-    run(&mut vm, "G55 G0 X0 Y0 Z3");
+    assert_eq!(m114_work(&mut vm), [3.0, 4.0, -1.0]);
+    // G10 L20 P2: make the current point G55 (1, 2, −3).
+    ok(&mut vm, "G10 L20 P2 X1 Y2 Z-3");
+    run(&mut vm, "G55 G0 X0 Y0 Z-3");
     assert_eq!(xyz_now(&vm), [1200, 700, 300]);
-    assert_eq!(m114_work(&mut vm), [0.0, 0.0, 3.0]);
+    assert_eq!(m114_work(&mut vm), [0.0, 0.0, -3.0]);
     // G53: machine coordinates for this line only.
     mark(&mut vm);
-    run(&mut vm, "G53 G1 X20 Y20 Z20");
+    run(&mut vm, "G53 G1 X20 Y20 Z-20");
     assert_eq!(xyz_now(&vm), [2000, 2000, 2000]);
     check_polyline(&vm, &[[1200, 700, 300], [2000, 2000, 2000]], 1.0);
-    run(&mut vm, "G1 X0 Y0 Z3");
+    run(&mut vm, "G1 X0 Y0 Z-3");
     assert_eq!(xyz_now(&vm), [1200, 700, 300], "G55 is still active after the G53 line");
     // Back in G54.
     run(&mut vm, "G54 G0 X0 Y0 Z0");
     assert_eq!(xyz_now(&vm), [1000, 500, 200]);
     // The offsets are listed by M503.
     let r = ok(&mut vm, "M503");
-    assert!(r.iter().any(|l| l == "G10 L2 P1 X10.000 Y5.000 Z2.000"), "{r:?}");
+    assert!(r.iter().any(|l| l == "G10 L2 P1 X10.000 Y5.000 Z-2.000"), "{r:?}");
     assert!(r.iter().any(|l| l == "G10 L2 P2 X12.000 Y7.000 Z0.000"), "{r:?}");
     assert_no_violations(&vm);
 }
@@ -373,36 +386,38 @@ fn g54_to_g59_offsets_from_g10_l2_and_l20_shift_moves_and_g53_ignores_them() {
 #[test]
 fn g92_and_g43_shift_the_work_position_without_moving() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X10 Y10 Z10");
+    run(&mut vm, "G0 X10 Y10 Z-10");
     mark(&mut vm);
     // G92: here is work (0, 0, 0). Nothing moves.
     ok(&mut vm, "G92 X0 Y0 Z0");
     ok(&mut vm, "M400");
     assert_eq!(steps_since_mark(&vm), 0);
     assert_eq!(m114_work(&mut vm), [0.0, 0.0, 0.0]);
-    run(&mut vm, "G1 X5 Y5 Z5 F1200");
+    run(&mut vm, "G1 X5 Y5 Z-5 F1200");
     assert_eq!(xyz_now(&vm), [1500, 1500, 1500]);
-    assert_eq!(m114_work(&mut vm), [5.0, 5.0, 5.0]);
+    assert_eq!(m114_work(&mut vm), [5.0, 5.0, -5.0]);
     // G10 L20 on top of G92: the current point becomes work X0.
     ok(&mut vm, "G10 L20 P1 X0");
     run(&mut vm, "G0 X2");
     assert_eq!(xyz_now(&vm), [1700, 1500, 1500]);
     ok(&mut vm, "G10 L2 P1 X0");
-    // G43 H2 applies tool 2's length (3 mm) to Z; G49 cancels it. Z grows
-    // downward on this machine (SPEC §3), so work Z is the tool tip: a 3 mm
-    // tool reaches 3 mm further down (+Z) than the spindle nose.
+    // G43 H2 applies tool 2's length (3 mm) to Z; G49 cancels it. As in
+    // LinuxCNC and grbl, work Z is the tool tip, `length` below the spindle
+    // nose: work Z = machine Z − G92 − length. Here machine −15, G92 −10:
+    // work −5 for the nose, −8 for the tip.
     ok(&mut vm, "G10 L1 P2 Z3");
     mark(&mut vm);
     ok(&mut vm, "G43 H2");
     ok(&mut vm, "M400");
     assert_eq!(steps_since_mark(&vm), 0, "G43 alone moves nothing");
-    assert_eq!(m114_work(&mut vm)[2], 8.0);
-    run(&mut vm, "G0 Z5");
+    assert_eq!(m114_work(&mut vm)[2], -8.0);
+    // Tip at work −5: the spindle 3 mm higher than without the offset.
+    run(&mut vm, "G0 Z-5");
     assert_eq!(xyz_now(&vm)[2], 1200);
-    run(&mut vm, "G49 G0 Z5");
+    run(&mut vm, "G49 G0 Z-5");
     assert_eq!(xyz_now(&vm)[2], 1500);
     // G53 ignores G92 too.
-    run(&mut vm, "G53 G0 X20 Y20 Z20");
+    run(&mut vm, "G53 G0 X20 Y20 Z-20");
     assert_eq!(xyz_now(&vm), [2000, 2000, 2000]);
     assert_no_violations(&vm);
 }
@@ -410,7 +425,7 @@ fn g92_and_g43_shift_the_work_position_without_moving() {
 #[test]
 fn an_arc_in_a_work_offset_is_centred_in_work_coordinates() {
     let mut vm = boot_homed();
-    ok(&mut vm, "G10 L2 P1 X20 Y20 Z5");
+    ok(&mut vm, "G10 L2 P1 X20 Y20 Z-5");
     run(&mut vm, "G0 X5 Y0 Z0");
     mark(&mut vm);
     run(&mut vm, "G3 X5 Y0 I-5 J0 F1500");
@@ -424,13 +439,17 @@ fn an_arc_in_a_work_offset_is_centred_in_work_coordinates() {
 #[test]
 fn a_target_outside_travel_is_refused_with_nothing_moved_and_no_state_changed() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X10 Y10 Z10");
+    run(&mut vm, "G0 X10 Y10 Z-10");
     mark(&mut vm);
     let before = steps(&vm);
     for line in [
         "G0 X45.1",
         "G1 Y-0.1 F600",
-        "G0 Z46",
+        // Machine Z runs 0 (top switch) … −45: neither above home nor below the travel.
+        "G0 Z-46",
+        "G0 Z0.1",
+        "G53 G0 Z0.01",
+        "G91 G0 Z10.1",
         "G91 G0 X40",
         "G53 G0 X50",
         // An arc whose ends are inside but whose sweep leaves the travel.
@@ -454,8 +473,10 @@ fn a_target_outside_travel_is_refused_with_nothing_moved_and_no_state_changed() 
     run(&mut vm, "G1 X12 F600");
     assert_eq!(xyz_now(&vm), [1200, 1000, 1000], "G91 on a refused line must not stick");
     // Exactly at the limits is fine.
-    run(&mut vm, "G0 X45 Y0 Z45");
+    run(&mut vm, "G0 X45 Y0 Z-45");
     assert_eq!(xyz_now(&vm), [4500, 0, 4500]);
+    run(&mut vm, "G0 Z0");
+    assert_eq!(xyz_now(&vm), [4500, 0, 0]);
     assert!(!vm.output().contains("ALARM"), "{}", vm.output());
     assert_no_violations(&vm);
 }

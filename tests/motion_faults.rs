@@ -64,7 +64,7 @@ fn trip_hard_limit(vm: &mut Vm, axis: Axis, input: Input, line: &str) {
     vm.take_lines();
     let e = refused(vm, "G1 X20 Y20 F600");
     assert!(e.starts_with("Error:alarm hard limit"), "{e}");
-    let e = refused(vm, "G0 Z20");
+    let e = refused(vm, "G0 Z-20");
     assert!(e.starts_with("Error:alarm hard limit"), "{e}");
     assert!(status(vm).starts_with("<Alarm|"));
 }
@@ -72,7 +72,7 @@ fn trip_hard_limit(vm: &mut Vm, axis: Axis, input: Input, line: &str) {
 #[test]
 fn a_home_switch_closing_mid_move_raises_a_hard_limit_alarm_until_m999_or_g28() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X40 Y30 Z10");
+    run(&mut vm, "G0 X40 Y30 Z-10");
     trip_hard_limit(&mut vm, Axis::X, Input::HomeX, "G1 X5 F600");
     let stopped = xyz_now(&vm);
     assert!(stopped[0] > 500 && stopped[0] < 4000, "stopped mid-move at {stopped:?}");
@@ -144,7 +144,7 @@ fn feed_hold_stops_within_the_acceleration_limit_and_resume_ends_exactly() {
     let ax = vm.recorder().max_accel(Axis::X).unwrap();
     assert!(ax <= 1.05 * 1000.0 * SPMM, "X acceleration {ax} steps/s² after resume");
     assert!(status(&mut vm).starts_with("<Idle|"));
-    assert_eq!(m114_counts(&mut vm), [4000, 1200, 100]);
+    assert_eq!(m114_counts(&mut vm), [4000, 1200, -100]);
     assert_no_violations(&vm);
 }
 
@@ -246,11 +246,12 @@ fn m500_settings_survive_a_reboot_and_drive_the_motion_after_it() {
     has("M92 X100.000 Y100.000 Z400.000 E177.778");
     has("M203 X40.000 Y30.000 Z50.000 E10.000");
     has("M201 X1000.000 Y500.000 Z1000.000 E50.000");
-    // The recorded steps follow the stored settings: Z makes 400 steps/mm,
+    // The recorded steps follow the stored settings: Z makes 400 steps/mm
+    // (down 1 mm: 400 physical steps away from the top switch),
     // Y cruises at 30 mm/s with 500 mm/s², X rapids at 40 mm/s.
     let start = xyz_now(&vm);
     mark(&mut vm);
-    run(&mut vm, "G1 Z1 F600");
+    run(&mut vm, "G1 Z-1 F600");
     assert_eq!(xyz_now(&vm), [start[0], start[1], start[2] + 400]);
     mark(&mut vm);
     run(&mut vm, "G1 Y15 F3000");
@@ -299,7 +300,8 @@ fn a_stream_of_2000_short_segments_completes_at_the_exact_final_position() {
     ok(&mut vm, "M400");
     let end = *corners.last().unwrap();
     assert_eq!(xyz_now(&vm), end);
-    assert_eq!(m114_counts(&mut vm), end);
+    // M114 counts Z up (the user's frame): the physical Z steps negated.
+    assert_eq!(m114_counts(&mut vm), [end[0], end[1], -end[2]]);
     // Every step on its segment; not one step more or less than the targets ask.
     check_polyline(&vm, &corners, 1.0);
     let (mut xp, mut xn) = (0u64, 0u64);
@@ -322,7 +324,7 @@ fn a_stream_of_2000_short_segments_completes_at_the_exact_final_position() {
 #[test]
 fn bad_input_gets_a_clear_error_and_changes_nothing() {
     let mut vm = boot_homed();
-    run(&mut vm, "G0 X10 Y10 Z10");
+    run(&mut vm, "G0 X10 Y10 Z-10");
     ok(&mut vm, "G1 F600");
     let settings = ok(&mut vm, "M503");
     mark(&mut vm);
@@ -349,6 +351,8 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G1 X1.234567891", "Error:number out of range at col 4"),
         ("G1 X20 F99999999999", "Error:number out of range at col 8"),
         ("G1 X99999", "Error:target outside travel"),
+        // +Z is up: above the top switch (machine Z 0) is outside travel.
+        ("G0 Z0.5", "Error:target outside travel"),
         ("G1 X20 F-5", "Error:feed rate missing or not positive"),
         ("G1 X20 F0", "Error:feed rate missing or not positive"),
         ("G1 A5", "Error:unknown word at col 4"),
@@ -375,7 +379,7 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
     vm.run_for(0.1).unwrap();
     assert_eq!(steps_since_mark(&vm), 0, "a refused line moved the machine");
     assert_eq!(xyz_now(&vm), [1000, 1000, 1000]);
-    assert_eq!(m114_counts(&mut vm), [1000, 1000, 1000]);
+    assert_eq!(m114_counts(&mut vm), [1000, 1000, -1000]);
     // Nothing of the refused lines stuck: settings, offsets, modes, feed.
     assert_eq!(ok(&mut vm, "M503"), settings, "settings changed");
     mark(&mut vm);

@@ -79,8 +79,9 @@ fn four_axes_at_twice_the_isr_rate_are_capped_and_every_axis_ends_on_the_exact_s
     ok(&mut vm, "M201 X5000 Y5000 Z5000 E5000");
     // The dominant axis asks for 2 × the cap; the others make slightly fewer
     // steps, so the Bresenham works on every axis (the ISR's worst case).
+    // Z-29.98 is down (+Z up): physical Z steps count down from the switch.
     let feed = 2.0 * MAX_STEP_RATE_HZ as f64 / 400.0 * 60.0 * 2.0; // along a 4-axis diagonal
-    let reply = ok(&mut vm, &format!("G1 X30 Y29.99 Z29.98 E29.97 F{feed:.0}"));
+    let reply = ok(&mut vm, &format!("G1 X30 Y29.99 Z-29.98 E29.97 F{feed:.0}"));
     assert!(reply.iter().any(|l| l == WARNING), "no warning: {reply:?}");
     ok(&mut vm, "M400");
     vm.run_for(0.01).unwrap();

@@ -6,7 +6,9 @@ use common::*;
 use mill::atc::tools::{ToolTable, EEPROM_TABLE_ADDR};
 use sim::{AtcConfig, Axis, Input, OpticalBeam, Tool, ToolSetter, Vm, VmConfig};
 
-/// The beam: along X between X 3 and 7, at Y 10.013, tip height 48.0047 mm, 0.52 mm wide.
+/// The beam: along X between X 3 and 7, at Y 10.013, 48.0047 mm below the
+/// Z home switch (the VM's physical frame counts Z down; the firmware reports
+/// it as machine Z −48.0047, +Z up), 0.52 mm wide.
 fn beam() -> OpticalBeam {
     OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.013, z_mm: 48.0047, width_mm: 0.52, steps_per_mm: 100.0 }
 }
@@ -58,8 +60,9 @@ fn table(vm: &Vm) -> ToolTable {
 fn calibrate_then_three_tools_measured_within_a_step() {
     let mut vm = setter_vm();
     let cal = calibrate(&mut vm);
-    // Beam tip height 48.005 (the reference trips on the step at or past it), width 0.52.
-    assert!(cal.starts_with("[SETTER Z:48.0"), "{cal}");
+    // Beam tip height 48.005 below home (the reference trips on the step at
+    // or past it): machine Z −48.005 with +Z up; width 0.52.
+    assert!(cal.starts_with("[SETTER Z:-48.0"), "{cal}");
     for t in &tools()[1..] {
         ok(&mut vm, &format!("T{}", t.id));
         let r = ok(&mut vm, "G37 D1");
@@ -131,15 +134,17 @@ fn g38_probes_on_the_tool_setter_input_and_g10_l1_sets_the_table() {
     let mut vm = setter_vm();
     ok(&mut vm, "T2");
     ok(&mut vm, "G0 X5 Y10.013");
-    let r = ok(&mut vm, "G38.2 Z45 F300");
-    // Tip 21.3371 below the spindle reaches 48.0047 at spindle Z 26.6676: the trip step is 26.67.
-    assert!(r.iter().any(|l| l.starts_with("[PRB:") && l.ends_with(":1]")), "{r:?}");
+    let r = ok(&mut vm, "G38.2 Z-45 F300");
+    // Tip 21.3371 below the spindle reaches 48.0047 below home at spindle Z
+    // 26.6676 below home: the trip step is 2667, reported as Z −26.67.
+    // T2's table length is still 0 (never measured): work Z = machine Z.
+    assert!(r.iter().any(|l| l == "[PRB:5.000,10.010,-26.670:1]"), "{r:?}");
     assert_eq!(vm.position(Axis::Z), 2667);
-    ok(&mut vm, "G0 Z1");
+    ok(&mut vm, "G0 Z-1");
     ok(&mut vm, "G0 X30");
-    let r = ok(&mut vm, "G38.3 Z20 F300");
+    let r = ok(&mut vm, "G38.3 Z-20 F300");
     assert!(r.iter().any(|l| l.ends_with(":0]")), "{r:?}");
-    assert!(refused(&mut vm, "G38.2 Z21 F300").contains("did not trip"));
+    assert!(refused(&mut vm, "G38.2 Z-21 F300").contains("did not trip"));
     ok(&mut vm, "M999");
     // G10 L1 writes the table (and EEPROM) by hand.
     ok(&mut vm, "G10 L1 P7 Z33.25 R2");
@@ -155,11 +160,11 @@ fn a_job_with_a_change_and_a_measurement_shifts_z_by_the_length_difference() {
     calibrate(&mut vm); // T1 is in the spindle, offset applied (work Z = tip Z)
     let cut = |vm: &mut Vm| -> i64 {
         ok(vm, "G0 X30 Y20");
-        ok(vm, "G1 Z40 F300");
+        ok(vm, "G1 Z-40 F300");
         ok(vm, "M400");
         let z = vm.position(Axis::Z);
         ok(vm, "G1 X35 F600");
-        ok(vm, "G0 Z30");
+        ok(vm, "G0 Z-30");
         ok(vm, "M400");
         z
     };
@@ -176,7 +181,7 @@ fn a_job_with_a_change_and_a_measurement_shifts_z_by_the_length_difference() {
     let true_shift = (t[1].length_mm - t[0].length_mm) * 100.0;
     eprintln!("cut Z with T1 {z1}, with T2 {z2}: shift {} steps, length difference {true_shift:.2} steps", z1 - z2);
     assert!(((z1 - z2) as f64 - true_shift).abs() <= 1.0);
-    // Tip at 40 mm in both cuts, within a step.
+    // Tip at work Z −40 in both cuts (40 mm below home: physical step 4000), within a step.
     assert!(((z1 as f64 + t[0].length_mm * 100.0) - 4000.0).abs() <= 1.0);
     assert!(((z2 as f64 + t[1].length_mm * 100.0) - 4000.0).abs() <= 1.0);
     assert_eq!(vm.atc().spindle, None);

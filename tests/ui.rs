@@ -236,8 +236,9 @@ fn main_menu_entry(vm: &mut Vm, i: i32) {
     turn(vm, i);
 }
 
-/// A job that pauses (M0) with the spindle on, at exact, known values.
-const PAUSING: &str = "G21 G90\nG1 X12.5 Y7.25 F900\nM3 S6000\nG1 Z3 F300\nM0\nG1 X2 F900\nM5\nM2\n";
+/// A job that pauses (M0) with the spindle on, at exact, known values (Z 3 mm
+/// down from where it started: +Z is up).
+const PAUSING: &str = "G21 G90\nG1 X12.5 Y7.25 F900\nM3 S6000\nG1 Z-3 F300\nM0\nG1 X2 F900\nM5\nM2\n";
 
 #[test]
 fn the_status_screen_shows_state_position_feed_spindle_and_no_job() {
@@ -298,7 +299,7 @@ fn a_running_job_shows_its_values_and_the_button_resumes_it_from_m0() {
     let s = screen(&vm);
     let pct = 100 * PAUSING.find("M0").unwrap() / PAUSING.len() + 0;
     assert_eq!(s[0], "[ Hold            T0]", "{s:?}");
-    assert_eq!(s[1..4], ["X     12.500 mm", "Y      7.250 mm", "Z      3.000 mm"], "{s:?}");
+    assert_eq!(s[1..4], ["X     12.500 mm", "Y      7.250 mm", "Z     -3.000 mm"], "{s:?}");
     assert_eq!(s[4], "F   300 mm/min   100%");
     assert_eq!(s[5], "S  6000 rpm");
     assert!(s[6].starts_with("PAUSE.NC") && s[6].ends_with('%'), "{s:?} ({pct}%)");
@@ -690,6 +691,20 @@ fn jog_home_settings_and_info_from_the_menu() {
     assert_eq!(vm.position(Axis::X) - x0, 200);
     assert_eq!(screen(&vm)[2], " X     2.000 mm");
     press(&mut vm); // leave jogging
+    // Jog Z: +Z is up, so two detents counter-clockwise go 2 mm down,
+    // 200 physical steps away from the top switch.
+    let z0 = vm.position(Axis::Z);
+    turn(&mut vm, -2);
+    press(&mut vm); // Axis Y
+    press(&mut vm); // Axis Z
+    assert_eq!(screen(&vm)[2], "[ Axis Z]", "{:?}", screen(&vm));
+    turn(&mut vm, 2);
+    press(&mut vm); // Jog now
+    turn(&mut vm, -2);
+    vm.run_for(0.5).unwrap();
+    assert_eq!(vm.position(Axis::Z) - z0, 200);
+    assert_eq!(screen(&vm)[2], " Z    -2.000 mm");
+    press(&mut vm); // leave jogging
     turn(&mut vm, -3);
     press(&mut vm); // < Back to the main menu, on "Jog"
     // Home X.
@@ -876,7 +891,7 @@ fn tools_menu_changes_to_t2_through_the_same_path_as_serial_t2() {
 fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
     let mut vm = tools_vm();
     ok(&mut vm, "G28");
-    ok(&mut vm, "G0 X10 Y5 Z3");
+    ok(&mut vm, "G0 X10 Y5 Z-3");
     ok(&mut vm, "T2");
     vm.send_line("T5");
     // Reset after T2 went back into its pocket, before T5 is clamped

@@ -4,6 +4,10 @@
 //! - the **commanded** path, from the job's G-code ([`commanded_path`]: a
 //!   small interpreter for G0–G3, G17, G20/G21, G28, G90/G91 and T words,
 //!   in machine mm, valid once the job has homed), thin and grey;
+//!
+//! Both are in the user's frame of the firmware's G-code: +Z up, machine Z
+//! 0 at the top switch and negative below it (the recorder's physical steps
+//! count Z downward; [`recorded_path`] negates them).
 //! - the path **reconstructed from the recorded steps**, thick, coloured by
 //!   the tool in the spindle (from the firmware's `NowSelectedTool:` lines).
 //!
@@ -13,14 +17,15 @@ use crate::Vm;
 use plotters::prelude::*;
 use std::path::Path;
 
-/// Where G28 leaves each axis: the firmware's default pull-off.
-const HOME_PULLOFF_MM: f64 = 1.0;
+/// Where G28 leaves each axis (X, Y, Z; user frame): the firmware's default
+/// pull-off, 1 mm off each switch; Z's switch is at the top, so below it.
+const HOME_MM: [f64; 3] = [1.0, 1.0, -1.0];
 
 /// A stretch of commanded path with one tool in the spindle.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Polyline {
     pub tool: u8,
-    /// Points in machine mm (X, Y, Z).
+    /// Points in machine mm (X, Y, Z; +Z up).
     pub points: Vec<[f64; 3]>,
 }
 
@@ -56,7 +61,7 @@ pub fn commanded_path(lines: &[String]) -> Vec<Polyline> {
             // Homing ends pulled off the switch by the default 1 mm ($27).
             let named: Vec<usize> = (0..3).filter(|&a| get(['X', 'Y', 'Z'][a]).is_some()).collect();
             for a in if named.is_empty() { vec![0, 1, 2] } else { named } {
-                pos[a] = HOME_PULLOFF_MM;
+                pos[a] = HOME_MM[a];
             }
             continue;
         }
@@ -156,8 +161,9 @@ fn arc_points(p: [f64; 3], t: [f64; 3], c: [f64; 2], plane: (usize, usize), cw: 
 }
 
 /// The recorded path, split where the tool changes. X/Y in machine mm; Z is
-/// the tool tip's (machine Z + the tool's length, since Z grows downward), so
-/// that it compares with the job's work Z.
+/// the tool tip's in the user's frame (+Z up: the negated physical Z, less
+/// the tool's length, since the tip hangs below the spindle), so that it
+/// compares with the job's work Z.
 pub fn recorded_path(vm: &Vm) -> Vec<Polyline> {
     let atc = &vm.config().machine.atc;
     let length = |id: u8| {
@@ -179,7 +185,7 @@ pub fn recorded_path(vm: &Vm) -> Vec<Polyline> {
             next_change += 1;
         }
         let mut mm = [0, 1, 2].map(|a| p.position[a] as f64 / spm[a]);
-        mm[2] += length(tool);
+        mm[2] = -mm[2] - length(tool);
         if out.last().is_none_or(|l| l.tool != tool) {
             out.push(Polyline { tool, points: vec![] });
         }
@@ -224,10 +230,8 @@ pub fn write_toolpath_png(path: &Path, commanded: &[Polyline], recorded: &[Polyl
         let hi = all.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
         if lo.is_finite() { (lo - 2.0)..(hi + 2.0) } else { 0.0..1.0 }
     };
-    for (area, (ax, ay), title) in [(&top, (0, 1), "top view X/Y (mm)"), (&side, (0, 2), "side view X/Z tip (mm, Z down)")] {
-        // Z grows downward on this machine: draw it that way.
+    for (area, (ax, ay), title) in [(&top, (0, 1), "top view X/Y (mm)"), (&side, (0, 2), "side view X/Z tip (mm, +Z up)")] {
         let yr = range(ay);
-        let yr = if ay == 2 { yr.end..yr.start } else { yr };
         let mut chart = ChartBuilder::on(area)
             .caption(title, ("sans-serif", 22))
             .margin(12)
@@ -284,11 +288,11 @@ mod tests {
         let p = commanded_path(&lines("G28\nG21 G90\nG1 X10 Y0 F100\nT2\nG91 G1 Y5\nG90 G20 X1 ; inch\nG21 G2 X35.4 Y5 I5 J0"));
         assert_eq!(p.len(), 2);
         assert_eq!(p[0].tool, 0);
-        // G28 leaves every axis at the 1 mm pull-off.
-        assert_eq!(p[0].points, vec![[1.0, 1.0, 1.0], [10.0, 0.0, 1.0]]);
+        // G28 leaves every axis at the 1 mm pull-off: Z 1 mm below its top switch.
+        assert_eq!(p[0].points, vec![[1.0, 1.0, -1.0], [10.0, 0.0, -1.0]]);
         assert_eq!(p[1].tool, 2);
-        assert_eq!(p[1].points[1], [10.0, 5.0, 1.0]);
-        assert_eq!(p[1].points[2], [25.4, 5.0, 1.0]);
+        assert_eq!(p[1].points[1], [10.0, 5.0, -1.0]);
+        assert_eq!(p[1].points[2], [25.4, 5.0, -1.0]);
         // A half circle of radius 5 clockwise from (25.4, 5) over the top.
         let arc = &p[1].points[3..];
         let end = arc.last().unwrap();

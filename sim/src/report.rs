@@ -16,7 +16,10 @@ pub struct AxisReport {
     pub steps_pos: u64,
     pub steps_neg: u64,
     pub steps_while_disabled: u64,
+    /// Physical steps from the switch (Z counts downward from its top switch).
     pub final_position_steps: i64,
+    /// The machine coordinate as the firmware reports it: mm, +Z up (Z is
+    /// the negated physical distance below the top switch).
     pub final_position_mm: f64,
     /// From the shortest interval between rising edges, Hz.
     pub peak_rate_hz: f64,

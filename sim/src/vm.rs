@@ -1683,7 +1683,10 @@ impl Vm {
                     steps_neg: s.steps_neg,
                     steps_while_disabled: s.steps_while_disabled,
                     final_position_steps: s.position,
-                    final_position_mm: s.position as f64 / self.config.machine.steps_per_mm[a.index()],
+                    // Physical Z steps count down from the top switch; the
+                    // firmware's machine Z (and this figure) has +Z up.
+                    final_position_mm: s.position as f64 / self.config.machine.steps_per_mm[a.index()]
+                        * if a == Axis::Z { -1.0 } else { 1.0 },
                     peak_rate_hz: s.peak_rate_hz,
                     peak_rate_windowed_hz: s.peak_rate_windowed_hz,
                     max_accel_steps_per_s2: s.max_accel_steps_per_s2,

@@ -39,7 +39,9 @@ pub fn pocket_position(p: u8) -> f32 {
 }
 
 /// The tool-change station (thesis Table 8) and the travel height, machine
-/// mm (Z grows downward), with the feeds of the sequence, mm/min.
+/// mm in the internal frame of [`crate::frame`] (Z grows downward, as the
+/// thesis measures it: the user's machine Z is the negative, Z1 −40.5,
+/// Z2 −45, travel height −1), with the feeds of the sequence, mm/min.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Station {
     /// X1: in front of the magazine.
@@ -152,10 +154,12 @@ impl Default for Atc {
     }
 }
 
-/// The G43 tool length offset for a tool of `length_mm`. Z grows downward on
-/// this machine and the tool tip hangs `length` below the spindle nose, so
-/// the spindle must stay `length` higher: the offset is negative, and work Z
-/// is the tip's Z.
+/// The G43 tool length offset for a tool of `length_mm`, in the internal
+/// frame of [`crate::frame`]: Z grows downward there and the tool tip hangs
+/// `length` below the spindle nose, so the spindle must stay `length` higher:
+/// the offset is negative, and work Z is the tip's Z. In the user's frame
+/// (+Z up) it is +length, as LinuxCNC's and grbl's G43: work Z of the tip =
+/// machine Z − length.
 pub fn tool_length_offset_mm(length_mm: f32) -> f32 {
     -length_mm
 }

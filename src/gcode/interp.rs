@@ -6,6 +6,11 @@
 //! into planner moves (absolute integer step targets, rounded from absolute
 //! mm so rounding never accumulates) and runs the M-codes.
 //!
+//! Everything it keeps is in the internal frame (Z counts down from the top
+//! switch); G-code words come in, and reports go out, in the user's frame
+//! (+Z up) through [`crate::frame`]: [`word_mm`] for every axis word,
+//! [`Interp::work_user`] and `frame::user_from_internal` for every report.
+//!
 //! A line is validated completely before anything on it runs: a bad word,
 //! a missing feed or a target outside travel returns an [`Error`] and leaves
 //! the machine exactly as it was.
@@ -14,6 +19,7 @@ use crate::flash::FStr;
 use super::{Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
 use crate::config::{Settings, N_WCS};
 use crate::fixed::Micros;
+use crate::frame;
 use crate::machine::{Alarm, Io, Machine, State};
 use crate::math::round_i32;
 use crate::planner::arc::{self, ArcError};
@@ -32,6 +38,14 @@ fn to_mm(inches: bool, v: f32) -> f32 {
     } else {
         v
     }
+}
+
+/// An axis word's value (`axis` 0 X, 1 Y, 2 Z) in internal mm: inches
+/// converted, Z mirrored from the user's +Z up into the internal frame
+/// (see [`crate::frame`]). Offsets, G92, G53 and increments all follow.
+#[inline]
+fn word_mm(inches: bool, axis: usize, v: f32) -> f32 {
+    frame::axis_internal_from_user(axis, to_mm(inches, v))
 }
 
 /// `v` × 25.4, as a call (see [`to_mm`]).
@@ -126,14 +140,16 @@ pub struct Interp {
     pub spindle_on: bool,
     /// Active work coordinate system, 0 = G54.
     pub wcs: u8,
-    /// Work offsets G54..G59, machine mm.
+    /// Work offsets G54..G59, machine mm (internal frame: the user's
+    /// `G10 L2 P1 Z-5` is stored as Z 5; see [`crate::frame`]).
     pub wcs_mm: [[f32; 3]; N_WCS],
-    /// G92 offset, mm.
+    /// G92 offset, mm (internal frame).
     pub g92_mm: [f32; 3],
-    /// Tool length offset applied to Z, mm (the tool table and the tool
-    /// in the spindle live in `atc`).
+    /// Tool length offset applied to Z, mm, internal frame: −length (the
+    /// user sees +length, LinuxCNC's G43; the tool table and the tool in
+    /// the spindle live in `atc`).
     pub tlo_mm: f32,
-    /// Commanded position, machine mm (E in carousel units).
+    /// Commanded position, internal machine mm (E in carousel units).
     pub pos_mm: [f32; N_AXES],
     /// Per axis, the last mm → steps conversion: (bits of the mm value,
     /// steps). Valid while `conv_fresh`. See [`Interp::steps_of`].
@@ -243,13 +259,19 @@ impl Interp {
         self.wcs_mm[self.wcs as usize][axis] + self.g92_mm[axis] + tlo
     }
 
-    /// Machine mm → work mm (X, Y, Z; E unchanged).
+    /// Machine mm → work mm (X, Y, Z; E unchanged), both internal.
     pub fn machine_to_work(&self, m: [f32; N_AXES]) -> [f32; N_AXES] {
         let mut w = m;
         for a in 0..3 {
             w[a] = m[a] - self.offset(a);
         }
         w
+    }
+
+    /// Internal machine mm → the user's work coordinates (+Z up), for
+    /// reports (M114, `?`, `[PRB:…]`, the OLED).
+    pub fn work_user(&self, m: [f32; N_AXES]) -> [f32; N_AXES] {
+        frame::user_from_internal(self.machine_to_work(m))
     }
 
     /// Programmed feed with override, and spindle rpm (0 when off).
@@ -468,7 +490,7 @@ fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Opti
             let mut off = m.interp.g92_mm;
             for (a, &w) in AXIS_WORDS.iter().enumerate() {
                 if let Some(v) = l.word(w) {
-                    let v = to_mm(g.inches, v);
+                    let v = word_mm(g.inches, a, v);
                     // work = machine - wcs - g92 - tlo  =>  g92 = machine - wcs - tlo - v
                     let tlo = if a == 2 { g.tlo } else { 0.0 };
                     off[a] = m.interp.pos_mm[a] - m.interp.wcs_mm[g.wcs as usize][a] - tlo - v;
@@ -529,7 +551,7 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
     let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
     for (a, &w) in AXIS_WORDS.iter().enumerate() {
         if let Some(v) = l.word(w) {
-            let v = to_mm(g.inches, v);
+            let v = word_mm(g.inches, a, v);
             target[a] = if machine_coords {
                 v
             } else if g.incremental {
@@ -585,7 +607,7 @@ fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl
     let mut any_off = false;
     for (a, &w) in off_words.iter().enumerate() {
         if let Some(v) = l.word(w) {
-            centre_off[a] = to_mm(g.inches, v);
+            centre_off[a] = word_mm(g.inches, a, v);
             any_off = true;
         }
     }
@@ -597,7 +619,9 @@ fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl
         (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
         (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
     };
-    let mut plan = new_arc(start, end, spec, (a0, a1, a2), mo == Motion::ArcCw, m.settings.arc_tolerance_mm)?;
+    // G18 and G19 contain Z: mirrored into the internal frame, they turn the other way.
+    let cw = frame::internal_clockwise(mo == Motion::ArcCw, g.plane != Plane::Xy);
+    let mut plan = new_arc(start, end, spec, (a0, a1, a2), cw, m.settings.arc_tolerance_mm)?;
     check_arc_limits(m, &plan)?;
     finish_line(m, g, l, text, io, target, Some(mo), Some(&mut plan))
 }
@@ -722,15 +746,15 @@ fn finish_line(
     Ok(())
 }
 
-/// Jog `axis` (0..3) by `delta_mm` at `feed` mm/min from the commanded
-/// position (the menu's jog): soft limits apply, the modal state is untouched.
+/// Jog `axis` (0..3) by `delta_mm` (user frame: +Z up) at `feed` mm/min
+/// from the commanded position (the menu's jog): soft limits apply, the modal state is untouched.
 #[inline(never)]
 pub fn jog(m: &mut Machine, io: &mut impl Io, axis: usize, delta_mm: f32, feed: f32) -> Result<(), Error> {
     if m.alarm.is_some() {
         return Err(Error::Alarm);
     }
     let mut target = m.interp.pos_mm;
-    target[axis] += delta_mm;
+    target[axis] += frame::axis_internal_from_user(axis, delta_mm);
     check_soft_limits(m, &target)?;
     move_to(m, io, target, feed, false)
 }
@@ -851,7 +875,7 @@ fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Re
             let mut off = m.interp.wcs_mm[w];
             for (a, &word) in AXIS_WORDS.iter().enumerate() {
                 if let Some(v) = l.word(word) {
-                    let v = conv(v);
+                    let v = word_mm(g.inches, a, v);
                     off[a] = if n == 2 {
                         v
                     } else {
@@ -961,7 +985,7 @@ fn probe(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, mu
     m.resync_after_stop(io);
     let mm = m.steps_to_mm(pos);
     uwrite!(io, "[PRB:").ok();
-    m.write_xyz(io, m.interp.machine_to_work(mm));
+    m.write_xyz(io, m.interp.work_user(mm));
     uwriteln!(io, ":{}]", if tripped { 1u8 } else { 0u8 }).ok();
     if !tripped && must_trip {
         return Err(Error::ProbeFailed);
@@ -971,8 +995,11 @@ fn probe(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, mu
 
 #[inline(never)]
 fn report_position(m: &Machine, io: &mut impl Io) {
-    let st = io.stepper().position;
-    let w = m.interp.machine_to_work(m.steps_to_mm(st));
+    let internal = io.stepper().position;
+    let w = m.interp.work_user(m.steps_to_mm(internal));
+    // Count: the step counters in the user's sense (Z counts up), so that
+    // Count = position × steps/mm as in Marlin.
+    let st = frame::steps_user_from_internal(internal);
     uwriteln!(
         io,
         "X:{} Y:{} Z:{} E:{}{}{} Y:{} Z:{} E:{}",
@@ -1029,7 +1056,7 @@ fn report_settings(m: &Machine, io: &mut impl Io) {
         d.int(i as i32 + 1);
         for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
             d.text(n);
-            d.num(o[a]);
+            d.num(frame::axis_user_from_internal(a, o[a]));
         }
         d.text("\n");
     }

@@ -11,7 +11,9 @@
 //! step that broke the beam (the same latch G38.2/G38.3 use), then stops.
 //! The main loop never polls the beam during a seek.
 //!
-//! Geometry (Z grows downward, the tip hangs `length` below the spindle):
+//! Geometry, in the internal frame of [`crate::frame`] (Z grows downward,
+//! the tip hangs `length` below the spindle; the user sees every Z here
+//! negated, `[SETTER Z:…]` included):
 //! the beam runs along X at the setter's Y, at a tip height `beam_z`. A
 //! tool's tip reaches the beam when the spindle is at `beam_z - length`,
 //! so `length = beam_z - trip_z`. Approaching in Y with the tip below the
@@ -45,7 +47,8 @@ pub const BACKOFF_MM: f32 = 0.5;
 pub const SIDE_MM: f32 = 6.0;
 /// Diameter: the tip goes this far below the beam, mm.
 pub const TIP_BELOW_MM: f32 = 1.0;
-/// Travel height, machine Z mm (Z grows downward).
+/// Travel height, internal machine Z mm (Z grows downward: the user's
+/// machine Z −1).
 pub const Z_SAFE_MM: f32 = 1.0;
 
 crate::flash_messages! {

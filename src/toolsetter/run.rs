@@ -5,7 +5,7 @@
 //! Replies (one line each, SPEC §8):
 //! - `[TOOL:<n> L:<mm>]`, with D1 `[TOOL:<n> L:<mm> D:<mm>]`;
 //! - with B: `[TOOL:<n> L:<mm> dL:<mm>]`, then `ALARM:broken tool` when off by more than tol;
-//! - calibration: `[SETTER Z:<beam tip height mm> W:<beam width mm>]`.
+//! - calibration: `[SETTER Z:<beam tip height, machine mm, +Z up> W:<beam width mm>]`.
 
 use super::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent, Setter};
 use crate::atc::tools::EEPROM_SETTER_ADDR;
@@ -150,7 +150,7 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
                 m.atc.table.length_um[i] = s.ref_length_um;
                 m.atc.table.diameter_um[i] = s.ref_diameter_um.clamp(0, u16::MAX as i32) as u16;
             }
-            uwriteln!(io, "{}{}{}{}]", F!("[SETTER Z:"), Micros(s.beam_z_um), F!(" W:"), Micros(s.beam_width_um)).ok();
+            uwriteln!(io, "{}{}{}{}]", F!("[SETTER Z:"), Micros(crate::frame::z_user_from_internal_i32(s.beam_z_um)), F!(" W:"), Micros(s.beam_width_um)).ok();
         }
     }
     crate::atc::run::store_table(m, io, &before);

@@ -3,7 +3,10 @@
 //!
 //! Coordinates: after G28 the firmware's machine 0 is where each switch trips,
 //! and the virtual machine's switch trips at physical step 0, so firmware steps
-//! and the recorder's physical steps are the same numbers (100 steps/mm).
+//! and the recorder's physical steps are the same numbers (100 steps/mm) on X
+//! and Y. Z's switch is at the top and physical Z steps count downward, while
+//! G-code and reports have +Z up: machine Z −5 mm is physical step 500
+//! ([`user_to_physical_mm`]).
 #![allow(dead_code)]
 
 use super::*;
@@ -36,6 +39,12 @@ pub fn boot_homed() -> Vm {
 /// only what happens next.
 pub fn mark(vm: &mut Vm) {
     vm.recorder_mut().clear_trace();
+}
+
+/// A position in the user's frame (G-code, +Z up) → the recorder's physical
+/// mm (Z down from the top switch).
+pub fn user_to_physical_mm(mm: [f64; 3]) -> [f64; 3] {
+    [mm[0], mm[1], -mm[2]]
 }
 
 /// Steps of a position in mm (X, Y, Z), rounded as the firmware rounds.

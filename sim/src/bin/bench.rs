@@ -13,7 +13,7 @@
 //! 1. **single axis**: `M92 X1000`, feed and acceleration raised far beyond
 //!    what the ISR can do, `G1 X40`: the planner caps the rate (and warns);
 //!    the cruise rate, the step count (exact?) and the timing are measured.
-//! 2. **four axes**: `M92 X400 Y400 Z400 E400`, `G1 X30 Y29.99 Z29.98
+//! 2. **four axes**: `M92 X400 Y400 Z400 E400`, `G1 X30 Y29.99 Z-29.98
 //!    E29.97` (three axes make slightly fewer steps than the dominant one, so
 //!    the ISR's Bresenham works on every axis): per-axis cruise rate.
 //! 3. **stream**: 2,000 G1 moves of 0.1 mm at F3000 (a circle of radius 20 mm,
@@ -199,7 +199,7 @@ impl Bench {
         self.cmd(&mut vm, "M201 X5000 Y5000 Z5000 E5000")?;
         vm.recorder_mut().clear_trace();
         let under0 = read_u16(&vm, "MILL_STEP_UNDERRUNS");
-        self.cmd(&mut vm, "G1 X30 Y29.99 Z29.98 E29.97 F120000")?;
+        self.cmd(&mut vm, "G1 X30 Y29.99 Z-29.98 E29.97 F120000")?;
         self.cmd(&mut vm, "M400")?;
         vm.run_for(0.01).map_err(|e| e.to_string())?;
         let want = [START[0] + 12_000, START[1] + 11_996, START[2] + 11_992, START[3] + 11_988];
