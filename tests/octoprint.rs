@@ -167,6 +167,22 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
             }
             let Some(name) = line.strip_prefix("CHECK ") else { continue };
             let mut bad: Vec<String> = Vec::new();
+            if name.ends_with("-done") {
+                // OctoPrint's PrintDone means every line was acknowledged;
+                // the last moves may still run: the job ends when the
+                // machine stops (no step for 1 s, at most 30 s).
+                let mut quiet = 0.0;
+                let mut waited = 0.0;
+                while quiet < 1.0 && waited < 30.0 {
+                    let before = vm.recorder().trace().len();
+                    bridge.pump(&mut vm, 0.01).expect("virtual machine");
+                    quiet = if vm.recorder().trace().len() == before { quiet + 0.01 } else { 0.0 };
+                    waited += 0.01;
+                }
+                if quiet < 1.0 {
+                    bad.push(format!("{name}: the machine still moves 30 s after OctoPrint's PrintDone"));
+                }
+            }
             let pos = vm.positions();
             let fw = fw_lines(&vm);
             match name {
@@ -181,7 +197,7 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
                     if changes != ["1", "2", "0"] {
                         bad.push(format!("demo tool changes {changes:?}, expected T1, T2, T0"));
                     }
-                    for want in ["[SETTER Z:48.000 W:0.530]", "[TOOL:2 L:21.000 D:2.000]"] {
+                    for want in ["[SETTER Z:-48.000 W:0.530]", "[TOOL:2 L:21.000 D:2.000]"] {
                         if !fw.iter().any(|l| l == want) {
                             bad.push(format!("demo: no {want} from the firmware"));
                         }
