@@ -124,6 +124,8 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
         .arg(dir.join("pause.gcode"))
         .arg("--cancel")
         .arg(dir.join("cancel.gcode"))
+        // OctoPrint's ToolChange events: the demo's T1, T2, T0, then T12, T3.
+        .args(["--expect-tools", "1,2,0,12,3"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::from(std::fs::File::create(dir.join("driver.err")).unwrap()))

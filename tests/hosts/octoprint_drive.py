@@ -441,10 +441,10 @@ def run(args):
         op.wait_state(("Offline", "Closed"), 20)
     finally:
         op.stop()
-        scan(op, base)
+        scan(op, base, args.expect_tools.split(",") if args.expect_tools else None)
 
 
-def scan(op, base):
+def scan(op, base, expect_tools):
     with open(os.path.join(base, "terminal.log"), "w") as f:
         f.write("\n".join(op.terminal) + "\n")
     with open(os.path.join(base, "events.log"), "w") as f:
@@ -467,6 +467,11 @@ def scan(op, base):
             fail("terminal: " + line)
         if re.search(r"(?i)communication timeout|No response from printer", line):
             fail("terminal: " + line)
+    # OctoPrint's own view of the tool changes (it fires ToolChange when it has
+    # sent a T: a T it drops for the profile never shows here).
+    tools = [str((p or {}).get("new")) for kind, p in op.events if kind == "ToolChange"]
+    if expect_tools is not None and tools != expect_tools:
+        fail(f"OctoPrint's ToolChange events {tools}, expected {expect_tools}")
     events = op.events if op.disconnect_at is None else op.events[: op.disconnect_at]
     for kind, payload in events:
         if bad_event(kind, payload):
@@ -484,6 +489,7 @@ def main():
     p.add_argument("--settle", type=float, default=5)
     p.add_argument("--drain", type=float, default=4, help="seconds for queued moves to drain")
     p.add_argument("--job-timeout", type=float, default=300)
+    p.add_argument("--expect-tools", help="the tools OctoPrint must change to, in order (e.g. 1,2,0)")
     p.add_argument("--extra-config", help="YAML merged into config.yaml, to investigate by hand (the test never uses it)")
     args = p.parse_args()
     try:
