@@ -1,16 +1,52 @@
-//! Passes `memory.x` (the RAM/flash budget, SPEC §11) and `--relax` to the AVR link.
+//! Passes `memory.x` (the RAM/flash budget, SPEC §11) and `--relax` to the AVR
+//! link, and, for the test-only variants (Cargo features), the linker script
+//! of the above-128-KiB build and the no-trampolines build (README, "Flash").
 use std::env;
+use std::path::PathBuf;
+use std::process::Command;
 
 fn main() {
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
-    if env::var("CARGO_CFG_TARGET_ARCH").as_deref() == Ok("avr") {
-        let dir = env::var("CARGO_MANIFEST_DIR").unwrap();
-        // Keep the budget symbols even though nothing references them.
-        println!("cargo:rustc-link-arg-bins=-Wl,--undefined=__mill_ram_budget");
-        // Linker relaxation: call/jmp within ±4 KiB become rcall/rjmp (flash,
-        // README "Flash"); LLVM's AVR objects carry the relocations for it.
-        println!("cargo:rustc-link-arg-bins=-Wl,--relax");
-        println!("cargo:rustc-link-arg-bins={dir}/memory.x");
+    if env::var("CARGO_CFG_TARGET_ARCH").as_deref() != Ok("avr") {
+        return;
     }
+    let dir = env::var("CARGO_MANIFEST_DIR").unwrap();
+    // Keep the budget symbols even though nothing references them.
+    println!("cargo:rustc-link-arg-bins=-Wl,--undefined=__mill_ram_budget");
+    // Linker relaxation: call/jmp within ±4 KiB become rcall/rjmp (flash,
+    // README "Flash"); LLVM's AVR objects carry the relocations for it.
+    println!("cargo:rustc-link-arg-bins=-Wl,--relax");
+    if env::var_os("CARGO_FEATURE_HIGH_FLASH").is_some() {
+        let script = high_flash_script();
+        println!("cargo:rustc-link-arg-bins=-Wl,-T,{}", script.display());
+    }
+    if env::var_os("CARGO_FEATURE_NO_STUBS").is_some() {
+        // The deliberately broken variant: no `jmp` trampolines for function
+        // addresses above 128 KiB (tests/high_flash.rs shows it never boots).
+        println!("cargo:rustc-link-arg-bins=-Wl,--no-stubs");
+    }
+    println!("cargo:rustc-link-arg-bins={dir}/memory.x");
+}
+
+/// avr-ld's own atmega2560 (avr6) script with a gap before the code: after
+/// the vectors, `.progmem` and the trampolines (all below 64 KiB, read with
+/// `lpm` or reached through 16-bit word addresses), the location counter
+/// jumps to 0x20000, so `.init*`, `main`, every ISR and every other function
+/// of the firmware links above 128 KiB. The gap's two ends are symbols that
+/// `memory.x` subtracts in its flash budget check and `tests/high_flash.rs`
+/// reads back.
+fn high_flash_script() -> PathBuf {
+    let out = Command::new("avr-ld").args(["--verbose", "-mavr6"]).output().expect("avr-ld --verbose -mavr6");
+    let text = String::from_utf8(out.stdout).expect("avr-ld prints text");
+    // The script is printed between two lines of '='.
+    let mut parts = text.split("==================================================");
+    let script = parts.nth(1).expect("avr-ld --verbose prints its default script");
+    let anchor = "    *(.init0)  /* Start here after reset.  */";
+    assert!(script.contains(anchor), "avr-ld's avr6 script changed: no `{anchor}` to put the gap before");
+    let gap = "    __mill_high_gap_start = . ;\n    . = MAX(., 0x20000);\n    __mill_high_gap_end = . ;\n";
+    let script = script.replacen(anchor, &format!("{gap}{anchor}"), 1);
+    let path = PathBuf::from(env::var("OUT_DIR").unwrap()).join("avr6-high-flash.x");
+    std::fs::write(&path, script).unwrap();
+    path
 }

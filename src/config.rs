@@ -11,7 +11,7 @@ use crate::flash::InFlash;
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
-pub const SETTINGS_VERSION: u8 = 2;
+pub const SETTINGS_VERSION: u8 = 3;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -53,6 +53,11 @@ pub struct Settings {
     /// Refuse motion after power-on or an alarm until homed or unlocked
     /// (grbl's `$22` homing lock).
     pub homing_lock: bool,
+    /// A T word alone changes the tool at once (Repetier, the thesis
+    /// macros); off: T selects and M6 changes (RS274/NGC, the default).
+    pub immediate_tool_change: bool,
+    /// M1 pauses (optional stop on); off: M1 is skipped.
+    pub optional_stop: bool,
     /// Work coordinate offsets G54..G59, X/Y/Z, mm.
     pub wcs_mm: [[f32; 3]; N_WCS],
 }
@@ -85,11 +90,13 @@ impl Settings {
         spindle_max_rpm: 10300.0,
         auto_tool_offset: true,
         homing_lock: true,
+        immediate_tool_change: false,
+        optional_stop: false,
         wcs_mm: [[0.0; 3]; N_WCS],
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 4 + 1;
+    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 6 + 1;
 
     /// The f32 fields in EEPROM image order.
     fn f32_fields(&self) -> [&[f32]; 12] {
@@ -144,6 +151,8 @@ impl Settings {
         w.u8(self.hard_limits as u8);
         w.u8(self.auto_tool_offset as u8);
         w.u8(self.homing_lock as u8);
+        w.u8(self.immediate_tool_change as u8);
+        w.u8(self.optional_stop as u8);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -179,6 +188,8 @@ impl Settings {
         self.hard_limits = r.u8() != 0;
         self.auto_tool_offset = r.u8() != 0;
         self.homing_lock = r.u8() != 0;
+        self.immediate_tool_change = r.u8() != 0;
+        self.optional_stop = r.u8() != 0;
         self.is_sane()
     }
 

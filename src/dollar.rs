@@ -12,7 +12,7 @@
 //! The numbers follow grbl where grbl has the setting ($3, $11, $12, $20,
 //! $21, $22, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
 //! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
-//! automatic tool offset). The table is a `match`, so it lives in flash.
+//! automatic tool offset, $151 Repetier's immediate T, $152 optional stop). The table is a `match`, so it lives in flash.
 //!
 //! Called from `Machine::run_raw_line` for lines starting with `$`; pure
 //! parsing and formatting here, host-tested.
@@ -49,6 +49,8 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
         130..=132 => (Num(&mut s.travel_mm[(n - 130) as usize]), F!("max travel, mm")),
         140..=142 => (Num(&mut s.backlash_mm[(n - 140) as usize]), F!("backlash, mm")),
         150 => (Flag(&mut s.auto_tool_offset), F!("apply tool length offset after a change, 0/1")),
+        151 => (Flag(&mut s.immediate_tool_change), F!("T alone changes the tool at once (Repetier), 0/1")),
+        152 => (Flag(&mut s.optional_stop), F!("optional stop: M1 pauses, 0/1")),
         _ => return None,
     })
 }
@@ -202,7 +204,9 @@ mod tests {
         s.hard_limits = false;
         list(&s, &mut out);
         let lines: Vec<&str> = out.0.lines().collect();
-        assert_eq!(lines.len(), 29);
+        assert_eq!(lines.len(), 31);
+        assert!(lines.contains(&"$151=0 (T alone changes the tool at once (Repetier), 0/1)"), "{lines:?}");
+        assert!(lines.contains(&"$152=0 (optional stop: M1 pauses, 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$100=80.000 (steps/mm (E: steps/pocket))"), "{lines:?}");
         assert!(lines.contains(&"$21=0 (hard limits, 0/1)"));
         assert!(lines.contains(&"$130=45.000 (max travel, mm)"));

@@ -321,6 +321,10 @@ impl Io for Hw {
         board::spindle_set(duty);
     }
 
+    fn coolant(&mut self, on: bool) {
+        board::coolant_set(on);
+    }
+
     fn switches(&self) -> mill::machine::Switches {
         let i = board::inputs();
         mill::machine::Switches { home: i.home, carousel_home: i.carousel_home, tool_setter: i.tool_setter }
@@ -421,6 +425,7 @@ impl Hw {
         v.tool = m.atc.spindle();
         v.feed = feed.clamp(0.0, 65535.0) as u16;
         v.override_pct = m.interp.feed_override_pct;
+        v.opt_stop = m.settings.optional_stop;
         v.rpm = rpm.clamp(0.0, 65535.0) as u16;
         v.job = self.job.phase;
         v.job_pct = self.job.percent();
@@ -613,11 +618,31 @@ pub fn run() -> ! {
     // The SD job's line buffer lives here, not in `job_turn`'s frame: zeroing
     // 96 bytes on every turn of the loop cost ~1.4k cycles per streamed line.
     let mut job_line = [0u8; MAX_LINE_LEN];
+    #[cfg(feature = "panic-test")]
+    let mut last = 0u64;
     loop {
+        #[cfg(not(feature = "panic-test"))]
         m.push_bytes(core::iter::from_fn(serial::read), hw);
+        #[cfg(feature = "panic-test")]
+        m.push_bytes(core::iter::from_fn(|| serial::read().inspect(|&b| panic_test(&mut last, b))), hw);
         job_turn(m, hw, &mut job_line);
         ui_turn(m, hw);
         m.idle(hw);
+    }
+}
+
+/// Test builds only (`--features panic-test`, tests/panic.rs): the line
+/// `M9999` panics and `M9998` aborts (the `llvm.trap` that
+/// `panic = "immediate-abort"` makes of every panic) as its newline arrives,
+/// from inside the serial → parser path.
+#[cfg(feature = "panic-test")]
+fn panic_test(last: &mut u64, b: u8) {
+    *last = (*last << 8 | b as u64) & 0xFFFF_FFFF_FFFF;
+    if *last == u64::from_be_bytes(*b"\0\0M9999\n") {
+        panic!("M9999");
+    }
+    if *last == u64::from_be_bytes(*b"\0\0M9998\n") {
+        core::intrinsics::abort();
     }
 }
 
@@ -683,6 +708,12 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         },
         Cmd::Override(pct) => {
             m.interp.feed_override_pct = pct;
+            Ok(())
+        }
+        Cmd::OptionalStop(on) => {
+            // The same setting as `$152`, stored like it.
+            m.settings.optional_stop = on;
+            m.save_settings(hw);
             Ok(())
         }
         Cmd::Jog { axis, delta_um } => {

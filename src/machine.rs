@@ -91,6 +91,8 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn carousel_driver(&mut self, on: bool);
     /// Spindle PWM duty, 0 = off.
     fn spindle(&mut self, duty: u8);
+    /// Coolant output (M7/M8 on, M9 off).
+    fn coolant(&mut self, on: bool);
     /// Current switch levels.
     fn switches(&self) -> Switches;
     /// Milliseconds since boot.
@@ -363,7 +365,9 @@ impl Machine {
     /// Check N/* and run one line; always ends with exactly one `ok`.
     #[inline(never)]
     fn run_raw_line(&mut self, raw: &[u8], io: &mut impl Io) {
-        self.numbered = matches!(raw.first(), Some(b'N' | b'n'));
+        // Numbered for the resend protocol: N and a checksum (an N alone is a
+        // file's block number, which the protocol does not track).
+        self.numbered = matches!(raw.first(), Some(b'N' | b'n')) && raw.contains(&b'*');
         match self.chk.check(raw) {
             Err(e) => {
                 uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.last_line()).ok();
@@ -641,10 +645,11 @@ impl Machine {
         self.aborts = self.aborts.wrapping_add(1);
     }
 
-    /// Spindle off (and remembered as off).
+    /// Spindle and coolant off (and remembered as off): aborts, program end.
     pub fn spindle_off(&mut self, io: &mut impl Io) {
         self.interp.spindle_on = false;
         io.spindle(0);
+        io.coolant(false);
     }
 
     /// A feed hold is in force (`!`, M25, the menu) and not yet resumed.
@@ -662,6 +667,7 @@ impl Machine {
     pub fn raise(&mut self, io: &mut impl Io, alarm: Alarm) {
         io.stop_motion();
         io.spindle(0);
+        io.coolant(false);
         // Off for the interpreter too: an S word alone must not restart it.
         self.interp.spindle_on = false;
         if alarm == Alarm::EmergencyStop {

@@ -11,6 +11,8 @@
 //! On the host this file compiles to a stub so `cargo test` can build the
 //! package; the firmware is built with `cargo fw`.
 #![cfg_attr(target_arch = "avr", no_std, no_main, feature(abi_avr_interrupt, asm_experimental_arch))]
+// tests/panic.rs's M9998 calls the abort intrinsic (src/firmware.rs).
+#![cfg_attr(all(target_arch = "avr", feature = "panic-test"), allow(internal_features), feature(core_intrinsics))]
 
 #[cfg(not(target_arch = "avr"))]
 fn main() {
@@ -30,12 +32,19 @@ fn main() -> ! {
     firmware::run()
 }
 
-/// Panic: drop the stepper enables and the spindle, report, then halt
-/// (the watchdog then resets the chip into a safe state).
+/// Panic: the machine stops as on M112, reports `ALARM:firmware panic`,
+/// and halts until reset (`board::halt`; README, "Panics").
 #[cfg(target_arch = "avr")]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
-    avr_device::interrupt::disable();
-    board::emergency_stop();
-    loop {}
+    board::halt::halt(mill::F!("firmware panic"))
+}
+
+/// `abort` (avr-libc's would only `cli` and spin, leaving the drivers on and
+/// the spindle turning): the same end as a panic. Defining it here keeps
+/// avr-libc's out of the link.
+#[cfg(target_arch = "avr")]
+#[no_mangle]
+pub extern "C" fn abort() -> ! {
+    board::halt::halt(mill::F!("firmware abort"))
 }

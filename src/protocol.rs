@@ -272,6 +272,9 @@ impl LineAssembler {
 ///   without one (printcore sends `N-1 M110*cs`).
 /// - A line with neither `N` nor `*` passes as it is (manual console); a bare
 ///   `M110 N<m>` still sets the last line number to `m`.
+/// - `N<n> …` without `*` passes as it is, unchecked (grbl-style senders
+///   stream files whose blocks carry their own N numbers); the parser skips
+///   the leading `N<n>`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LineChecker {
     /// Number of the last accepted numbered line.
@@ -310,7 +313,12 @@ impl LineChecker {
             }
             return Ok(line);
         }
-        let star = star.ok_or(ProtoError::MissingChecksum)?;
+        // `N<n>` without a checksum: a file streamed by a grbl-style sender
+        // (Fusion/HAAS posts number every block, N10, N20, …). Not part of
+        // the resend protocol: no sequence check, and the parser skips the N.
+        let Some(star) = star else {
+            return Ok(line);
+        };
         let (body, tail) = line.split_at(star);
         let sum = body.iter().fold(0u8, |acc, &b| acc ^ b);
         if parse_checksum(tail.get(1..).unwrap_or(&[])) != Some(sum) {
@@ -761,7 +769,11 @@ mod tests {
     #[test]
     fn line_number_without_checksum_and_checksum_without_number_are_errors() {
         let mut c = LineChecker::new();
-        assert_eq!(c.check(b"N1 G1 X1"), Err(ProtoError::MissingChecksum));
+        // N without a checksum is a numbered file block, not the protocol's:
+        // it passes unchecked, and the last line number stays.
+        assert_eq!(c.check(b"N1 G1 X1"), Ok(&b"N1 G1 X1"[..]));
+        assert_eq!(c.check(b"N0070 G1 X1"), Ok(&b"N0070 G1 X1"[..]));
+        assert_eq!(c.last_line(), 0);
         assert_eq!(c.check(b"G1 X1*12"), Err(ProtoError::MissingLineNumber));
         let body = "NX G1";
         let l = format!("{}*{}", body, xor(body.as_bytes()));

@@ -17,6 +17,8 @@ fn atc_vm() -> Vm {
     boot_with(cfg)
 }
 
+/// Tool changes in these tests are written `T<n> M6` (RS274/NGC, the
+/// default since issue 13): a `T<n>` alone only selects the next tool.
 /// Home X, Y, Z and move somewhere in the work area.
 fn ready(vm: &mut Vm) {
     ok(vm, "G28");
@@ -66,7 +68,7 @@ fn conditions_1_2_3_pick_change_and_empty_the_spindle() {
     let before = steps(&vm);
 
     // Condition 1: empty spindle, T3.
-    let r = change(&mut vm, "T3");
+    let r = change(&mut vm, "T3 M6");
     assert!(r.iter().any(|l| l == "SelectTool:3"), "{r:?}");
     assert!(r.iter().any(|l| l == "NowSelectedTool:3"), "{r:?}");
     assert_eq!(spindle_id(&vm), 3);
@@ -93,7 +95,7 @@ fn conditions_1_2_3_pick_change_and_empty_the_spindle() {
     assert_records_match_the_machine(&vm);
 
     // Condition 3: T0 returns T7 and leaves the spindle empty, Y out at point A.
-    let r = change(&mut vm, "T0");
+    let r = change(&mut vm, "T0 M6");
     assert!(r.iter().any(|l| l == "NowSelectedTool:0"), "{r:?}");
     assert_eq!(spindle_id(&vm), 0);
     assert_eq!(vm.atc().pocket_ids(), [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
@@ -112,27 +114,58 @@ fn conditions_1_2_3_pick_change_and_empty_the_spindle() {
 fn repeats_and_bounds() {
     let mut vm = atc_vm();
     ready(&mut vm);
-    change(&mut vm, "T5");
+    change(&mut vm, "T5 M6");
     let n = total_steps(&vm);
     // The tool already in the spindle: nothing moves, nothing printed.
-    let r = ok(&mut vm, "T5");
+    let r = ok(&mut vm, "T5 M6");
     assert_eq!(r, ["ok"]);
     let r = ok(&mut vm, "M6");
-    assert_eq!(r, ["ok"], "M6 alone repeats the last T");
+    assert_eq!(r, ["ok"], "M6 alone changes to the selected (last) T");
     assert_eq!(total_steps(&vm), n);
     // Out of range and malformed tool numbers are errors; nothing moves.
-    assert!(refused(&mut vm, "T13").contains("T0-T12"));
+    assert!(refused(&mut vm, "T13 M6").contains("T0-T12"));
     assert!(refused(&mut vm, "T-1").starts_with("Error:"));
-    assert!(refused(&mut vm, "T2 G0 X5").contains("without motion"));
+    assert!(refused(&mut vm, "T2 M6 G0 X5").contains("without motion"));
     assert_eq!(total_steps(&vm), n);
     assert_eq!(spindle_id(&vm), 5);
+    assert_records_match_the_machine(&vm);
+}
+
+/// Issue 13 item 5: `T<n>` alone pre-stages (nothing moves, the spindle tool
+/// stays), `M6` changes to it; `$151=1` brings back Repetier's immediate T
+/// (the thesis macros).
+#[test]
+fn t_alone_selects_the_next_tool_and_m6_changes_to_it() {
+    let mut vm = atc_vm();
+    ready(&mut vm);
+    let n = total_steps(&vm);
+    let r = ok(&mut vm, "T3");
+    assert_eq!(r, ["ok"], "T alone changes nothing");
+    // A selection may share a line with a move (posts pre-stage that way).
+    ok(&mut vm, "G0 X12 T3");
+    ok(&mut vm, "M400");
+    assert_eq!(spindle_id(&vm), 0);
+    let moved = total_steps(&vm) - n;
+    assert_eq!(moved, 200, "only the 2 mm X move");
+    let r = change(&mut vm, "M6");
+    assert!(r.iter().any(|l| l == "SelectTool:3"), "{r:?}");
+    assert_eq!(spindle_id(&vm), 3);
+    // `M6 T2` and `T2 M6` are one change each.
+    let r = change(&mut vm, "M6 T2");
+    assert!(r.iter().any(|l| l == "NowSelectedTool:2"), "{r:?}");
+    assert_eq!(spindle_id(&vm), 2);
+    // Repetier's immediate T, as a setting.
+    ok(&mut vm, "$151=1");
+    let r = change(&mut vm, "T4");
+    assert!(r.iter().any(|l| l == "NowSelectedTool:4"), "{r:?}");
+    assert_eq!(spindle_id(&vm), 4);
     assert_records_match_the_machine(&vm);
 }
 
 #[test]
 fn a_change_before_homing_is_refused() {
     let mut vm = atc_vm();
-    assert!(refused(&mut vm, "T1").contains("G28"));
+    assert!(refused(&mut vm, "T1 M6").contains("G28"));
     assert_eq!(total_steps(&vm), 0);
 }
 
@@ -225,7 +258,7 @@ fn a_change_with_the_carousel_switch_disconnected_stops_safe() {
     let mut vm = atc_vm();
     ready(&mut vm);
     vm.set_carousel_connected(false);
-    let r = vm.command("T4").unwrap();
+    let r = vm.command("T4 M6").unwrap();
     assert!(r.iter().any(|l| l == "ALARM:carousel home switch not found"), "{r:?}");
     assert!(!vm.spindle_on());
     // Nothing was transferred; the record says so and marks the change interrupted.
@@ -240,7 +273,7 @@ fn a_change_with_the_carousel_switch_disconnected_stops_safe() {
     assert_records_match_the_machine(&vm);
     vm.set_carousel_connected(true);
     ok(&mut vm, "G28");
-    change(&mut vm, "T4");
+    change(&mut vm, "T4 M6");
     assert_eq!(spindle_id(&vm), 4);
     assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
 }
@@ -255,9 +288,9 @@ fn an_empty_target_pocket_is_refused_before_anything_moves() {
     let (st, _) = records(&vm);
     assert_eq!(st.unwrap().occupied, ALL_POCKETS & !pocket_bit(6));
     let n = total_steps(&vm);
-    assert!(refused(&mut vm, "T6").contains("pocket of that tool is empty"));
+    assert!(refused(&mut vm, "T6 M6").contains("pocket of that tool is empty"));
     assert_eq!(total_steps(&vm), n);
-    assert!(!vm.command("T6").unwrap().iter().any(|l| l.starts_with("SelectTool")));
+    assert!(!vm.command("T6 M6").unwrap().iter().any(|l| l.starts_with("SelectTool")));
     assert_records_match_the_machine(&vm);
 }
 
@@ -265,8 +298,8 @@ fn an_empty_target_pocket_is_refused_before_anything_moves() {
 fn m112_mid_change_stops_safe_and_the_record_matches_the_machine() {
     let mut vm = atc_vm();
     ready(&mut vm);
-    change(&mut vm, "T2");
-    vm.send_line("T9");
+    change(&mut vm, "T2 M6");
+    vm.send_line("T9 M6");
     // Stop it while T2 goes back in (Y on its way in to point B, before the release).
     vm.run_until(|vm| vm.position(Axis::Y) > 3700, 30.0).unwrap();
     vm.send_line("M112");
@@ -288,7 +321,7 @@ fn m112_mid_change_stops_safe_and_the_record_matches_the_machine() {
     ok(&mut vm, "M61 Q2");
     assert_records_match_the_machine(&vm);
     ok(&mut vm, "G28");
-    change(&mut vm, "T9");
+    change(&mut vm, "T9 M6");
     assert_eq!(spindle_id(&vm), 9);
     assert_records_match_the_machine(&vm);
 }
@@ -297,8 +330,8 @@ fn m112_mid_change_stops_safe_and_the_record_matches_the_machine() {
 fn chip_reset_mid_change_refuses_motion_until_confirmed_then_changes_again() {
     let mut vm = atc_vm();
     ready(&mut vm);
-    change(&mut vm, "T2");
-    vm.send_line("T5");
+    change(&mut vm, "T2 M6");
+    vm.send_line("T5 M6");
     // Reset after T2 went back into its pocket, before T5 is clamped.
     vm.run_until(|vm| vm.atc().transfers.len() == 2, 60.0).unwrap();
     vm.run_for(0.3).unwrap();
@@ -313,13 +346,13 @@ fn chip_reset_mid_change_refuses_motion_until_confirmed_then_changes_again() {
     let n = total_steps(&vm);
     assert!(refused(&mut vm, "G28").contains("M61"));
     assert!(refused(&mut vm, "G0 X1").contains("M61"));
-    assert!(refused(&mut vm, "T5").contains("M61"));
+    assert!(refused(&mut vm, "T5 M6").contains("M61"));
     assert_eq!(total_steps(&vm), n);
     // The operator finds the spindle empty.
     ok(&mut vm, "M61 Q0");
     assert_records_match_the_machine(&vm);
     ok(&mut vm, "G28");
-    change(&mut vm, "T5");
+    change(&mut vm, "T5 M6");
     assert_eq!(spindle_id(&vm), 5);
     assert_records_match_the_machine(&vm);
     assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
@@ -330,7 +363,7 @@ fn power_cycle_keeps_the_tool_and_its_offset() {
     let mut vm = atc_vm();
     ready(&mut vm);
     ok(&mut vm, "G10 L1 P4 Z30");
-    change(&mut vm, "T4");
+    change(&mut vm, "T4 M6");
     vm.power_cycle();
     vm.wait_for_start(3.0).unwrap();
     let l = vm.wait_line(|l| l.starts_with("echo:tool in spindle"), 1.0).unwrap();

@@ -202,7 +202,7 @@ fn power_loss_during_tool_changes_leaves_a_record_the_operator_can_confirm() {
         // A job with two changes (from whatever is in the spindle now).
         let a = 1 + rng.next() % 12;
         let b = rng.next() % 13;
-        let job: Vec<String> = [format!("T{a}"), "G0 X10 Y5".into(), format!("T{b}"), "G0 X20 Y10".into()].to_vec();
+        let job: Vec<String> = [format!("T{a} M6"), "G0 X10 Y5".into(), format!("T{b} M6"), "G0 X20 Y10".into()].to_vec();
         let t = uniform(&mut rng, 0.3, 25.0);
         let _ = vm.stream(&job, StreamOptions::new(Flow::PingPong).timeout(t)).unwrap();
         vm.power_cycle();

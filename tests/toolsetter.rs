@@ -39,7 +39,7 @@ fn setter_vm() -> Vm {
 
 /// Calibrate with T1 (length 19.5, radius 1.5).
 fn calibrate(vm: &mut Vm) -> String {
-    ok(vm, "T1");
+    ok(vm, "T1 M6");
     let r = ok(vm, "G37 L19.5 R1.5");
     r.iter().find(|l| l.starts_with("[SETTER")).cloned().expect("calibration line")
 }
@@ -64,7 +64,7 @@ fn calibrate_then_three_tools_measured_within_a_step() {
     // or past it): machine Z −48.005 with +Z up; width 0.52.
     assert!(cal.starts_with("[SETTER Z:-48.0"), "{cal}");
     for t in &tools()[1..] {
-        ok(&mut vm, &format!("T{}", t.id));
+        ok(&mut vm, &format!("T{} M6", t.id));
         let r = ok(&mut vm, "G37 D1");
         let line = r.iter().find(|l| l.starts_with(&format!("[TOOL:{} ", t.id))).expect("result line");
         let (len, dia) = parse_tool_line(line);
@@ -86,7 +86,7 @@ fn calibrate_then_three_tools_measured_within_a_step() {
 fn broken_tool_check_alarms_on_a_tool_half_a_millimetre_shorter() {
     let mut vm = setter_vm();
     calibrate(&mut vm);
-    ok(&mut vm, "T2");
+    ok(&mut vm, "T2 M6");
     ok(&mut vm, "G37");
     // Unchanged tool: within tolerance, no alarm.
     let r = ok(&mut vm, "G37 B0.2");
@@ -106,7 +106,7 @@ fn broken_tool_check_alarms_on_a_tool_half_a_millimetre_shorter() {
 fn a_beam_blocked_at_the_start_is_refused_with_no_motion() {
     let mut vm = setter_vm();
     calibrate(&mut vm);
-    ok(&mut vm, "T2");
+    ok(&mut vm, "T2 M6");
     vm.set_input(Input::ToolSetter, Some(true));
     let n = total_steps(&vm);
     assert!(refused(&mut vm, "G37").contains("blocked at start"));
@@ -117,7 +117,7 @@ fn a_beam_blocked_at_the_start_is_refused_with_no_motion() {
 fn a_beam_that_never_breaks_retracts_the_tool_and_stores_nothing() {
     let mut vm = setter_vm();
     calibrate(&mut vm);
-    ok(&mut vm, "T3");
+    ok(&mut vm, "T3 M6");
     let before = table(&vm);
     vm.set_input(Input::ToolSetter, Some(false)); // the setter's cable is cut
     let e = refused(&mut vm, "G37 D1");
@@ -132,7 +132,7 @@ fn a_beam_that_never_breaks_retracts_the_tool_and_stores_nothing() {
 #[test]
 fn g38_probes_on_the_tool_setter_input_and_g10_l1_sets_the_table() {
     let mut vm = setter_vm();
-    ok(&mut vm, "T2");
+    ok(&mut vm, "T2 M6");
     ok(&mut vm, "G0 X5 Y10.013");
     let r = ok(&mut vm, "G38.2 Z-45 F300");
     // Tip 21.3371 below the spindle reaches 48.0047 below home at spindle Z
@@ -171,12 +171,12 @@ fn a_job_with_a_change_and_a_measurement_shifts_z_by_the_length_difference() {
     ok(&mut vm, "M3 S8000");
     let z1 = cut(&mut vm);
     ok(&mut vm, "M5");
-    ok(&mut vm, "T2");
+    ok(&mut vm, "T2 M6");
     ok(&mut vm, "G37");
     ok(&mut vm, "M3 S8000");
     let z2 = cut(&mut vm);
     ok(&mut vm, "M5");
-    ok(&mut vm, "T0");
+    ok(&mut vm, "T0 M6");
     let t = tools();
     let true_shift = (t[1].length_mm - t[0].length_mm) * 100.0;
     eprintln!("cut Z with T1 {z1}, with T2 {z2}: shift {} steps, length difference {true_shift:.2} steps", z1 - z2);

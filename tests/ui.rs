@@ -892,8 +892,8 @@ fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
     let mut vm = tools_vm();
     ok(&mut vm, "G28");
     ok(&mut vm, "G0 X10 Y5 Z-3");
-    ok(&mut vm, "T2");
-    vm.send_line("T5");
+    ok(&mut vm, "T2 M6");
+    vm.send_line("T5 M6");
     // Reset after T2 went back into its pocket, before T5 is clamped
     // (as tests/atc.rs chip_reset_mid_change...).
     vm.run_until(|vm| vm.atc().transfers.len() == 2, 60.0).unwrap();
@@ -942,7 +942,7 @@ fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
     tools_to_status(&mut vm);
     assert_eq!(screen(&vm)[6], "No job");
     ok(&mut vm, "G28");
-    ok(&mut vm, "T5");
+    ok(&mut vm, "T5 M6");
     assert_eq!(spindle_tool(&vm), 5);
     assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
 }
@@ -974,9 +974,9 @@ fn tools_menu_shows_the_tool_table_and_measures_the_spindle_tool() {
     press(&mut vm);
     assert_eq!(screen(&vm)[5], "[ Tool table]");
     // Calibrate with T1 and pick T2 over serial, then measure from the menu.
-    ok(&mut vm, "T1");
+    ok(&mut vm, "T1 M6");
     ok(&mut vm, "G37 L19.5 R1.5");
-    ok(&mut vm, "T2");
+    ok(&mut vm, "T2 M6");
     vm.take_lines();
     turn(&mut vm, -1);
     assert_eq!(screen(&vm)[4], "[ Measure len+dia]");

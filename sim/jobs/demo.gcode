@@ -5,7 +5,7 @@
 ; at negative Z, and work Z is the tool tip.
 G28                      ; home Z, Y, X
 G21 G90 G17              ; mm, absolute, XY plane
-T1                       ; condition 1: pick tool 1 into the empty spindle
+T1 M6                    ; condition 1: pick tool 1 into the empty spindle
 G37 L19.5 R0.75          ; calibrate the setter with T1 (19.5 mm long, 1.5 mm across)
 M3 S8000
 G0 X25 Y20
@@ -26,7 +26,7 @@ G1 Y14
 G3 X18 Y12 R2
 G0 Z-30
 M5
-T2                       ; condition 2: tool 1 back to its pocket, pick tool 2
+T2 M6                    ; condition 2: tool 1 back to its pocket, pick tool 2
 G37 D1                   ; measure tool 2: length and diameter
 M3 S9000
 G0 X12 Y34
@@ -48,6 +48,6 @@ G0 X12
 G1 Z-42
 G0 Z-30
 M5
-T0                       ; condition 3: tool 2 back, spindle empty
+T0 M6                    ; condition 3: tool 2 back, spindle empty
 G0 X5 Y5
 M30                      ; program end

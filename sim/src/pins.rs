@@ -143,6 +143,9 @@ pub const DRIVERS: [DriverPins; 4] = [
 /// Spindle PWM output: D10 = PB4 = OC2A.
 pub const SPINDLE_PWM: Pin = Pin::new(b'B', 4);
 
+/// Coolant output (M7/M8 on, M9 off): D9 = PH6, the RAMPS D9 MOSFET; high = on.
+pub const COOLANT: Pin = Pin::new(b'H', 6);
+
 /// A machine input the firmware reads.
 ///
 /// "Active" means: switch closed, beam interrupted, button pressed, encoder

@@ -67,7 +67,7 @@ use crate::isr::{IsrStats, IsrTracker, STEPPER_VECTOR};
 use crate::oled::Sh1106;
 use crate::physics::{MachineConfig, Physics, ToolSetter};
 use crate::sdcard::SdCard;
-use crate::pins::{Axis, Input, Pin, SignalKind, SPINDLE_PWM};
+use crate::pins::{Axis, Input, Pin, SignalKind, COOLANT, SPINDLE_PWM};
 use crate::recorder::{Recorder, RecorderConfig, Violation};
 use crate::report::{AxisReport, Report, UartReport};
 use crate::spindle;
@@ -279,6 +279,9 @@ struct Inner {
     log: Vec<String>,
     spindle_duty: f64,
     spindle_history: Vec<(u64, f64)>,
+    /// Coolant output level (PH6), and every change: (VM cycle, on).
+    coolant: bool,
+    coolant_history: Vec<(u64, bool)>,
     /// The SH1106 on the TWI bus, and whether the current transfer is for it.
     oled: Sh1106,
     oled_selected: bool,
@@ -595,6 +598,23 @@ unsafe extern "C" fn spindle_notify(_irq: *mut ffi::avr_irq_t, _value: u32, para
     update_spindle(inner);
 }
 
+/// PH6 changed: the coolant output's new level.
+// SAFETY (contract): only simavr calls this, from inside `avr_run` on the VM's
+// thread, with the `param` registered in `Vm::new` (our `Inner`).
+unsafe extern "C" fn coolant_notify(_irq: *mut ffi::avr_irq_t, value: u32, param: *mut c_void) {
+    // SAFETY: param is our Inner.
+    let inner = unsafe { &mut *(param as *mut Inner) };
+    set_coolant(inner, value != 0);
+}
+
+fn set_coolant(inner: &mut Inner, on: bool) {
+    if on != inner.coolant {
+        inner.coolant = on;
+        let now = inner.now();
+        inner.coolant_history.push((now, on));
+    }
+}
+
 fn update_spindle(inner: &mut Inner) {
     let d = spindle::duty(
         inner.read(spindle::TCCR2A),
@@ -830,6 +850,8 @@ impl Vm {
             log: Vec::new(),
             spindle_duty: 0.0,
             spindle_history: Vec::new(),
+            coolant: false,
+            coolant_history: Vec::new(),
             oled: Sh1106::new(),
             oled_selected: false,
             twi_input: std::ptr::null_mut(),
@@ -917,6 +939,11 @@ impl Vm {
             let pb4 = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(SPINDLE_PWM.port), SPINDLE_PWM.bit as c_int);
             if !pb4.is_null() {
                 ffi::avr_irq_register_notify(pb4, Some(spindle_notify), param);
+            }
+            // Coolant: the PH6 pin level.
+            let ph6 = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(COOLANT.port), COOLANT.bit as c_int);
+            if !ph6.is_null() {
+                ffi::avr_irq_register_notify(ph6, Some(coolant_notify), param);
             }
 
             // OLED on the TWI bus.
@@ -1103,6 +1130,8 @@ impl Vm {
             drive_input(inner, input, true);
         }
         update_spindle(inner);
+        // The pin floats after a reset: the MOSFET's gate pull-down turns it off.
+        set_coolant(inner, false);
         inner.host.feeding = false;
         self.kick_feeder();
     }
@@ -1655,6 +1684,16 @@ impl Vm {
     /// Is the spindle turning (duty > 0)?
     pub fn spindle_on(&self) -> bool {
         self.spindle_duty() > 0.0
+    }
+
+    /// Is the coolant output (D9, PH6) on?
+    pub fn coolant_on(&self) -> bool {
+        self.inner().coolant
+    }
+
+    /// Every coolant output change: (VM cycle, on).
+    pub fn coolant_history(&self) -> &[(u64, bool)] {
+        &self.inner().coolant_history
     }
 
     /// Every spindle duty change: (VM cycle, duty).

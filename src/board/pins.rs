@@ -41,6 +41,7 @@ pub const PC: Port = port(0x26);
 pub const PD: Port = port(0x29);
 pub const PE: Port = port(0x2C);
 pub const PF: Port = port(0x2F);
+pub const PH: Port = port(0x100);
 pub const PJ: Port = port(0x103);
 pub const PK: Port = port(0x106);
 pub const PL: Port = port(0x109);
@@ -97,6 +98,9 @@ pub const HOME: [Pin; 3] = [X_HOME, Y_HOME, Z_HOME];
 // ---- Spindle, UI, buses --------------------------------------------------
 /// D10, PB4 = OC2A: spindle PWM (thesis: DC spindle on D10).
 pub const SPINDLE_PWM: Pin = pin(PB, 4);
+/// D9, PH6: coolant (M7/M8 on, M9 off), the RAMPS D9 MOSFET output
+/// (the fan/second-extruder-heater output); high = on.
+pub const COOLANT: Pin = pin(PH, 6);
 /// D31, PC6: encoder A (AUX-4).
 pub const ENC_A: Pin = pin(PC, 6);
 /// D33, PC4: encoder B.

@@ -15,6 +15,6 @@ pub mod interp;
 pub mod parse;
 
 pub use parse::{
-    parse, parse_into, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, Plane, Spindle,
+    parse, parse_into, Coolant, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, PathMode, Plane, Spindle,
     Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
 };

@@ -9,8 +9,12 @@
 //!   −`axis_1` as seen from +`axis_linear` (RS274/NGC, grbl).
 //! - Helical motion: the linear axis moves in proportion to the angle.
 //! - Centre by I/J/K offsets from the start, or by R (R > 0: the arc of at most
-//!   180°, R < 0: the longer one, RS274/NGC §3.5.3). Start == end with I/J/K is
-//!   a full circle; with R it is an error.
+//!   180°, R < 0: the longer one, RS274/NGC §3.5.3). Start == end in the
+//!   plane with I/J/K is a full circle, always: the angle is not measured
+//!   then (f32 round-off in `end − centre` made it a few µrad either way, and
+//!   one sign of it turned a full circle into a 2 µrad arc). The interpreter
+//!   sets the end to the start when both round to the same steps. With R,
+//!   start == end is an error.
 //! - Chord count: each chord spans at most φ = √(8·tol/r), whose sagitta
 //!   r(1 − cos φ/2) ≤ r·φ²/8 = tol, so the chord error never exceeds the
 //!   tolerance (grbl's own count rounds down and can exceed it slightly).
@@ -32,6 +36,12 @@ pub const ARC_CORRECTION: u32 = 16;
 /// (grbl's ARC_ANGULAR_TRAVEL_EPSILON).
 const ANGULAR_TRAVEL_EPSILON: f32 = 5e-7;
 const TWO_PI: f32 = 2.0 * core::f32::consts::PI;
+/// I/J/K end radius mismatch always accepted, mm: LinuxCNC's
+/// `CENTER_ARC_RADIUS_TOLERANCE_MM` (2 · 0.01 · √2). grbl's 0.005 mm refused
+/// a Fusion 360 HAAS post's 0.3 mm fillet 0.0056 mm off (corpus 06, in
+/// inches: 4 decimals of an inch are 2.5 µm each). Above it the mismatch must
+/// stay within 0.1 % of the radius (both), and never beyond 0.5 mm (grbl).
+pub const RADIUS_ABS_TOLERANCE_MM: f32 = 0.028_284_27;
 
 /// How the arc's centre is given.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -49,7 +59,8 @@ pub enum ArcError {
     /// R is smaller than half the distance between start and end.
     RadiusTooSmall,
     /// I/J/K: the end point is not on the circle (start and end radius differ by
-    /// more than 0.005 mm and by more than 0.1 % of the radius, or by > 0.5 mm).
+    /// more than [`RADIUS_ABS_TOLERANCE_MM`] and by more than 0.1 % of the
+    /// radius, or by > 0.5 mm).
     RadiusMismatch,
     /// Zero radius (R0, or I/J/K all zero in the plane).
     ZeroRadius,
@@ -174,7 +185,7 @@ impl Arc {
                 }
                 let r1 = hypot(dx - o0, dy - o1);
                 let delta_r = fabsf(r1 - r0);
-                if delta_r > 0.005 && (delta_r > 0.5 || delta_r > 0.001 * r0) {
+                if delta_r > RADIUS_ABS_TOLERANCE_MM && (delta_r > 0.5 || delta_r > 0.001 * r0) {
                     return Err(ArcError::RadiusMismatch);
                 }
                 (o0, o1, r0, r1)
@@ -185,7 +196,8 @@ impl Arc {
         // Radius vectors from the centre to the start and to the end.
         let (r0x, r0y) = (-off0, -off1);
         let (r1x, r1y) = (end[a0] - c0, end[a1] - c1);
-        let mut angular_travel = atan2f(r0x * r1y - r0y * r1x, r0x * r1x + r0y * r1y);
+        let full_circle = dx == 0.0 && dy == 0.0;
+        let mut angular_travel = if full_circle { 0.0 } else { atan2f(r0x * r1y - r0y * r1x, r0x * r1x + r0y * r1y) };
         if clockwise {
             if angular_travel >= -ANGULAR_TRAVEL_EPSILON {
                 angular_travel -= TWO_PI;
@@ -382,6 +394,52 @@ mod tests {
         total
     }
 
+    /// Issue 13: `G0 X18.087536 Y33.329412`, `G3 X18.087536 Y33.329412
+    /// I-0.4 J-0.69282` moved 2 µrad instead of a full 0.8 mm circle: the
+    /// angle between start and end came out of `end − centre` with f32
+    /// round-off. Start == end in the plane is a full circle in every plane,
+    /// both ways, helical or not, at any radius and any start.
+    #[test]
+    fn start_equal_to_end_is_always_a_full_circle() {
+        let start = [18.087536f32, 33.329412, 5.0];
+        for cw in [false, true] {
+            let arc = Arc::new(start, start, Centre::Offset([-0.4, -0.69282, 0.0]), G17, cw, TOL).unwrap();
+            let want = if cw { -TWO_PI } else { TWO_PI };
+            assert_eq!(arc.angular_travel(), want);
+            assert!((swept(start, arc) - want).abs() < 1e-3, "cw {cw}: swept {}", swept(start, arc));
+        }
+        let mut skipped = 0;
+        for plane in [G17, G18, G19] {
+            let (a0, a1, al) = plane;
+            for k in 0..36 {
+                for &r in &[0.05f32, 0.8, 2.0, 7.3, 20.0] {
+                    for cw in [false, true] {
+                        for helix in [0.0f32, 1.5] {
+                            let t = (k as f32 * 10.0 + 3.0).to_radians();
+                            let mut start = [0.0f32; 3];
+                            start[a0] = 18.087536 + 0.37 * k as f32;
+                            start[a1] = 33.329412 - 0.11 * k as f32;
+                            start[al] = 5.0;
+                            let mut end = start;
+                            end[al] += helix;
+                            let mut off = [0.0f32; 3];
+                            off[a0] = -r * t.cos();
+                            off[a1] = -r * t.sin();
+                            let arc = Arc::new(start, end, Centre::Offset(off), plane, cw, TOL).unwrap();
+                            let sw = swept(start, arc);
+                            if (sw.abs() - TWO_PI).abs() > 1e-3 || (sw < 0.0) != cw {
+                                skipped += 1;
+                            }
+                            check_chords(start, arc, TOL);
+                            assert_eq!(arc.last(), Some(end));
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(skipped, 0, "arcs that were not full circles");
+    }
+
     #[test]
     fn a_quarter_circle_in_g17_ends_exactly_at_the_end_within_tolerance() {
         let start = [10.0, 0.0, 1.0];
@@ -560,13 +618,21 @@ mod tests {
         // I/J/K end not on the circle: 5 vs 5.099 mm (> 0.005 mm and > 0.1 %).
         let e = [10.0, 1.0, 0.0];
         assert_eq!(Arc::new(o, e, Centre::Offset([5.0, 0.0, 0.0]), G17, true, TOL).unwrap_err(), ArcError::RadiusMismatch);
-        // 0.006 mm off on a 5 mm radius: over 0.005 mm and 0.1 % (0.005 mm).
+        // 0.03 mm off on a 5 mm radius: over 0.0283 mm and 0.1 % (0.005 mm).
         let e = [10.0, 0.0, 0.0];
-        let c = Centre::Offset([5.006, 0.0, 0.0]);
+        let c = Centre::Offset([5.015, 0.0, 0.0]);
         assert_eq!(Arc::new(o, e, c, G17, true, TOL).unwrap_err(), ArcError::RadiusMismatch);
-        // 0.008 mm off on a 20 mm radius: over 0.005 mm but under 0.1 % (0.02 mm).
-        let e = [40.0, 0.0, 0.0];
-        let c = Centre::Offset([20.004, 0.0, 0.0]);
+        // 0.006 mm off on a 5 mm radius: over 0.1 % but under 0.0283 mm (LinuxCNC).
+        let c = Centre::Offset([5.003, 0.0, 0.0]);
+        assert!(Arc::new(o, e, c, G17, true, TOL).is_ok());
+        // Corpus 06 (Fusion 360 HAAS post, inches): a 0.3 mm fillet whose end
+        // radius is 0.0056 mm longer; grbl's 0.005 mm refused it.
+        let s06 = [1.5919 * 25.4, 1.0709 * 25.4, 0.0];
+        let e06 = [1.6139 * 25.4, 1.0797 * 25.4, 0.0];
+        assert!(Arc::new(s06, e06, Centre::Offset([0.0114 * 25.4, 0.0031 * 25.4, 0.0]), G17, true, TOL).is_ok());
+        // 0.04 mm off on a 50 mm radius: over 0.0283 mm but under 0.1 % (0.05 mm).
+        let e = [100.0, 0.0, 0.0];
+        let c = Centre::Offset([50.02, 0.0, 0.0]);
         assert!(Arc::new(o, e, c, G17, true, TOL).is_ok());
         // 0.6 mm off on a 1000 mm radius: under 0.1 % but over 0.5 mm.
         let e = [2000.0, 0.0, 0.0];

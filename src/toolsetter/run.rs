@@ -88,9 +88,7 @@ pub fn g37(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
 }
 
 /// Perform the measurement's actions until it ends: its result, and the
-/// error of the first action that failed. Not inlined: the loop works on
-/// `meas` through a pointer, within `ldd` reach (see `gcode::interp::execute`).
-#[inline(never)]
+/// error of the first action that failed.
 fn run_actions(m: &mut Machine, io: &mut impl Io, meas: &mut Measure) -> (Option<Result<Outcome, Fault>>, Option<Error>) {
     let mut failure = None;
     let mut a = meas.start();

@@ -59,6 +59,7 @@ pub enum Act {
     MeasureDia,
     ToolTable,
     ConfirmSpindle,
+    OptStop,
 }
 
 /// The menus with fixed entries.
@@ -78,7 +79,7 @@ const fn item(t: Text, a: Act) -> [u8; 2] {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 27] = [
+static ITEMS: [[u8; 2]; 28] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -93,6 +94,7 @@ static ITEMS: [[u8; 2]; 27] = [
     item(Text::Pause, Act::PauseResume),
     item(Text::Abort, Act::Abort),
     item(Text::FeedOverride, Act::Override),
+    item(Text::OptStop, Act::OptStop),
     // Jog
     item(Text::Back, Act::Back),
     item(Text::Axis, Act::JogAxis),
@@ -115,7 +117,7 @@ static ITEMS: [[u8; 2]; 27] = [
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 6] = [0, 8, 12, 16, 21, 27];
+static MENU_START: [u8; 6] = [0, 8, 13, 17, 22, 28];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
@@ -187,7 +189,7 @@ pub enum Screen {
 /// A Tools-menu command: one G-code line run through the machine.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub enum ToolOp {
-    /// `T<n>`: change to tool n (0 = empty the spindle).
+    /// `M6 T<n>`: change to tool n (0 = empty the spindle).
     Change(u8),
     /// `G37` (length) or `G37 D1` (length and diameter) of the spindle tool.
     Measure { diameter: bool },
@@ -200,7 +202,8 @@ impl ToolOp {
     pub fn gcode(self, l: &mut Line) -> usize {
         match self {
             ToolOp::Change(t) => {
-                let c = l.put(0, b"T");
+                // `M6 T<n>`: a T alone only selects the tool (RS274/NGC).
+                let c = l.put(0, b"M6 T");
                 l.uint(c, t as u32)
             }
             ToolOp::Confirm(t) => {
@@ -252,6 +255,8 @@ pub enum Cmd {
     Abort,
     /// Set the feed override, percent.
     Override(u16),
+    /// Optional stop (M1 pauses) on or off.
+    OptionalStop(bool),
     /// Move `axis` by `delta_um` micrometres.
     Jog { axis: u8, delta_um: i32 },
     /// Home the axes of the mask (bit 0 X, 1 Y, 2 Z).
@@ -270,6 +275,8 @@ pub struct View {
     /// Programmed feed with override, mm/min.
     pub feed: u16,
     pub override_pct: u16,
+    /// Optional stop on: M1 pauses (`$152`).
+    pub opt_stop: bool,
     /// Spindle speed, rpm (0 = off).
     pub rpm: u16,
     pub job: Phase,
@@ -291,6 +298,7 @@ impl View {
             tool: 0,
             feed: 0,
             override_pct: 100,
+            opt_stop: false,
             rpm: 0,
             job: Phase::Idle,
             job_pct: 0,
@@ -597,6 +605,7 @@ impl Ui {
                 self.screen = Screen::Override;
                 Cmd::None
             }
+            Act::OptStop => Cmd::OptionalStop(!v.opt_stop),
             Act::JogAxis => {
                 self.jog_axis = (self.jog_axis + 1) % 3;
                 Cmd::None
@@ -769,6 +778,9 @@ impl Ui {
             }
             Act::JogAxis => {
                 l.put(c + 1, &[b"XYZ"[self.jog_axis as usize % 3]]);
+            }
+            Act::OptStop => {
+                l.text(COLS - 3, if v.opt_stop { Text::On } else { Text::Off });
             }
             Act::JogStep => {
                 let um = JOG_STEPS_UM[self.jog_step as usize % 3];
@@ -1187,6 +1199,20 @@ mod tests {
         assert_eq!(ui.step(1, true, &v), Cmd::Abort);
     }
 
+    /// Issue 13 item 5: optional stop (M1) is a Job-menu switch, the same
+    /// setting as `$152`.
+    #[test]
+    fn optional_stop_is_switched_in_the_job_menu() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        ui.go(Screen::Menu(MenuId::Job));
+        assert_eq!(screen(&ui, &v)[5].trim_end(), " Opt. stop M1     off");
+        assert_eq!(ui.step(4, true, &v), Cmd::OptionalStop(true));
+        v.opt_stop = true;
+        assert_eq!(screen(&ui, &v)[5], "[ Opt. stop M1      on]");
+        assert_eq!(ui.step(0, true, &v), Cmd::OptionalStop(false));
+    }
+
     #[test]
     fn feed_override_is_set_in_steps_of_five() {
         let mut ui = Ui::new();
@@ -1366,8 +1392,8 @@ mod tests {
             let n = op.gcode(&mut l);
             String::from_utf8(l.chars[..n].to_vec()).unwrap()
         };
-        assert_eq!(line(ToolOp::Change(2)), "T2");
-        assert_eq!(line(ToolOp::Change(12)), "T12");
+        assert_eq!(line(ToolOp::Change(2)), "M6 T2");
+        assert_eq!(line(ToolOp::Change(12)), "M6 T12");
         assert_eq!(line(ToolOp::Measure { diameter: false }), "G37");
         assert_eq!(line(ToolOp::Measure { diameter: true }), "G37 D1");
         assert_eq!(line(ToolOp::Confirm(0)), "M61 Q0");

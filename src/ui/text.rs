@@ -76,6 +76,8 @@ crate::flash_texts! {
     Resume = "Resume",
     Abort = "Abort",
     FeedOverride = "Feed override",
+    OptStop = "Opt. stop M1",
+    On = " on",
     Axis = "Axis",
     Step = "Step",
     JogNow = "Jog now",
