@@ -58,7 +58,7 @@ impl Drop for Driver {
 /// highest tool: OctoPrint sends it only with 13 tools in the profile), then
 /// short moves on X/Y so the queue drains quickly once paused.
 fn pause_job() -> (String, [i64; 2]) {
-    let mut job = String::from("; paused and resumed by tests/octoprint.rs\nG21 G90\nT12\nG0 X10 Y10\nG1 F900\n");
+    let mut job = String::from("; paused and resumed by tests/octoprint.rs\nG21 G90\nT12 M6\nG0 X10 Y10\nG1 F900\n");
     let (mut x, mut y) = (10.0f64, 10.0f64);
     for i in 0..48 {
         match i % 4 {
@@ -73,10 +73,11 @@ fn pause_job() -> (String, [i64; 2]) {
     (job, [(x * 100.0).round() as i64, (y * 100.0).round() as i64])
 }
 
-/// Job 3, cancelled a third of the way: a tool change in the `T3 M6` form,
-/// spindle on, then 2 mm moves.
+/// Job 3, cancelled a third of the way: T3 pre-staged on its own line (NGC:
+/// a bare T only selects) and changed by a bare `M6`, spindle on, then 2 mm
+/// moves.
 fn cancel_job() -> (String, [i64; 2]) {
-    let mut job = String::from("; cancelled by tests/octoprint.rs\nG21 G90\nT3 M6\nG0 X10 Y10\nM3 S8000\nG1 F600\n");
+    let mut job = String::from("; cancelled by tests/octoprint.rs\nG21 G90\nT3\nG0 X10 Y10\nM6\nM3 S8000\nG1 F600\n");
     let mut x = 10.0f64;
     for i in 0..60 {
         x += if i % 2 == 0 { 2.0 } else { -1.5 };
@@ -227,7 +228,7 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
                 }
                 "cancel-before" => {
                     if vm.atc().spindle.map(|t| t.id) != Some(3) {
-                        bad.push(format!("cancel job: spindle holds {:?} after T3 M6", vm.atc().spindle.map(|t| t.id)));
+                        bad.push(format!("cancel job: spindle holds {:?} after T3, M6", vm.atc().spindle.map(|t| t.id)));
                     }
                     if !vm.spindle_on() {
                         bad.push("cancel job: the spindle is not on before the cancel".into());
