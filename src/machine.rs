@@ -84,7 +84,9 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     }
     /// What the ISR watches: homing axes, probe input, hard-limit axes,
     /// homed axes, direction inversion mask.
-    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8);
+    /// `release`: steps above 0 where a homed axis' switch may still be
+    /// closed (the homing pull-off, per axis X Y Z).
+    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8, release: [u16; 3]);
     /// Enable or disable the stepper drivers.
     fn drivers(&mut self, on: bool);
     /// Enable or disable the carousel (E0) driver alone (G204).
@@ -700,10 +702,22 @@ impl Machine {
         self.apply_watch(io, 0, false);
     }
 
-    /// Tell the ISR what to watch.
+    /// Tell the ISR what to watch. Hard limits stay off through a whole
+    /// homing cycle (`State::Home`), pull-offs included, as in grbl: an axis
+    /// not yet homed may rest on its closed switch, and a real switch stays
+    /// closed for its hysteresis and bounces after it opens.
     pub fn apply_watch(&mut self, io: &mut impl Io, homing: u8, probe: bool) {
-        let limits = if self.settings.hard_limits && homing == 0 { 0b111 } else { 0 };
-        io.set_watch(homing, probe, limits, self.homed, self.settings.invert_dir_mask);
+        let arm = self.settings.hard_limits && homing == 0 && self.state != State::Home;
+        let limits = if arm { 0b111 } else { 0 };
+        // A real switch that closed at machine 0 may stay closed for its
+        // hysteresis; homing checked that the pull-off clears it.
+        let mut release = [0u16; 3];
+        let pulloff = if self.settings.homing_pulloff_mm >= 0.1 { self.settings.homing_pulloff_mm } else { 0.1 };
+        for (a, r) in release.iter_mut().enumerate() {
+            let steps = crate::math::round_i32(pulloff * self.settings.steps_per_mm[a]);
+            *r = steps.clamp(0, u16::MAX as i32) as u16;
+        }
+        io.set_watch(homing, probe, limits, self.homed, self.settings.invert_dir_mask, release);
     }
 
     /// `?`: one grbl 1.1 status line.
@@ -850,12 +864,21 @@ impl Machine {
         Ok(tripped)
     }
 
-    /// Move `axis` away from its switch by `dist_mm` (no switch watching).
+    /// Move `axis` away from its switch by `dist_mm` (no switch watching:
+    /// the caller is in `State::Home`, so hard limits are off), then check
+    /// the switch let go: a pull-off shorter than the switch's hysteresis
+    /// fails here, not later as a hard limit on the first move (grbl's
+    /// alarm 8). The switch opened hysteresis-worth of travel before the
+    /// end of the pull-off, so its bounce is long over.
     fn home_pulloff(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> CmdResult {
         let mut target = io.stepper().position;
         target[axis] += crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
         self.queue_line(io, target, feed, false)?;
-        self.wait_idle(io)
+        self.wait_idle(io)?;
+        if io.switches().home & (1 << axis) != 0 {
+            return self.home_fail(io);
+        }
+        Ok(())
     }
 
     fn home_fail(&mut self, io: &mut impl Io) -> CmdResult {
@@ -879,6 +902,27 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     io.drivers(true);
     let prev = m.state;
     m.state = State::Home;
+    // Hard limits off for the whole cycle (see `apply_watch`).
+    m.apply_watch(io, 0, false);
+    let r = home_axes(m, io, mask);
+    if m.state == State::Home {
+        m.state = if prev == State::Alarm || prev == State::Home { State::Idle } else { prev };
+    }
+    // Re-armed only now, with every homed axis pulled off its switch (or
+    // after a failure, with the alarm raised).
+    m.apply_watch(io, 0, false);
+    r?;
+    let p = io.stepper().position;
+    // Also starts the hard-limit bookkeeping afresh: the homed axes left
+    // their switches (`ChunkWatch::release`).
+    io.set_stepper_position(p);
+    m.planner.set_position(p);
+    m.interp.sync_position(&m.settings, p);
+    Ok(())
+}
+
+/// The per-axis part of [`home`], in `State::Home`.
+fn home_axes(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     let s = m.settings;
     for axis in [2usize, 1, 0] {
         if mask & (1 << axis) == 0 {
@@ -888,11 +932,8 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
         // `max` without f32::max (compiler-builtins' fmaximum_numf, 142 bytes).
         let pulloff = if s.homing_pulloff_mm >= 0.1 { s.homing_pulloff_mm } else { 0.1 };
         if io.switches().home & (1 << axis) != 0 {
-            // Starting on the switch: move off it first.
+            // Starting on the switch: move off it first (fails if it stays closed).
             m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
-            if io.switches().home & (1 << axis) != 0 {
-                return m.home_fail(io);
-            }
         }
         let travel = s.travel_mm[axis] * 1.1;
         if !m.home_seek(io, axis, travel, s.homing_seek_mm_per_min)? {
@@ -905,13 +946,5 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
         m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
         m.homed |= 1 << axis;
     }
-    m.state = if prev == State::Alarm { State::Idle } else { prev };
-    if m.state == State::Home {
-        m.state = State::Idle;
-    }
-    m.apply_watch(io, 0, false);
-    let p = io.stepper().position;
-    m.planner.set_position(p);
-    m.interp.sync_position(&m.settings, p);
     Ok(())
 }

@@ -73,21 +73,30 @@ fn g28_homes_z_then_y_then_x_and_machine_zero_is_where_each_switch_trips() {
     // Z 1 mm below its top switch: −1 with +Z up.
     assert_eq!(m114_counts(&mut vm), [100, 100, -100]);
     assert_eq!(m114_work(&mut vm), [1.0, 1.0, -1.0]);
-    // Machine 0 is exactly the switch point: at X0 the switch reads closed,
-    // one step off it reads open (and going to 0 raises no hard limit).
+    // Machine 0 is exactly the switch point: at X0 the switch reads closed;
+    // the VM's real switches (0.05 mm of hysteresis) stay closed one and
+    // five steps off it and open at six, and none of these moves near the
+    // switch raises a hard limit.
     mark(&mut vm);
     run(&mut vm, "G0 X0 Y0 Z0");
     assert_eq!(steps(&vm), [0, 0, 0, 0]);
-    let r = ok(&mut vm, "M119");
-    for axis in ["x_min", "y_min", "z_min"] {
-        assert!(r.iter().any(|l| l == &format!("{axis}: TRIGGERED")), "{r:?}");
-    }
+    let m119 = |vm: &mut sim::Vm, want: &str| {
+        // Past the contacts' bounce (3 ms).
+        vm.run_for(0.01).unwrap();
+        let r = ok(vm, "M119");
+        for axis in ["x_min", "y_min", "z_min"] {
+            assert!(r.iter().any(|l| l == &format!("{axis}: {want}")), "{r:?}");
+        }
+    };
+    m119(&mut vm, "TRIGGERED");
     run(&mut vm, "G0 X0.01 Y0.01 Z-0.01");
     assert_eq!(steps(&vm), [1, 1, 1, 0]);
-    let r = ok(&mut vm, "M119");
-    for axis in ["x_min", "y_min", "z_min"] {
-        assert!(r.iter().any(|l| l == &format!("{axis}: open")), "{r:?}");
-    }
+    m119(&mut vm, "TRIGGERED");
+    run(&mut vm, "G0 X0.05 Y0.05 Z-0.05");
+    m119(&mut vm, "TRIGGERED");
+    run(&mut vm, "G0 X0.06 Y0.06 Z-0.06");
+    assert_eq!(steps(&vm), [6, 6, 6, 0]);
+    m119(&mut vm, "open");
     assert!(!vm.output().contains("ALARM"), "{}", vm.output());
     assert_no_violations(&vm);
 }

@@ -61,7 +61,7 @@ pub mod vm;
 pub use host::{Flow, StreamOptions, StreamReport};
 pub use isr::{IsrStats, STEPPER_VECTOR};
 pub use atc::{AtcConfig, AtcModel, Collision, CollisionKind, Tool, Transfer};
-pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, ToolSetter};
+pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, SwitchConfig, SwitchModel, ToolSetter};
 pub use pins::{Axis, Input, Pin, SignalKind};
 pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
 pub use oled::Sh1106;

@@ -4,13 +4,18 @@
 //! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv] [--png out/toolpath.png] [--oled out/oled.png]
 //!                               [--checksums] [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]
 //! cargo run -p sim --release -- --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]
+//! either with [--switches ideal|HYSTERESIS_MM,BOUNCE_MS]
 //! ```
 //!
 //! With `--pty`, no job is streamed: UART0 becomes a pseudo-terminal (its path
 //! is printed; with LINK, e.g. `/tmp/millsim`, a symlink to it too) and a real
 //! sender connects to it at any baud rate. The machine runs in real time until
-//! Ctrl-C, or until no byte has moved for `--idle-exit` seconds; then the
-//! report is printed as for a job.
+//! Ctrl-C, or until nothing happened for `--idle-exit` seconds (no byte either
+//! way, no firmware output, no step); then the report is printed as for a job.
+//!
+//! `--switches` sets the home switches: `ideal`, or hysteresis (mm) and
+//! contact bounce (ms), e.g. `0.1,5`. Default: `sim::SwitchConfig::default()`
+//! (0.05 mm, 3 ms).
 //!
 //! Boots the ELF, waits for `start`, streams the job (default
 //! `sim/jobs/demo.gcode`), sends `M400` and waits for its `ok`, settles
@@ -36,11 +41,13 @@ struct Args {
     /// `--pty [LINK]`: Some(None) for a pty without a link.
     pty: Option<Option<PathBuf>>,
     idle_exit_s: Option<f64>,
+    switches: sim::SwitchConfig,
 }
 
 const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--png FILE] [--oled FILE] [--checksums] \
 [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]\n       \
-sim --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]";
+sim --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]\n       \
+either with [--switches ideal|HYSTERESIS_MM,BOUNCE_MS]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -55,6 +62,7 @@ fn parse_args() -> Result<Args, String> {
         job: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("jobs/demo.gcode"),
         pty: None,
         idle_exit_s: None,
+        switches: sim::SwitchConfig::default(),
     };
     let mut it = std::env::args().skip(1).peekable();
     while let Some(arg) = it.next() {
@@ -77,12 +85,28 @@ fn parse_args() -> Result<Args, String> {
             "--idle-exit" => {
                 a.idle_exit_s = Some(value("--idle-exit")?.parse().map_err(|e| format!("--idle-exit: {e}"))?);
             }
+            "--switches" => a.switches = parse_switches(&value("--switches")?)?,
             "-h" | "--help" => return Err(USAGE.to_string()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
             s => a.job = PathBuf::from(s),
         }
     }
     Ok(a)
+}
+
+/// `ideal` or `HYSTERESIS_MM,BOUNCE_MS`.
+fn parse_switches(v: &str) -> Result<sim::SwitchConfig, String> {
+    if v == "ideal" {
+        return Ok(sim::SwitchConfig::ideal());
+    }
+    let bad = || format!("--switches: `ideal` or HYSTERESIS_MM,BOUNCE_MS, not {v}");
+    let (h, b) = v.split_once(',').ok_or_else(bad)?;
+    let h: f64 = h.trim().parse().map_err(|_| bad())?;
+    let b: f64 = b.trim().parse().map_err(|_| bad())?;
+    if !(0.0..=5.0).contains(&h) || !(0.0..=100.0).contains(&b) {
+        return Err(bad());
+    }
+    Ok(sim::SwitchConfig::home_switches(h, b / 1000.0))
 }
 
 fn main() -> ExitCode {
@@ -105,6 +129,7 @@ fn main() -> ExitCode {
     };
     let lines = prepare_gcode(&text);
     let mut config = demo_machine();
+    config.machine.switches = args.switches;
     if let Some(elf) = args.elf {
         config.elf = elf;
     }
@@ -201,6 +226,7 @@ fn main() -> ExitCode {
 /// `--pty`: bridge UART0 to a pseudo-terminal until idle or Ctrl-C.
 fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
     let mut config = demo_machine();
+    config.machine.switches = args.switches;
     if let Some(elf) = &args.elf {
         config.elf = elf.clone();
     }
@@ -223,9 +249,11 @@ fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
     let mut last_traffic = std::time::Instant::now();
     let mut failure = None;
     loop {
-        match bridge.pump(&mut vm, 0.002) {
-            Ok(true) => last_traffic = std::time::Instant::now(),
-            Ok(false) => {}
+        // Activity: bytes either way, any firmware output (a `busy:` line
+        // during a long drain) or steps (a silent drain still moving).
+        match bridge.pump_activity(&mut vm, 0.002) {
+            Ok(a) if a.any() => last_traffic = std::time::Instant::now(),
+            Ok(_) => {}
             Err(e) => {
                 failure = Some(e.to_string());
                 break;

@@ -9,6 +9,13 @@
 //! Model (SPEC §12, machine defaults §3):
 //! - Home switches X/Y/Z close when the axis' physical position is ≤ 0 steps,
 //!   so homing trips exactly at machine 0. Z grows downward; its home is Z min.
+//! - Every switch is a *real* switch by default ([`SwitchConfig`]): once
+//!   closed it opens again only when the axis is the hysteresis past its
+//!   closing point, and each change of state is followed by a few ms of
+//!   contact bounce (random toggles from a seeded RNG, so a run repeats; the
+//!   first contact is exact, at the modelled step). The VM drives the bounce
+//!   with a cycle timer ([`Physics::next_toggle`], [`Physics::fire_toggles`]).
+//!   [`SwitchConfig::ideal`] gives the old perfect switches.
 //! - The carousel switch closes when `E mod steps_per_rev` is in
 //!   `[0, switch_width)`; it can be configured as disconnected (never closes).
 //! - The tool setter is a [`ToolSetter`] model: never, scripted, a beam at a Z
@@ -45,6 +52,8 @@ pub struct MachineConfig {
     pub tool_setter: ToolSetter,
     /// The tool changer: pockets, spindle, station geometry.
     pub atc: AtcConfig,
+    /// Hysteresis and bounce of every switch.
+    pub switches: SwitchConfig,
 }
 
 impl Default for MachineConfig {
@@ -59,8 +68,99 @@ impl Default for MachineConfig {
             carousel: CarouselConfig::default(),
             tool_setter: ToolSetter::Never,
             atc: AtcConfig::default(),
+            switches: SwitchConfig::default(),
         }
     }
+}
+
+/// The imperfections of one switch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwitchModel {
+    /// Once closed, the switch opens again only when the axis has moved this
+    /// far past its closing point: mm (X, Y, Z; the tool setter on each of
+    /// them), degrees for the carousel. Rounded down to whole steps.
+    pub hysteresis: f64,
+    /// After each change of state the contact bounces (toggles at random)
+    /// for up to this long, seconds. 0: a clean edge.
+    pub bounce_s: f64,
+}
+
+impl SwitchModel {
+    /// A perfect switch: no hysteresis, no bounce.
+    pub const IDEAL: SwitchModel = SwitchModel { hysteresis: 0.0, bounce_s: 0.0 };
+}
+
+/// Hysteresis and bounce of the machine's switches.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwitchConfig {
+    /// Home switches X, Y, Z (default: 0.05 mm, 3 ms of bounce).
+    pub home: [SwitchModel; 3],
+    /// Carousel home switch (default: 0.5°, 3 ms).
+    pub carousel: SwitchModel,
+    /// Optical tool setter (default: 0.01 mm, no bounce: an optical beam
+    /// switches cleanly through its comparator).
+    pub tool_setter: SwitchModel,
+    /// Seed of the bounce RNG.
+    pub seed: u64,
+}
+
+impl SwitchConfig {
+    /// Default home-switch hysteresis, mm.
+    pub const HOME_HYSTERESIS_MM: f64 = 0.05;
+    /// Default bounce of the mechanical switches, s.
+    pub const BOUNCE_S: f64 = 0.003;
+
+    /// Perfect switches everywhere.
+    pub fn ideal() -> SwitchConfig {
+        SwitchConfig {
+            home: [SwitchModel::IDEAL; 3],
+            carousel: SwitchModel::IDEAL,
+            tool_setter: SwitchModel::IDEAL,
+            seed: 1,
+        }
+    }
+
+    /// The default machine with every home switch set to `hysteresis_mm`
+    /// and `bounce_s`.
+    pub fn home_switches(hysteresis_mm: f64, bounce_s: f64) -> SwitchConfig {
+        let m = SwitchModel { hysteresis: hysteresis_mm, bounce_s };
+        SwitchConfig { home: [m; 3], ..SwitchConfig::default() }
+    }
+
+    /// The model of `input`, if it is a modelled switch.
+    pub fn of(&self, input: Input) -> Option<SwitchModel> {
+        match input {
+            Input::HomeX => Some(self.home[0]),
+            Input::HomeY => Some(self.home[1]),
+            Input::HomeZ => Some(self.home[2]),
+            Input::CarouselHome => Some(self.carousel),
+            Input::ToolSetter => Some(self.tool_setter),
+            _ => None,
+        }
+    }
+}
+
+impl Default for SwitchConfig {
+    fn default() -> Self {
+        let home = SwitchModel { hysteresis: Self::HOME_HYSTERESIS_MM, bounce_s: Self::BOUNCE_S };
+        SwitchConfig {
+            home: [home; 3],
+            carousel: SwitchModel { hysteresis: 0.5, bounce_s: Self::BOUNCE_S },
+            tool_setter: SwitchModel { hysteresis: 0.01, bounce_s: 0.0 },
+            seed: 0x5eed_0001,
+        }
+    }
+}
+
+/// The state of one switch's contact.
+#[derive(Clone, Debug, Default)]
+struct Contact {
+    /// The state after hysteresis (None until first sensed).
+    settled: Option<bool>,
+    /// What the contact shows now (differs from `settled` while bouncing).
+    shown: bool,
+    /// Cycles at which the contact toggles next (ascending).
+    toggles: std::collections::VecDeque<u64>,
 }
 
 /// The carousel home sensor.
@@ -170,13 +270,144 @@ pub struct Physics {
     config: MachineConfig,
     overrides: [Option<bool>; Input::COUNT],
     atc: AtcModel,
+    contacts: [Contact; Input::COUNT],
+    rng: fastrand::Rng,
+    /// Clock for converting bounce times to cycles.
+    clock_hz: f64,
+    /// Transitions seen per input (closing and opening, bounce excluded).
+    transitions: [u64; Input::COUNT],
 }
 
 impl Physics {
     /// A machine with the given configuration and no overrides.
     pub fn new(config: MachineConfig) -> Physics {
         let atc = AtcModel::new(config.atc.clone(), &config.initial_position);
-        Physics { config, overrides: [None; Input::COUNT], atc }
+        let rng = fastrand::Rng::with_seed(config.switches.seed);
+        Physics {
+            config,
+            overrides: [None; Input::COUNT],
+            atc,
+            contacts: Default::default(),
+            rng,
+            clock_hz: 16e6,
+            transitions: [0; Input::COUNT],
+        }
+    }
+
+    /// The clock the bounce times are counted in (the VM's CPU clock).
+    pub fn set_clock_hz(&mut self, hz: f64) {
+        self.clock_hz = hz;
+    }
+
+    /// Change the switch models (hysteresis and bounce) from now on.
+    pub fn set_switches(&mut self, switches: SwitchConfig) {
+        self.config.switches = switches;
+    }
+
+    /// How many times `input` changed state (after hysteresis, bounce not
+    /// counted) since power-on.
+    pub fn transitions(&self, input: Input) -> u64 {
+        self.transitions[input.index()]
+    }
+
+    /// The hysteresis of `input` in steps per axis (0 on axes it ignores).
+    fn hysteresis_steps(&self, input: Input) -> [i64; 4] {
+        let Some(m) = self.config.switches.of(input) else { return [0; 4] };
+        let steps = |a: usize| (m.hysteresis * self.config.steps_per_mm[a] + 1e-9).floor().max(0.0) as i64;
+        match input {
+            Input::HomeX => [steps(0), 0, 0, 0],
+            Input::HomeY => [0, steps(1), 0, 0],
+            Input::HomeZ => [0, 0, steps(2), 0],
+            Input::CarouselHome => [0, 0, 0, steps(3)],
+            _ => [steps(0), steps(1), steps(2), 0],
+        }
+    }
+
+    /// Is a closed switch held closed at `pos`: is the closing region within
+    /// the hysteresis of `pos` along one of its axes?
+    fn held(&self, input: Input, pos: &[i64; 4]) -> bool {
+        if self.model_active(input, pos) {
+            return true;
+        }
+        let h = self.hysteresis_steps(input);
+        (0..4).filter(|&a| h[a] > 0).any(|a| {
+            [-h[a], h[a]].iter().any(|&d| {
+                let mut p = *pos;
+                p[a] += d;
+                self.model_active(input, &p)
+            })
+        })
+    }
+
+    /// Follow the switch on `input` to the machine at `pos` at cycle `now`:
+    /// hysteresis decides the state, and a change starts a bounce. Returns
+    /// the logical state the pin shows (the override if any).
+    pub fn sense(&mut self, input: Input, pos: &[i64; 4], now: u64) -> bool {
+        if let Some(model) = self.config.switches.of(input) {
+            let settled = self.contacts[input.index()].settled;
+            let new = match settled {
+                None => Some(self.model_active(input, pos)),
+                Some(false) if self.model_active(input, pos) => Some(true),
+                Some(true) if !self.held(input, pos) => Some(false),
+                _ => None,
+            };
+            if let Some(state) = new {
+                let bounce = (model.bounce_s * self.clock_hz) as u64;
+                let toggles = if settled.is_some() && bounce >= 8 {
+                    self.transitions[input.index()] += 1;
+                    // An even number of toggles spread over the bounce time,
+                    // so the contact ends in the new state.
+                    let n = 2 * self.rng.u64(1..=4);
+                    let mut t = now;
+                    (0..n).map(|_| {
+                        t += self.rng.u64(1..=bounce / n);
+                        t
+                    })
+                    .collect()
+                } else {
+                    if settled.is_some() {
+                        self.transitions[input.index()] += 1;
+                    }
+                    Default::default()
+                };
+                self.contacts[input.index()] = Contact { settled: Some(state), shown: state, toggles };
+            }
+        }
+        self.active(input, pos)
+    }
+
+    /// The earliest pending bounce toggle of any switch, in cycles.
+    pub fn next_toggle(&self) -> Option<u64> {
+        self.contacts.iter().filter_map(|c| c.toggles.front().copied()).min()
+    }
+
+    /// Apply every bounce toggle due at `now`; the inputs whose contact
+    /// changed.
+    pub fn fire_toggles(&mut self, now: u64) -> Vec<Input> {
+        let mut changed = Vec::new();
+        for input in Input::ALL {
+            let c = &mut self.contacts[input.index()];
+            let mut flipped = false;
+            while c.toggles.front().is_some_and(|&t| t <= now) {
+                c.toggles.pop_front();
+                c.shown = !c.shown;
+                flipped = !flipped;
+            }
+            if flipped {
+                changed.push(input);
+            }
+        }
+        changed
+    }
+
+    /// End every bounce at once (the chip was reset: its timers are gone).
+    pub fn settle(&mut self) {
+        for c in &mut self.contacts {
+            c.toggles.clear();
+            if let Some(s) = c.settled {
+                c.shown = s;
+            }
+        }
     }
 
     /// The configuration.
@@ -207,6 +438,8 @@ impl Physics {
     /// Connect or disconnect the carousel sensor.
     pub fn set_carousel_connected(&mut self, connected: bool) {
         self.config.carousel.connected = connected;
+        // Plugged or unplugged: the wire changes at once, no contact bounces.
+        self.contacts[Input::CarouselHome.index()] = Contact::default();
     }
 
     /// Force an input active/inactive (`Some`) or hand it back to the model (`None`).
@@ -238,9 +471,18 @@ impl Physics {
         }
     }
 
-    /// Logical state of `input` at `pos`: the override if any, else the model.
+    /// Logical state of `input` at `pos`: the override if any, else what its
+    /// contact shows (hysteresis and bounce, once [`Physics::sense`] has
+    /// followed it), else the model.
     pub fn active(&self, input: Input, pos: &[i64; 4]) -> bool {
-        self.overrides[input.index()].unwrap_or_else(|| self.model_active(input, pos))
+        self.overrides[input.index()].unwrap_or_else(|| {
+            let c = &self.contacts[input.index()];
+            if c.settled.is_some() {
+                c.shown
+            } else {
+                self.model_active(input, pos)
+            }
+        })
     }
 
     /// The inputs whose model depends on `axis`' position (checked after a step).
@@ -287,6 +529,62 @@ mod tests {
         assert!(p.active(Input::HomeY, &[100, 100, 100, 0]));
         p.set_override(Input::HomeY, None);
         assert!(!p.active(Input::HomeY, &[100, 100, 100, 0]));
+    }
+
+    #[test]
+    fn home_switch_opens_only_past_its_hysteresis() {
+        let mut c = MachineConfig::default();
+        c.switches = SwitchConfig::home_switches(0.05, 0.0);
+        let mut p = Physics::new(c);
+        let at = |x: i64| [x, 5, 5, 0];
+        assert!(!p.sense(Input::HomeX, &at(3), 0));
+        assert!(!p.sense(Input::HomeX, &at(1), 0));
+        assert!(p.sense(Input::HomeX, &at(0), 0), "closes exactly at 0");
+        // 0.05 mm = 5 steps: still closed up to 5, open at 6.
+        assert!(p.sense(Input::HomeX, &at(3), 0));
+        assert!(p.sense(Input::HomeX, &at(5), 0));
+        assert!(!p.sense(Input::HomeX, &at(6), 0));
+        assert!(!p.sense(Input::HomeX, &at(1), 0));
+        assert!(p.sense(Input::HomeX, &at(0), 0));
+        assert_eq!(p.transitions(Input::HomeX), 3);
+    }
+
+    #[test]
+    fn bounce_toggles_an_even_number_of_times_within_its_time_and_repeats_with_the_seed() {
+        let run = |seed: u64| {
+            let mut c = MachineConfig::default();
+            c.switches = SwitchConfig { seed, ..SwitchConfig::home_switches(0.0, 0.003) };
+            let mut p = Physics::new(c);
+            p.sense(Input::HomeY, &[5, 5, 5, 0], 0);
+            assert!(p.sense(Input::HomeY, &[5, 0, 5, 0], 1000), "first contact is exact");
+            let mut times = Vec::new();
+            while let Some(t) = p.next_toggle() {
+                assert!(t > 1000 && t <= 1000 + 48_000, "within 3 ms at 16 MHz: {t}");
+                assert_eq!(p.fire_toggles(t), vec![Input::HomeY]);
+                times.push((t, p.active(Input::HomeY, &[5, 0, 5, 0])));
+            }
+            assert!(times.len() >= 2 && times.len() % 2 == 0);
+            assert!(p.active(Input::HomeY, &[5, 0, 5, 0]), "ends closed");
+            times
+        };
+        assert_eq!(run(7), run(7));
+        assert_ne!(run(7), run(8));
+    }
+
+    #[test]
+    fn carousel_window_has_hysteresis_on_both_edges() {
+        let mut c = MachineConfig::default();
+        c.switches = SwitchConfig { carousel: SwitchModel { hysteresis: 0.5, bounce_s: 0.0 }, ..SwitchConfig::ideal() };
+        let mut p = Physics::new(c);
+        let e = |e: i64| [0, 0, 0, e];
+        assert!(!p.sense(Input::CarouselHome, &e(-1), 0));
+        assert!(p.sense(Input::CarouselHome, &e(0), 0));
+        // 0.5° at 3200/360 steps per degree = 4 steps past the window's edges.
+        assert!(p.sense(Input::CarouselHome, &e(-4), 0));
+        assert!(!p.sense(Input::CarouselHome, &e(-5), 0));
+        assert!(p.sense(Input::CarouselHome, &e(19), 0));
+        assert!(p.sense(Input::CarouselHome, &e(23), 0));
+        assert!(!p.sense(Input::CarouselHome, &e(24), 0));
     }
 
     #[test]

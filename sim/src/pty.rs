@@ -15,13 +15,63 @@
 //! hardware. A fault can be injected: the checksum of one numbered line is
 //! corrupted once in transit, to prove the firmware asks for a resend and the
 //! sender recovers.
+//!
+//! Pacing: the sender's bytes wait in the bridge and go to the UART in
+//! order, a few at a time (the VM's own queue is kept under
+//! [`UART_QUEUE`] bytes, about half a millisecond of line time). What a
+//! realtime command is passes ahead of whatever still waits, at once:
+//! `?`, `!`, `~` at the start of a line (inside a line they are text: a
+//! comment, or a checksummed line the checksum covers), Ctrl-X (0x18)
+//! wherever it is, and a whole `M112` line (the RX interrupt's emergency
+//! scanner then sees it at once).
+//!
+//! Reconnecting: a sender may close the port and open it again. Output
+//! nobody reads (no sender, or a gone one) would wait in the pty and reach
+//! the next sender as stale lines; the bridge drops it once it has sat
+//! unread for [`STALE_OUTPUT`].
 
 use crate::{Vm, VmError};
 use std::ffi::CStr;
 use std::io;
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
 use std::path::{Path, PathBuf};
+use std::collections::VecDeque;
 use std::time::{Duration, Instant};
+
+/// Bytes the bridge lets wait in the VM's UART queue (the rest waits in the
+/// bridge, where realtime commands can pass it).
+pub const UART_QUEUE: usize = 16;
+/// Output left unread this long in the pty is dropped (the sender is gone).
+pub const STALE_OUTPUT: Duration = Duration::from_secs(3);
+
+/// What one [`PtyBridge::pump`] saw.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Activity {
+    /// Bytes from the sender.
+    pub host_bytes: usize,
+    /// Bytes the firmware wrote (whether or not a sender read them).
+    pub output_bytes: usize,
+    /// Steps the machine made.
+    pub steps: u64,
+}
+
+impl Activity {
+    /// Anything at all: traffic either way, or motion.
+    pub fn any(&self) -> bool {
+        self.host_bytes > 0 || self.output_bytes > 0 || self.steps > 0
+    }
+}
+
+/// Every step recorded so far, all axes.
+fn total_steps(vm: &Vm) -> u64 {
+    crate::Axis::ALL
+        .iter()
+        .map(|&a| {
+            let s = vm.recorder().axis_stats(a);
+            s.steps_pos + s.steps_neg + s.steps_while_disabled
+        })
+        .sum()
+}
 
 /// A pty whose master side is wired to the virtual machine's UART0.
 pub struct PtyBridge {
@@ -31,8 +81,19 @@ pub struct PtyBridge {
     link: Option<PathBuf>,
     /// Firmware output already passed to the master.
     out_sent: usize,
-    /// Host bytes of the line being assembled (forwarded at its `\n`).
-    line: Vec<u8>,
+    /// Sender bytes waiting for the UART, in order.
+    pending: VecDeque<u8>,
+    /// Where the sender's current line starts in `pending` (None: part of
+    /// it already went to the UART).
+    line_start: Option<usize>,
+    /// The sender's stream is at the start of a line.
+    at_line_start: bool,
+    /// Unread output in the pty, and since when it has not shrunk.
+    unread: (usize, Instant),
+    /// Realtime bytes and M112 lines passed ahead of waiting bytes.
+    pub urgent: u64,
+    /// Unread output dropped (bytes).
+    pub stale_dropped: u64,
     /// Corrupt the checksum of the line numbered this (once).
     corrupt_line: Option<u32>,
     /// Lines whose checksum was corrupted.
@@ -88,7 +149,12 @@ impl PtyBridge {
                 slave_path,
                 link: link.map(Path::to_path_buf),
                 out_sent: vm.output_bytes().len(),
-                line: Vec::new(),
+                pending: VecDeque::new(),
+                line_start: Some(0),
+                at_line_start: true,
+                unread: (0, Instant::now()),
+                urgent: 0,
+                stale_dropped: 0,
                 corrupt_line: None,
                 corrupted: Vec::new(),
                 bytes_in: 0,
@@ -119,9 +185,16 @@ impl PtyBridge {
     }
 
     /// Moves bytes both ways, then runs the machine for `slice_s` simulated
-    /// seconds. Returns whether any byte moved.
+    /// seconds. Returns whether any byte moved (either way).
     pub fn pump(&mut self, vm: &mut Vm, slice_s: f64) -> Result<bool, VmError> {
-        let mut moved = false;
+        let a = self.pump_activity(vm, slice_s)?;
+        Ok(a.host_bytes > 0 || a.output_bytes > 0)
+    }
+
+    /// [`PtyBridge::pump`], saying what happened: bytes from the sender,
+    /// firmware output and steps (what `--idle-exit` counts as activity).
+    pub fn pump_activity(&mut self, vm: &mut Vm, slice_s: f64) -> Result<Activity, VmError> {
+        let mut act = Activity::default();
         let mut buf = [0u8; 512];
         loop {
             // SAFETY: reading into our own buffer from a non-blocking fd.
@@ -129,12 +202,14 @@ impl PtyBridge {
             if n <= 0 {
                 break;
             }
-            moved = true;
+            act.host_bytes += n as usize;
             self.bytes_in += n as u64;
             for &b in &buf[..n as usize] {
                 self.from_sender(vm, b);
             }
         }
+        self.feed(vm);
+        self.drop_stale_output();
         let out = &vm.output_bytes()[self.out_sent..];
         if !out.is_empty() {
             // SAFETY: writing our own bytes to a non-blocking fd.
@@ -142,7 +217,6 @@ impl PtyBridge {
             if n > 0 {
                 self.out_sent += n as usize;
                 self.bytes_out += n as u64;
-                moved = true;
             }
         }
         if self.realtime {
@@ -151,29 +225,115 @@ impl PtyBridge {
                 std::thread::sleep(Duration::from_secs_f64(ahead.min(0.05)));
             }
         }
-        vm.run_for(slice_s)?;
-        Ok(moved)
+        let (steps, out_len) = (total_steps(vm), vm.output_bytes().len());
+        // Top the UART queue up every half millisecond (16 bytes per 0.5 ms
+        // is more than the 25 000 B/s of 250 000 baud: the line stays full).
+        let parts = (slice_s / 0.0005).ceil().max(1.0);
+        for _ in 0..parts as usize {
+            vm.run_for(slice_s / parts)?;
+            self.feed(vm);
+        }
+        act.steps = total_steps(vm) - steps;
+        act.output_bytes = vm.output_bytes().len() - out_len;
+        Ok(act)
     }
 
-    /// One byte from the sender: realtime bytes pass at once, lines at their end.
-    fn from_sender(&mut self, vm: &mut Vm, b: u8) {
-        if self.line.is_empty() && matches!(b, b'?' | b'!' | b'~') {
-            vm.send([b]);
+    /// Bytes still waiting in the bridge for the UART.
+    pub fn waiting(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Keep the VM's UART queue short: the rest waits here, where realtime
+    /// commands can pass it.
+    fn feed(&mut self, vm: &mut Vm) {
+        let room = UART_QUEUE.saturating_sub(vm.tx_pending());
+        let k = room.min(self.pending.len());
+        if k == 0 {
             return;
         }
-        self.line.push(b);
-        if b == b'\n' {
-            let mut line = std::mem::take(&mut self.line);
-            if let Some(n) = self.corrupt_line {
-                if let Some(bad) = corrupt_checksum(&line, n) {
-                    self.corrupted.push(String::from_utf8_lossy(&line).trim_end().to_string());
-                    self.corrupt_line = None;
-                    line = bad;
-                }
-            }
-            vm.send(&line);
+        let bytes: Vec<u8> = self.pending.drain(..k).collect();
+        vm.send(&bytes);
+        self.line_start = self.line_start.and_then(|s| s.checked_sub(k));
+        if self.pending.is_empty() && self.at_line_start {
+            self.line_start = Some(0);
         }
     }
+
+    /// Send ahead of every waiting byte.
+    fn urgent(&mut self, vm: &mut Vm, bytes: &[u8]) {
+        self.urgent += 1;
+        vm.send_first(bytes);
+    }
+
+    /// One byte from the sender (see the module doc for what passes ahead).
+    fn from_sender(&mut self, vm: &mut Vm, b: u8) {
+        if b == 0x18 || (self.at_line_start && matches!(b, b'?' | b'!' | b'~')) {
+            self.urgent(vm, &[b]);
+            return;
+        }
+        if self.at_line_start {
+            self.line_start = Some(self.pending.len());
+        }
+        self.pending.push_back(b);
+        // A line ends with `\n` or `\r` (some senders end lines with CR).
+        self.at_line_start = matches!(b, b'\n' | b'\r');
+        if !self.at_line_start {
+            return;
+        }
+        let Some(start) = self.line_start else { return };
+        let mut line: Vec<u8> = self.pending.range(start..).copied().collect();
+        if is_m112(&line) {
+            self.pending.truncate(start);
+            self.urgent(vm, &line);
+            return;
+        }
+        if let Some(n) = self.corrupt_line {
+            if let Some(bad) = corrupt_checksum(&line, n) {
+                self.corrupted.push(String::from_utf8_lossy(&line).trim_end().to_string());
+                self.corrupt_line = None;
+                line = bad;
+                self.pending.truncate(start);
+                self.pending.extend(line);
+            }
+        }
+    }
+
+    /// Drop output that has waited unread in the pty for [`STALE_OUTPUT`]:
+    /// no sender is reading it, and the next one must not get it.
+    fn drop_stale_output(&mut self) {
+        let mut n: libc::c_int = 0;
+        // SAFETY: FIONREAD on our own slave fd writes one int.
+        if unsafe { libc::ioctl(self._slave.as_raw_fd(), libc::FIONREAD, &mut n) } < 0 {
+            return;
+        }
+        let n = n.max(0) as usize;
+        if n == 0 || n < self.unread.0 {
+            self.unread = (n, Instant::now());
+        } else if n > self.unread.0 && self.unread.0 == 0 {
+            self.unread = (n, Instant::now());
+        } else if self.unread.1.elapsed() >= STALE_OUTPUT {
+            // SAFETY: flushing the input queue of our own slave fd.
+            unsafe { libc::tcflush(self._slave.as_raw_fd(), libc::TCIFLUSH) };
+            self.stale_dropped += n as u64;
+            self.unread = (0, Instant::now());
+        } else {
+            self.unread.0 = n;
+        }
+    }
+}
+
+/// Is `line` an `M112` command (optionally numbered and checksummed)?
+pub fn is_m112(line: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(line);
+    let mut t = text.trim();
+    if let Some(star) = t.rfind('*') {
+        t = &t[..star];
+    }
+    if t.starts_with(['N', 'n']) {
+        t = t[1..].trim_start_matches(|c: char| c.is_ascii_digit() || c == '-').trim_start();
+    }
+    let t = t.split([';', '(']).next().unwrap_or("").trim();
+    t.eq_ignore_ascii_case("M112")
 }
 
 impl Drop for PtyBridge {
@@ -199,7 +359,17 @@ pub fn corrupt_checksum(line: &[u8], n: u32) -> Option<Vec<u8>> {
 
 #[cfg(test)]
 mod tests {
-    use super::corrupt_checksum;
+    use super::{corrupt_checksum, is_m112};
+
+    #[test]
+    fn m112_lines_are_recognised_numbered_or_not() {
+        assert!(is_m112(b"M112\n"));
+        assert!(is_m112(b"m112 ; stop\n"));
+        assert!(is_m112(b"N12 M112*54\n"));
+        assert!(!is_m112(b"M1120\n"));
+        assert!(!is_m112(b"G1 X1 ; M112\n"));
+        assert!(!is_m112(b"M11\n"));
+    }
 
     #[test]
     fn only_the_named_line_gets_a_different_checksum() {

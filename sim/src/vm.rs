@@ -290,6 +290,10 @@ struct Inner {
     sd: Option<SdCard>,
     sd_selected: bool,
     spi_input: *mut ffi::avr_irq_t,
+    /// The switch-bounce timer is armed for this VM cycle.
+    switch_timer_at: Option<u64>,
+    /// Inside the switch-bounce timer (it re-arms itself by its return value).
+    in_switch_timer: bool,
 }
 
 impl Inner {
@@ -722,7 +726,11 @@ fn regbit_set(inner: &mut Inner, rb: ffi::avr_regbit_t) {
 /// otherwise raise the pin IRQ (edges reach INTn/PCINT) if the level changed.
 fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
     let pos = inner.recorder.positions();
-    let level = input.level(inner.physics.active(input, &pos));
+    let now = inner.now();
+    let level = input.level(inner.physics.sense(input, &pos, now));
+    if !direct {
+        arm_switch_timer(inner);
+    }
     let i = input.index();
     if !direct && inner.levels[i] == Some(level) {
         return;
@@ -769,6 +777,46 @@ fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
         // SAFETY: irq is a live port pin IRQ; raising it is simavr's input path.
         // No hook of ours sits on input pins, so this does not re-enter Inner.
         unsafe { ffi::avr_raise_irq(irq, level as u32) };
+    }
+}
+
+/// Arm the switch-bounce timer for the earliest pending toggle (outside the
+/// timer itself, which re-arms by its return value).
+fn arm_switch_timer(inner: &mut Inner) {
+    if inner.in_switch_timer {
+        return;
+    }
+    let Some(t) = inner.physics.next_toggle() else { return };
+    if inner.switch_timer_at.is_some_and(|at| at <= t) {
+        return;
+    }
+    let now = inner.now();
+    inner.switch_timer_at = Some(t);
+    // SAFETY: avr is live; registering replaces this (timer, param) pair if
+    // already queued; the param is our Inner, as for every other timer.
+    unsafe {
+        ffi::avr_cycle_timer_register(inner.avr, t.saturating_sub(now).max(1), Some(switch_timer), inner as *mut Inner as *mut c_void)
+    };
+}
+
+/// A switch contact bounces: apply the toggles due now, drive their pins and
+/// re-arm for the next one.
+// SAFETY (contract): only simavr calls this, from inside `avr_run` on the VM's thread,
+// with our `Inner` as param (registered by `arm_switch_timer`).
+unsafe extern "C" fn switch_timer(_avr: *mut ffi::avr_t, _when: ffi::avr_cycle_count_t, param: *mut c_void) -> u64 {
+    // SAFETY: param is our Inner; no other borrow of it is live during avr_run.
+    let inner = unsafe { &mut *(param as *mut Inner) };
+    inner.in_switch_timer = true;
+    let now = inner.now();
+    for input in inner.physics.fire_toggles(now) {
+        drive_input(inner, input, false);
+    }
+    inner.in_switch_timer = false;
+    inner.switch_timer_at = inner.physics.next_toggle();
+    match inner.switch_timer_at {
+        // simavr's clock restarts at a reset: its cycles are ours less the base.
+        Some(t) => t.max(now + 1) - inner.cycle_base,
+        None => 0,
     }
 }
 
@@ -826,7 +874,8 @@ impl Vm {
         drop(_guard);
 
         let recorder = Recorder::new(config.recorder.clone(), &config.machine);
-        let physics = Physics::new(config.machine.clone());
+        let mut physics = Physics::new(config.machine.clone());
+        physics.set_clock_hz(config.frequency_hz as f64);
         let inner = Box::into_raw(Box::new(Inner {
             avr,
             uart: std::ptr::null_mut(),
@@ -858,6 +907,8 @@ impl Vm {
             sd: None,
             sd_selected: false,
             spi_input: std::ptr::null_mut(),
+            switch_timer_at: None,
+            in_switch_timer: false,
         }));
         let param = inner as *mut c_void;
 
@@ -1126,6 +1177,9 @@ impl Vm {
             unsafe { (*irq).value = 0 };
         }
         inner.isr.on_reset();
+        // simavr dropped its cycle timers: bouncing contacts settle now.
+        inner.physics.settle();
+        inner.switch_timer_at = None;
         for input in Input::ALL {
             drive_input(inner, input, true);
         }
@@ -1312,6 +1366,16 @@ impl Vm {
     /// control (held while simavr's RX FIFO is full or RXEN is off).
     pub fn send(&mut self, bytes: impl AsRef<[u8]>) {
         self.inner_mut().host.paced.extend(bytes.as_ref());
+        self.kick_feeder();
+    }
+
+    /// Queues bytes for the chip ahead of everything still queued (a
+    /// realtime command passing waiting lines), paced as [`Vm::send`].
+    pub fn send_first(&mut self, bytes: impl AsRef<[u8]>) {
+        let paced = &mut self.inner_mut().host.paced;
+        for &b in bytes.as_ref().iter().rev() {
+            paced.push_front(b);
+        }
         self.kick_feeder();
     }
 
@@ -1565,6 +1629,12 @@ impl Vm {
         let inner = self.inner_mut();
         inner.physics.set_tool_setter(model);
         drive_input(inner, Input::ToolSetter, false);
+    }
+
+    /// Change the switch models (hysteresis and bounce) from now on; the
+    /// usual way is [`crate::physics::MachineConfig::switches`] before start.
+    pub fn set_switches(&mut self, switches: crate::physics::SwitchConfig) {
+        self.inner_mut().physics.set_switches(switches);
     }
 
     /// Connect or disconnect the carousel home sensor.

@@ -132,6 +132,8 @@ pub fn home(m: &mut Machine, io: &mut impl Io) -> CmdResult {
     if m.state == State::Home {
         m.state = if prev == State::Run { State::Idle } else { prev };
     }
+    // Hard limits were off while in `State::Home` (see `Machine::apply_watch`).
+    m.apply_watch(io, 0, false);
     match r {
         Ok(true) => {
             m.homed |= HOMED_BIT;

@@ -102,6 +102,9 @@ pub struct Watch {
     pub homed: u8,
     /// Direction-pin inversion mask (setting).
     pub invert_dir: u8,
+    /// How far above 0 (steps, X Y Z) a homed axis' switch may still be
+    /// closed: its chunks starting there are not armed (`ChunkWatch::release`).
+    pub release: [u16; 3],
 }
 
 /// The ISR's state: one static, addressed directly (`lds`/`sts`).
@@ -178,7 +181,7 @@ static mut MAIN: Main = Main {
     retire: 0,
     base: [0; N_AXES],
     split: Splitter::new(),
-    watch: Watch { homing: 0, probe: false, limits: 0, homed: 0, invert_dir: 0 },
+    watch: Watch { homing: 0, probe: false, limits: 0, homed: 0, invert_dir: 0, release: [0; 3] },
     trip: [0; N_AXES],
     trip_latched: false,
 };
@@ -324,7 +327,12 @@ pub fn push(cmd: StepperCmd) -> bool {
     }
     // SAFETY: MAIN is used by the main loop only.
     let m = unsafe { &mut *addr_of_mut!(MAIN) };
-    let w = ChunkWatch { limits: m.watch.limits, homed: m.watch.homed, invert_dir: m.watch.invert_dir };
+    let w = ChunkWatch {
+        limits: m.watch.limits,
+        homed: m.watch.homed,
+        invert_dir: m.watch.invert_dir,
+        release: m.watch.release,
+    };
     m.split.push(&cmd, &pins::STEP_MAP, &w, &mut Rings);
     true
 }

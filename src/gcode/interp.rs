@@ -16,6 +16,7 @@
 //! the machine exactly as it was.
 
 use crate::flash::FStr;
+use super::cycles::{self, Retract};
 use super::{Coolant, Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
 use crate::config::{Settings, N_WCS};
 use crate::fixed::Micros;
@@ -132,8 +133,13 @@ pub struct Interp {
     /// G90.1 active: I/J/K are absolute centre coordinates (G91.1, the
     /// default: offsets from the start).
     pub arc_absolute: bool,
-    /// Modal motion (G0/G1/G2/G3/G80).
+    /// Modal motion (G0/G1/G2/G3/G80, a canned cycle).
     pub motion: Motion,
+    /// Canned cycle return level (G98/G99, NGC group 10).
+    pub retract: Retract,
+    /// The canned cycle words kept from line to line (R, Z, Q, P, the
+    /// initial level); meaningful while `motion` is a cycle.
+    pub cycle: cycles::Sticky,
     /// Programmed feed, mm/min (0 = none yet).
     pub feed_mm_per_min: f32,
     /// Feed override, percent (M220).
@@ -170,7 +176,7 @@ pub struct Interp {
 impl Interp {
     /// Power-up modal state: G21 G90 G17 G54 G49 G0 (grbl's G0: a bare
     /// axis word before any motion code is a rapid; LinuxCNC starts in G80
-    /// and refuses it), feed unset.
+    /// and refuses it) G98, feed unset.
     pub const fn new() -> Interp {
         Interp {
             inches: false,
@@ -178,6 +184,8 @@ impl Interp {
             plane: Plane::Xy,
             arc_absolute: false,
             motion: Motion::Rapid,
+            retract: Retract::Initial,
+            cycle: cycles::Sticky::NONE,
             feed_mm_per_min: 0.0,
             feed_override_pct: 100,
             spindle_rpm: 0.0,
@@ -483,6 +491,9 @@ fn modal_words(m: &Machine, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
     if let Some(mo) = l.motion {
         g.motion = mo;
     }
+    if let Some(r) = l.retract {
+        g.retract = r;
+    }
     if let Some(tl) = l.tool_length {
         g.tlo = match tl {
             ToolLength::Cancel => 0.0,
@@ -557,6 +568,12 @@ fn dwell(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(
         _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
     };
     g.commit(&mut m.interp);
+    wait_ms(m, io, ms)
+}
+
+/// Let the queue drain, then wait `ms` milliseconds, serving realtime
+/// requests and sending the keepalive (G4, the canned cycles' P).
+fn wait_ms(m: &mut Machine, io: &mut impl Io, ms: f32) -> Result<(), Error> {
     m.wait_idle(io)?;
     let start = io.millis();
     while (io.millis().wrapping_sub(start) as f32) < ms {
@@ -585,6 +602,9 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
             };
         }
     }
+    if machine_coords && matches!(g.motion, Motion::Cycle(_)) {
+        return Err(Error::BadWord(F!("G53 not allowed with a canned cycle (G80 first)")));
+    }
     let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
     // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
     // offsets (Repetier's E0 motor), so all four motors can move at once.
@@ -594,6 +614,11 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
             return Err(Error::BadWord(F!("E only with G0/G1")));
         }
         target[3] = if g.incremental { m.interp.pos_mm[3] + v } else { v };
+    }
+    if let Motion::Cycle(kind) = g.motion {
+        if any_axis || l.motion.is_some() {
+            return cycle_line(m, g, l, text, io, kind);
+        }
     }
     let mut do_motion = None;
     if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
@@ -611,8 +636,95 @@ fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut i
     }
     match do_motion {
         Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) => arc_line(m, g, l, text, io, &target, mo),
-        _ => finish_line(m, g, l, text, io, &target, do_motion, None),
+        _ => finish_line(m, g, l, text, io, &target, do_motion, None, None),
     }
+}
+
+/// A canned cycle resolved and checked, ready to run once the line commits.
+struct CycleRun {
+    cycle: cycles::Cycle,
+    /// The sticky words to keep after this line.
+    sticky: cycles::Sticky,
+    /// Machine − work offset per axis (work offset, G92, tool length),
+    /// internal frame.
+    off: [f32; 3],
+}
+
+/// A line that runs a canned cycle (G73, G81–G89, or bare X/Y/Z while one
+/// is modal): resolve the words against the sticky ones, check every point
+/// the cycle can reach against the soft limits, then finish the line with it.
+/// A bad cycle line changes nothing and moves nothing.
+#[inline(never)]
+fn cycle_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl Io, kind: cycles::Kind) -> Result<(), Error> {
+    match g.plane {
+        Plane::Xy => {}
+        Plane::Zx => return Err(Error::BadWord(F!("canned cycles only in the XY plane (G17); G18 (ZX) is active, nothing moved"))),
+        Plane::Yz => return Err(Error::BadWord(F!("canned cycles only in the XY plane (G17); G19 (YZ) is active, nothing moved"))),
+    }
+    if !(g.feed > 0.0) {
+        return Err(Error::BadFeed);
+    }
+    let mm = |w: Word| l.word(w).map(|v| to_mm(g.inches, v));
+    let words = cycles::LineWords { x: mm(Word::X), y: mm(Word::Y), z: mm(Word::Z), r: mm(Word::R), q: mm(Word::Q), p: l.word(Word::P), l: l.word(Word::L) };
+    let mut off = [0.0f32; 3];
+    let mut pos = [0.0f32; 3];
+    for a in 0..3 {
+        let tlo = if a == 2 { g.tlo } else { 0.0 };
+        off[a] = m.interp.wcs_mm[g.wcs as usize][a] + g.g92[a] + tlo;
+        pos[a] = frame::axis_user_from_internal(a, m.interp.pos_mm[a] - off[a]);
+    }
+    let prev = match m.interp.motion {
+        Motion::Cycle(k) => Some(k),
+        _ => None,
+    };
+    let bad = |e: cycles::Error| Error::BadWord(e.message());
+    let (params, sticky) = cycles::resolve(kind, g.retract, g.incremental, prev, &m.interp.cycle, &words, pos).map_err(bad)?;
+    let cycle = cycles::Cycle::new(params, pos).map_err(bad)?;
+    let run = CycleRun { cycle, sticky, off };
+    let (lo, hi) = run.cycle.bounds();
+    check_soft_limits(m, &cycle_target(m, &run, lo))?;
+    check_soft_limits(m, &cycle_target(m, &run, hi))?;
+    let target = m.interp.pos_mm;
+    finish_line(m, g, l, text, io, &target, Some(g.motion), None, Some(run))
+}
+
+/// A cycle's point `t` (user frame, work coordinates; NaN: the axis stays)
+/// → internal machine mm, the other axes where the tool is.
+fn cycle_target(m: &Machine, run: &CycleRun, t: [f32; 3]) -> [f32; N_AXES] {
+    let mut target = m.interp.pos_mm;
+    for a in 0..3 {
+        if !t[a].is_nan() {
+            target[a] = add_nz(frame::axis_internal_from_user(a, t[a]), run.off[a]);
+        }
+    }
+    target
+}
+
+/// Queue the cycle's moves (each through [`move_to`], as G0/G1) and wait
+/// out its dwells (as G4), sending the keepalive: a cycle of many holes is
+/// one long line.
+#[inline(never)]
+fn run_cycle(m: &mut Machine, io: &mut impl Io, run: &mut CycleRun) -> Result<(), Error> {
+    while let Some(step) = run.cycle.next_step() {
+        m.keepalive(io);
+        let (t, rapid) = match step {
+            cycles::Step::Dwell(s) => {
+                wait_ms(m, io, s * 1000.0)?;
+                continue;
+            }
+            cycles::Step::Rapid(t) => (t, true),
+            cycles::Step::Feed(t) => (t, false),
+        };
+        // Wait for room here (two slots: a backlash take-up may come
+        // first), so the keepalive goes out while the queue is full.
+        while m.planner.free() < 2 {
+            m.keepalive(io);
+            m.wait_step(io)?;
+        }
+        let feed = m.interp.feed_with_override();
+        move_to(m, io, cycle_target(m, run, t), feed, rapid)?;
+    }
+    Ok(())
 }
 
 /// Absolute work coordinate `v` (mm) of axis `a` → machine mm, with the
@@ -666,7 +778,7 @@ fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl
     let cw = frame::internal_clockwise(mo == Motion::ArcCw, g.plane != Plane::Xy);
     let mut plan = new_arc(start, end, spec, (a0, a1, a2), cw, m.settings.arc_tolerance_mm)?;
     check_arc_limits(m, &plan)?;
-    finish_line(m, g, l, text, io, &target, Some(mo), Some(&mut plan))
+    finish_line(m, g, l, text, io, &target, Some(mo), Some(&mut plan), None)
 }
 
 /// Every chord end stays inside the arc's bounding box; check it.
@@ -725,9 +837,13 @@ fn finish_line(
     target: &[f32; N_AXES],
     do_motion: Option<Motion>,
     arc: Option<&mut arc::Arc>,
+    cycle: Option<CycleRun>,
 ) -> Result<(), Error> {
     let target = *target;
     g.commit(&mut m.interp);
+    if let Some(run) = &cycle {
+        m.interp.cycle = run.sticky;
+    }
     if is_tool_change(m, l) {
         crate::atc::run::select(m, io, l.tool().map(u16::from))?;
     } else if let Some(t) = l.tool() {
@@ -774,6 +890,11 @@ fn finish_line(
             },
             Motion::ProbeToward | Motion::ProbeTowardNoError => {
                 probe(m, io, target, feed, mo == Motion::ProbeToward)?;
+            }
+            Motion::Cycle(_) => {
+                if let Some(mut run) = cycle {
+                    run_cycle(m, io, &mut run)?;
+                }
             }
             _ => move_to(m, io, target, feed, rapid)?,
         }
@@ -1163,6 +1284,7 @@ struct ModalCopy {
     plane: Plane,
     arc_absolute: bool,
     motion: Motion,
+    retract: Retract,
     feed: f32,
     wcs: u8,
     tlo: f32,
@@ -1177,6 +1299,7 @@ impl ModalCopy {
             plane: i.plane,
             arc_absolute: i.arc_absolute,
             motion: i.motion,
+            retract: i.retract,
             feed: i.feed_mm_per_min,
             wcs: i.wcs,
             tlo: i.tlo_mm,
@@ -1190,6 +1313,7 @@ impl ModalCopy {
         i.plane = self.plane;
         i.arc_absolute = self.arc_absolute;
         i.motion = self.motion;
+        i.retract = self.retract;
         i.feed_mm_per_min = self.feed;
         i.wcs = self.wcs;
         i.tlo_mm = self.tlo;

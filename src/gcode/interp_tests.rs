@@ -63,7 +63,7 @@ impl Io for FakeIo {
     }
     fn stop_motion(&mut self) {}
     fn clear_stop(&mut self) {}
-    fn set_watch(&mut self, _: u8, _: bool, _: u8, _: u8, _: u8) {}
+    fn set_watch(&mut self, _: u8, _: bool, _: u8, _: u8, _: u8, _: [u16; 3]) {}
     fn drivers(&mut self, _on: bool) {}
     fn carousel_driver(&mut self, _on: bool) {}
     fn spindle(&mut self, duty: u8) {
@@ -334,7 +334,8 @@ fn refusals_name_what_is_not_supported_and_move_nothing() {
         ("G1 X#1 F600", "# parameters"),
         ("o100 sub", "O-word"),
         ("G0 X3. A0.", "X Y Z only"),
-        ("G81 R1 Z-1 X1 Y1 F100", "unsupported code"),
+        ("G84 R-1 Z-2 X1 Y1 F100", "canned cycle not supported"),
+        ("G18 G81 R-1 Z-2 X1 Y1 F100", "G18 (ZX)"),
     ] {
         let e = refused(&mut m, &mut io, l);
         assert!(e.contains(what), "{l}: {e}");

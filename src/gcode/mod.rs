@@ -11,6 +11,9 @@
 //! Meaning (modal state, units, offsets, which words a code needs, tool range)
 //! belongs to the interpreter.
 
+pub mod cycles;
+#[cfg(test)]
+mod cycle_tests;
 pub mod interp;
 pub mod parse;
 

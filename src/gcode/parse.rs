@@ -31,6 +31,7 @@
 //! number errors at the word's letter, code errors at the `G`/`M`, the rest
 //! at the offending character.
 
+use super::cycles::{Kind, Retract};
 use crate::flash::FStr;
 use ufmt::{uDisplay, uWrite, uwrite};
 
@@ -242,6 +243,8 @@ pub enum Motion {
     ProbeTowardNoError,
     /// G80: cancel motion mode.
     Cancel,
+    /// G73, G81, G82, G83, G85, G89: a canned cycle (see [`super::cycles`]).
+    Cycle(super::cycles::Kind),
 }
 
 /// Arc plane (NGC group 2).
@@ -392,6 +395,8 @@ pub struct Line {
     pub wcs: Option<u8>,
     /// G43 G49.
     pub tool_length: Option<ToolLength>,
+    /// G98 G99 (canned cycle return level, NGC group 10).
+    pub retract: Option<super::cycles::Retract>,
     /// G4 G10 G28 G53 G92 G92.1 G92.2 G37 G201..G205.
     pub non_modal: Option<NonModal>,
     /// M0 M1 M2 M30.
@@ -480,6 +485,8 @@ crate::flash_messages! {
         OWord => "O-word subroutines and control flow not supported",
         /// A, C, U, V, W: axes this machine does not have.
         NoSuchAxis => "axis word for an axis this machine does not have (X Y Z only)",
+        /// G76, G84, G86, G87, G88.
+        UnsupportedCycle => "canned cycle not supported (G73 G81 G82 G83 G85 G89 are)",
     }
 }
 
@@ -813,6 +820,15 @@ fn apply_g(line: &mut Line, code_x10: u16, col: u8) -> Result<(), ParseError> {
         382 => set_group(&mut line.motion, Motion::ProbeToward, col),
         383 => set_group(&mut line.motion, Motion::ProbeTowardNoError, col),
         800 => set_group(&mut line.motion, Motion::Cancel, col),
+        730 => set_group(&mut line.motion, Motion::Cycle(Kind::ChipBreak), col),
+        810 => set_group(&mut line.motion, Motion::Cycle(Kind::Drill), col),
+        820 => set_group(&mut line.motion, Motion::Cycle(Kind::DrillDwell), col),
+        830 => set_group(&mut line.motion, Motion::Cycle(Kind::Peck), col),
+        850 => set_group(&mut line.motion, Motion::Cycle(Kind::Bore), col),
+        890 => set_group(&mut line.motion, Motion::Cycle(Kind::BoreDwell), col),
+        760 | 840 | 860 | 870 | 880 => err(ParseErrorKind::UnsupportedCycle, col),
+        980 => set_group(&mut line.retract, Retract::Initial, col),
+        990 => set_group(&mut line.retract, Retract::RPlane, col),
         170 => set_group(&mut line.plane, Plane::Xy, col),
         180 => set_group(&mut line.plane, Plane::Zx, col),
         190 => set_group(&mut line.plane, Plane::Yz, col),
@@ -1090,6 +1106,28 @@ mod tests {
         let size = core::mem::size_of::<Line>();
         println!("size_of::<Line>() = {size} bytes (host)");
         assert!(size <= 120);
+    }
+
+    #[test]
+    fn canned_cycles_are_motion_codes_and_g98_g99_their_own_group() {
+        assert_eq!(ok("G81").motion, Some(Motion::Cycle(Kind::Drill)));
+        assert_eq!(ok("G82").motion, Some(Motion::Cycle(Kind::DrillDwell)));
+        assert_eq!(ok("G83").motion, Some(Motion::Cycle(Kind::Peck)));
+        assert_eq!(ok("G73").motion, Some(Motion::Cycle(Kind::ChipBreak)));
+        assert_eq!(ok("G85").motion, Some(Motion::Cycle(Kind::Bore)));
+        assert_eq!(ok("g89").motion, Some(Motion::Cycle(Kind::BoreDwell)));
+        let l = ok("G98 G83 X1 Y2 Z-3 R1 Q0.5 F100 L2");
+        assert_eq!((l.retract, l.motion), (Some(Retract::Initial), Some(Motion::Cycle(Kind::Peck))));
+        assert_eq!((l.word(Word::R), l.word(Word::Q), l.word(Word::L)), (Some(1.0), Some(0.5), Some(2.0)));
+        assert_eq!(ok("G99").retract, Some(Retract::RPlane));
+        assert_eq!(ok("G99").motion, None);
+        // One motion group: a cycle and G0 (or two cycles) conflict; so do G98 and G99.
+        assert_eq!(fails("G81 G0 X1"), (ParseErrorKind::ModalGroupConflict, 5));
+        assert_eq!(fails("G81 G83"), (ParseErrorKind::ModalGroupConflict, 5));
+        assert_eq!(fails("G98 G99"), (ParseErrorKind::ModalGroupConflict, 5));
+        for c in ["G76", "G84", "G86", "G87", "G88"] {
+            assert_eq!(fails(c), (ParseErrorKind::UnsupportedCycle, 1));
+        }
     }
 
     #[test]
@@ -1630,7 +1668,7 @@ mod tests {
     #[test]
     fn every_error_kind_comes_from_some_line_with_the_column_of_its_cause() {
         let long = " ".repeat(MAX_PARSE_LEN + 1);
-        let cases: [(&str, ParseErrorKind, u8); 15] = [
+        let cases: [(&str, ParseErrorKind, u8); 16] = [
             ("G1 X1..2", ParseErrorKind::BadNumber, 4),
             ("G1 Y1e5", ParseErrorKind::Exponent, 4),
             ("G1 Z-1000000", ParseErrorKind::NumberOutOfRange, 4),
@@ -1646,8 +1684,9 @@ mod tests {
             ("G0 G42 X1", ParseErrorKind::CutterComp, 4),
             ("G0 X#1", ParseErrorKind::Parameter, 4),
             ("o100 sub", ParseErrorKind::OWord, 1),
+            ("G0 G84", ParseErrorKind::UnsupportedCycle, 4),
         ];
-        let mut seen = [false; 15];
+        let mut seen = [false; 16];
         for (text, kind, col) in cases {
             assert_eq!(fails(text), (kind, col), "{text:?}");
             // Exhaustive: a new kind must be added to the table above.
@@ -1667,6 +1706,7 @@ mod tests {
                 ParseErrorKind::CutterComp => 12,
                 ParseErrorKind::Parameter => 13,
                 ParseErrorKind::OWord => 14,
+                ParseErrorKind::UnsupportedCycle => 15,
             };
             seen[i] = true;
         }

@@ -189,6 +189,10 @@ pub struct ChunkWatch {
     pub homed: u8,
     /// Direction-pin inversion mask (setting).
     pub invert_dir: u8,
+    /// Per axis X, Y, Z: how far above 0, in steps, a homed axis' switch may
+    /// still be closed (a real switch's hysteresis; the homing pull-off,
+    /// which homing checked clears the switch).
+    pub release: [u16; 3],
 }
 
 /// Turns prep's [`StepperCmd`] stream into [`Chunk`]s and [`Seg`]s.
@@ -213,6 +217,9 @@ pub struct Splitter {
     new_chunk: bool,
     /// Counted position at the end of everything emitted, steps.
     plan_pos: [i32; N_AXES],
+    /// Axes that reached 0 and have stayed within their release distance
+    /// since (a real switch may still be closed there).
+    held: u8,
 }
 
 impl Splitter {
@@ -227,6 +234,7 @@ impl Splitter {
             f_end: [0; N_AXES],
             new_chunk: false,
             plan_pos: [0; N_AXES],
+            held: 0,
         }
     }
 
@@ -304,7 +312,13 @@ impl Splitter {
         let high = !dir ^ w.invert_dir;
         for i in 0..N_AXES {
             let bit = 1u8 << i;
+            let release = if i < 3 { w.release[i] as i32 } else { 0 };
             if self.plan_pos[i] == 0 {
+                self.held |= bit;
+            } else if self.plan_pos[i] < 0 || self.plan_pos[i] > release {
+                self.held &= !bit;
+            }
+            if self.held & bit != 0 {
                 starts_at_zero |= bit;
             }
             let s = if whole {
@@ -341,8 +355,12 @@ impl Splitter {
         }
         // SPEC §6: a switch tripping outside homing is an alarm, whether its
         // axis moves toward it, away from it or not at all. Not armed: a homed
-        // axis that starts or ends this chunk at 0, where its switch is
-        // closed by definition (machine 0 is the trip point).
+        // axis that ends this chunk at 0, where its switch is closed by
+        // definition (machine 0 is the trip point), or starts it between 0
+        // and its release distance having been at 0 since it last left
+        // that band: a real switch that closed at 0 stays closed for its
+        // hysteresis. (After homing the band was left: the pull-off was
+        // checked to clear the switch and the position reset.)
         c.limit = w.limits & !(w.homed & (starts_at_zero | ends_at_zero));
         sink.chunk(&c);
         self.chunk_start = start;
@@ -526,7 +544,7 @@ mod tests {
 
     #[test]
     fn hard_limits_arm_every_axis_but_a_homed_one_at_its_switch() {
-        let w = ChunkWatch { limits: 0b111, homed: 0b001, invert_dir: 0 };
+        let w = ChunkWatch { limits: 0b111, homed: 0b001, invert_dir: 0, release: [0; 3] };
         let mut sp = Splitter::new();
         sp.reset([100, 100, 100, 0]);
         let mut rec = Rec::default();
@@ -550,6 +568,32 @@ mod tests {
         let off = ChunkWatch { limits: 0, ..w };
         sp.push(&StepperCmd::Block(block([0, 10, 0, 0], 0b010)), &MAP, &off, &mut rec);
         assert_eq!(rec.chunks[5].limit, 0);
+    }
+
+    #[test]
+    fn a_homed_axis_starting_inside_its_release_distance_is_not_armed() {
+        let w = ChunkWatch { limits: 0b111, homed: 0b011, invert_dir: 0, release: [5, 5, 5] };
+        let mut sp = Splitter::new();
+        sp.reset([0, 100, 100, 0]);
+        let mut rec = Rec::default();
+        // X from 0 to 3, 3 to 5 (the switch may still be closed), 5 to 6 (at
+        // 5: still inside), 6 to 10 (outside: armed again).
+        for (d, limit) in [(3, 0b110), (2, 0b110), (1, 0b110), (4, 0b111)] {
+            sp.push(&StepperCmd::Block(block([d, 0, 0, 0], 0)), &MAP, &w, &mut rec);
+            assert_eq!(rec.chunks.last().unwrap().limit, limit, "after +{d}");
+        }
+        // Back toward the switch to 2: starts outside, does not end at 0: armed.
+        sp.push(&StepperCmd::Block(block([8, 0, 0, 0], 0b001)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks.last().unwrap().limit, 0b111);
+        // Inside the band without having been at 0 (after homing: the
+        // pull-off, then a position reset): armed.
+        sp.reset([4, 100, 100, 0]);
+        sp.push(&StepperCmd::Block(block([1, 0, 0, 0], 0)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks.last().unwrap().limit, 0b111);
+        // Z (not homed) inside the window is armed all the same.
+        sp.reset([100, 100, 3, 0]);
+        sp.push(&StepperCmd::Block(block([0, 0, 1, 0], 0)), &MAP, &w, &mut rec);
+        assert_eq!(rec.chunks.last().unwrap().limit, 0b111);
     }
 
     #[test]
