@@ -7,6 +7,12 @@
 //!                (grbl's behaviour; M92/M201/M203 change RAM until M500)
 //!  $H            home all axes (G28)
 //!  $X            unlock an alarm (M999)
+//!  $G            modal state, grbl 1.1's `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`
+//!  $#            offsets: `[G54:x,y,z]` … `[G59:…]`, `[G28:…]`, `[G30:…]`,
+//!                `[G92:…]`, `[TLO:z]`, `[PRB:x,y,z:0]` (G28/G30 hold no
+//!                stored positions here, G28 homes; the probe result is not
+//!                kept, G38.x prints it: all three always read 0)
+//!  $I            `[VER:1.1h.MillFW:<version>]`, `[OPT:VNH,15,255]`
 //! ```
 //!
 //! The numbers follow grbl where grbl has the setting ($3, $11, $12, $20,
@@ -59,6 +65,12 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
     List,
+    /// `$G`: the modal state.
+    Modes,
+    /// `$#`: the offsets.
+    Params,
+    /// `$I`: build info.
+    Info,
     Set(u8, f32),
     Home,
     Unlock,
@@ -75,7 +87,7 @@ pub enum DollarError {
 impl DollarError {
     pub fn message(self) -> FStr {
         match self {
-            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H or $X"),
+            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H, $X, $G, $# or $I"),
             DollarError::Unknown => F!("$ command: no such setting (see $$)"),
             DollarError::BadValue => F!("$ command: value out of range, nothing changed"),
         }
@@ -90,6 +102,9 @@ pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
         b"$" => return Ok(Command::List),
         b"H" | b"h" => return Ok(Command::Home),
         b"X" | b"x" => return Ok(Command::Unlock),
+        b"G" | b"g" => return Ok(Command::Modes),
+        b"#" => return Ok(Command::Params),
+        b"I" | b"i" => return Ok(Command::Info),
         _ => {}
     }
     let eq = trimmed.iter().position(|&b| b == b'=').ok_or(DollarError::Syntax)?;
@@ -183,6 +198,86 @@ pub fn list(s: &Settings, w: &mut impl uWrite) {
     }
 }
 
+/// `$G`: grbl 1.1's modal-state line. Coolant is not tracked here (`M9`).
+pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
+    use crate::gcode::parse::{Motion, Plane};
+    // Every text through F!: a plain `&str` from a match is a RAM copy on AVR.
+    let motion = match i.motion {
+        Motion::Rapid => F!("G0"),
+        Motion::Linear => F!("G1"),
+        Motion::ArcCw => F!("G2"),
+        Motion::ArcCcw => F!("G3"),
+        Motion::ProbeToward => F!("G38.2"),
+        Motion::ProbeTowardNoError => F!("G38.3"),
+        Motion::Cancel => F!("G80"),
+        Motion::Cycle(k) => {
+            use crate::gcode::cycles::Kind;
+            match k {
+                Kind::Drill => F!("G81"),
+                Kind::DrillDwell => F!("G82"),
+                Kind::Peck => F!("G83"),
+                Kind::ChipBreak => F!("G73"),
+                Kind::Bore => F!("G85"),
+                Kind::BoreDwell => F!("G89"),
+            }
+        }
+    };
+    let plane = match i.plane {
+        Plane::Xy => 17u8,
+        Plane::Zx => 18,
+        Plane::Yz => 19,
+    };
+    let units = if i.inches { 20u8 } else { 21 };
+    let dist = if i.incremental { 91u8 } else { 90 };
+    let spindle = if i.spindle_on { 3u8 } else { 5 };
+    // F in the current units per minute, S in rpm, whole numbers.
+    let feed = if i.inches { i.feed_mm_per_min / 25.4 } else { i.feed_mm_per_min };
+    uwrite!(w, "{}{} G{} G{} G{} G{}", F!("[GC:"), motion, 54 + i.wcs, plane, units, dist).ok();
+    uwriteln!(
+        w,
+        "{}{}{}{}{}{}{}{}]",
+        F!(" G94 M"),
+        spindle,
+        F!(" M9 T"),
+        tool,
+        F!(" F"),
+        crate::math::round_i32(feed),
+        F!(" S"),
+        crate::math::round_i32(i.spindle_rpm)
+    )
+    .ok();
+}
+
+/// `$#`: grbl 1.1's offset lines (work offsets in machine mm), in the
+/// user frame (+Z up, `crate::frame`).
+pub fn params(i: &crate::gcode::interp::Interp, w: &mut impl uWrite) {
+    use crate::frame::{axis_user_from_internal, user_from_internal, Z};
+    for (n, v) in i.wcs_mm.iter().enumerate() {
+        uwrite!(w, "{}{}:", F!("[G5"), 4 + n as u8).ok();
+        xyz(w, user_from_internal(*v));
+    }
+    uwrite!(w, "{}", F!("[G28:")).ok();
+    xyz(w, [0.0; 3]);
+    uwrite!(w, "{}", F!("[G30:")).ok();
+    xyz(w, [0.0; 3]);
+    uwrite!(w, "{}", F!("[G92:")).ok();
+    xyz(w, user_from_internal(i.g92_mm));
+    uwriteln!(w, "{}{}]", F!("[TLO:"), Micros::from_mm(axis_user_from_internal(Z, i.tlo_mm))).ok();
+    uwriteln!(w, "{}", F!("[PRB:0.000,0.000,0.000:0]")).ok();
+}
+
+/// `x,y,z]` and the line end, three decimals.
+fn xyz(w: &mut impl uWrite, v: [f32; 3]) {
+    uwriteln!(w, "{},{},{}]", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
+}
+
+/// `$I`: grbl 1.1's build info lines (options: V variable spindle, N line
+/// numbers, H single-axis homing; 16-block planner, 255-byte RX ring).
+pub fn info(w: &mut impl uWrite) {
+    uwriteln!(w, "{}{}]", F!("[VER:1.1h.MillFW:"), crate::FIRMWARE_VERSION).ok();
+    uwriteln!(w, "{}", F!("[OPT:VNH,15,255]")).ok();
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,6 +312,9 @@ mod tests {
         assert_eq!(parse(b"$$"), Ok(Command::List));
         assert_eq!(parse(b"$H"), Ok(Command::Home));
         assert_eq!(parse(b"$x"), Ok(Command::Unlock));
+        assert_eq!(parse(b"$G"), Ok(Command::Modes));
+        assert_eq!(parse(b"$#"), Ok(Command::Params));
+        assert_eq!(parse(b"$I"), Ok(Command::Info));
         assert_eq!(parse(b"$100=80"), Ok(Command::Set(100, 80.0)));
         assert_eq!(parse(b"$ 11 = 0.02 "), Ok(Command::Set(11, 0.02)));
         assert_eq!(parse(b"$140=-1.5"), Ok(Command::Set(140, -1.5)));
@@ -229,6 +327,43 @@ mod tests {
         assert_eq!(parse(b"$100=1e99"), Err(DollarError::BadValue));
         assert_eq!(parse(b"$100=1.2.3"), Err(DollarError::BadValue));
         assert_eq!(parse(b"$100=1234567890"), Err(DollarError::BadValue));
+    }
+
+    #[test]
+    fn dollar_g_hash_and_i_answer_in_grbl_1_1_formats() {
+        let mut i = crate::gcode::interp::Interp::new();
+        let mut out = S(String::new());
+        modes(&i, 0, &mut out);
+        assert_eq!(out.0, "[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\n");
+        i.motion = crate::gcode::parse::Motion::Linear;
+        i.wcs = 1;
+        i.incremental = true;
+        i.spindle_on = true;
+        i.spindle_rpm = 8000.0;
+        i.feed_mm_per_min = 600.0;
+        let mut out = S(String::new());
+        modes(&i, 3, &mut out);
+        assert_eq!(out.0, "[GC:G1 G55 G17 G21 G91 G94 M3 M9 T3 F600 S8000]\n");
+        i.wcs_mm[0] = [1.5, -2.0, 0.25];
+        i.g92_mm = [0.0, 1.0, 0.0];
+        i.tlo_mm = -19.5;
+        let mut out = S(String::new());
+        params(&i, &mut out);
+        let l: Vec<&str> = out.0.lines().collect();
+        assert_eq!(l.len(), 11);
+        // Internal Z grows downward; reports are +Z up (crate::frame).
+        assert_eq!(l[0], "[G54:1.500,-2.000,-0.250]");
+        assert_eq!(l[5], "[G59:0.000,0.000,0.000]");
+        assert_eq!(l[6], "[G28:0.000,0.000,0.000]");
+        assert_eq!(l[7], "[G30:0.000,0.000,0.000]");
+        assert_eq!(l[8], "[G92:0.000,1.000,0.000]");
+        assert_eq!(l[9], "[TLO:19.500]");
+        assert_eq!(l[10], "[PRB:0.000,0.000,0.000:0]");
+        let mut out = S(String::new());
+        info(&mut out);
+        let l: Vec<&str> = out.0.lines().collect();
+        assert!(l[0].starts_with("[VER:1.1h.MillFW:") && l[0].ends_with(']'), "{l:?}");
+        assert_eq!(l[1], "[OPT:VNH,15,255]");
     }
 
     #[test]

@@ -253,6 +253,11 @@ impl Io for Hw {
     fn poll(&mut self) -> Realtime {
         wdt::feed();
         let rt = board::take_realtime();
+        if rt & board::realtime::RESET != 0 && self.job.active() {
+            // A soft reset ends an SD job too (its abort finishes at once:
+            // the reset leaves nothing moving).
+            self.job.abort();
+        }
         let ui = self.job.take_requests() | core::mem::take(&mut self.requests);
         let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
         Realtime {
@@ -264,7 +269,13 @@ impl Io for Hw {
             home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
             probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
             abort: ui & req::ABORT != 0,
+            reset: rt & board::realtime::RESET != 0,
+            reset_moving: rt & board::realtime::RESET_MOVING != 0,
         }
+    }
+
+    fn flush_rx(&mut self) {
+        while serial::read().is_some() {}
     }
 
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
@@ -616,15 +627,16 @@ pub fn run() -> ! {
     wdt::enable_2s();
     m.boot(hw, cause.as_str());
     // The SD job's line buffer lives here, not in `job_turn`'s frame: zeroing
-    // 96 bytes on every turn of the loop cost ~1.4k cycles per streamed line.
+    // it on every turn of the loop cost ~1.4k cycles per streamed line. The
+    // serial line runs from it too (`push_bytes`): never both at once.
     let mut job_line = [0u8; MAX_LINE_LEN];
     #[cfg(feature = "panic-test")]
     let mut last = 0u64;
     loop {
         #[cfg(not(feature = "panic-test"))]
-        m.push_bytes(core::iter::from_fn(serial::read), hw);
+        m.push_bytes(core::iter::from_fn(serial::read), hw, &mut job_line);
         #[cfg(feature = "panic-test")]
-        m.push_bytes(core::iter::from_fn(|| serial::read().inspect(|&b| panic_test(&mut last, b))), hw);
+        m.push_bytes(core::iter::from_fn(|| serial::read().inspect(|&b| panic_test(&mut last, b))), hw, &mut job_line);
         job_turn(m, hw, &mut job_line);
         ui_turn(m, hw);
         m.idle(hw);

@@ -21,10 +21,15 @@ use core::fmt;
 ///
 /// Declare it as a `static` in `.progmem.data` on the AVR:
 ///
-/// ```ignore
+/// ```
+/// use mill::flash::InFlash;
+/// #[derive(Clone, Copy)]
+/// struct Row(u8);
+/// const TABLE: [Row; 2] = [Row(1), Row(2)];
 /// #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
 /// // SAFETY: in program memory on the AVR (the attribute above).
-/// static ROWS: InFlash<[Row; 12]> = unsafe { InFlash::new(TABLE) };
+/// static ROWS: InFlash<[Row; 2]> = unsafe { InFlash::new(TABLE) };
+/// assert_eq!(ROWS.get()[1].0, 2);
 /// ```
 pub struct InFlash<T: Copy>(T);
 

@@ -22,6 +22,7 @@ pub mod dollar;
 pub mod fixed;
 pub mod frame;
 pub mod gcode;
+pub mod hostcodes;
 pub mod machine;
 pub mod math;
 pub mod planner;

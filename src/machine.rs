@@ -37,6 +37,10 @@ pub struct Realtime {
     pub probe_tripped: bool,
     /// Abort requested (SD job or menu): decelerate, then drop the queue.
     pub abort: bool,
+    /// 0x18 (Ctrl-X, grbl's soft reset) received; the stepper is halted.
+    pub reset: bool,
+    /// With `reset`: steps were still being produced when it arrived.
+    pub reset_moving: bool,
 }
 
 /// What the stepper ISR reports.
@@ -107,6 +111,8 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn free_ram(&self) -> u16;
     /// Bytes waiting in the serial RX ring.
     fn rx_pending(&self) -> usize;
+    /// Throw away every byte waiting in the serial RX ring (soft reset).
+    fn flush_rx(&mut self) {}
     /// An SD command (M20–M29, M524; `arg` is the text after the code).
     /// Without an SD card in the build it is refused.
     fn sd_command(&mut self, _m: &mut Machine, _code: u16, _arg: &[u8]) -> CmdResult {
@@ -167,6 +173,9 @@ crate::flash_messages! {
         CarouselHome => "carousel home switch not found",
         /// G37 B: the tool's length is off by more than the tolerance.
         BrokenTool => "broken tool",
+        /// 0x18 (soft reset) while steps were being produced: the stop was
+        /// abrupt, steps may be lost (grbl's ALARM:3).
+        ResetWhileMoving => "reset while moving",
     }
 }
 
@@ -196,8 +205,17 @@ pub struct Machine {
     pub unlocked: bool,
     /// Feed-hold requested and not yet resumed.
     holding: bool,
-    /// Milliseconds of the last `busy:processing`.
+    /// Milliseconds of the last `busy:processing` (or of the start of the
+    /// serial line being run).
     last_busy_ms: u32,
+    /// M117 message, M73 progress, M113 keepalive interval.
+    pub host: crate::hostcodes::HostState,
+    /// A serial line is being run: its host waits for the `ok` (keepalive).
+    serial_line: bool,
+    /// A soft reset (0x18) happened while the current serial line ran: it
+    /// ends without an `ok` or an error (grbl drops it).
+    silenced: bool,
+
     /// Realtime events of the last poll (trip flags persist until cleared).
     last_rt: Realtime,
     /// The host numbers its lines (so dropped lines get `Resend:`).
@@ -247,6 +265,9 @@ impl Machine {
             unlocked: false,
             holding: false,
             last_busy_ms: 0,
+            host: crate::hostcodes::HostState::new(),
+            serial_line: false,
+            silenced: false,
             last_rt: Realtime {
                 status: false,
                 hold: false,
@@ -256,6 +277,8 @@ impl Machine {
                 home_tripped: false,
                 probe_tripped: false,
                 abort: false,
+                reset: false,
+                reset_moving: false,
             },
             numbered: false,
             sd_job: false,
@@ -310,57 +333,80 @@ impl Machine {
     }
 
     /// Feed received bytes as long as `bytes` gives them; runs complete
-    /// lines as they end.
+    /// lines as they end. `scratch` holds the line while it runs (the
+    /// firmware passes the SD job's line buffer: the two are never in use
+    /// at once, and a copy on the stack cost 256 bytes of stack high-water).
     ///
     /// The per-byte path is only the assembler, in one loop (a call per
     /// byte cost ~20 cycles on the AVR); the end of a line goes through
-    /// [`Machine::line_end`], so that its stack frame (a copy of the line)
-    /// is not set up for every byte.
+    /// [`Machine::line_end`].
     #[inline(never)]
-    pub fn push_bytes(&mut self, bytes: impl Iterator<Item = u8>, io: &mut impl Io) {
+    pub fn push_bytes(
+        &mut self,
+        bytes: impl Iterator<Item = u8>,
+        io: &mut impl Io,
+        scratch: &mut [u8; crate::protocol::MAX_LINE_LEN],
+    ) {
         for b in bytes {
             if let Some(done) = self.asm.push(b) {
-                self.line_end(done, io);
+                self.line_end(done, io, scratch);
             }
         }
     }
 
     /// A line ended in the assembler: run it, or report why it was dropped.
     #[inline(never)]
-    fn line_end(&mut self, done: Assembled, io: &mut impl Io) {
+    fn line_end(&mut self, done: Assembled, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
         match done {
             Assembled::Line => {
                 // The line is copied out of the assembler (running it needs
-                // `&mut self`); only its bytes are written, the rest of the
-                // buffer is never read, so it is not zeroed first.
+                // `&mut self`).
                 let raw = self.asm.line();
-                let n = raw.len().min(crate::protocol::MAX_LINE_LEN);
-                let mut buf = core::mem::MaybeUninit::<[u8; crate::protocol::MAX_LINE_LEN]>::uninit();
-                // SAFETY: `n` ≤ the buffer's length; `raw` and the local `buf`
-                // do not overlap; the slice covers only the `n` bytes written.
-                let line = unsafe {
-                    let p = buf.as_mut_ptr() as *mut u8;
-                    core::ptr::copy_nonoverlapping(raw.as_ptr(), p, n);
-                    core::slice::from_raw_parts(p, n)
+                let n = raw.len().min(scratch.len());
+                let line = match (scratch.get_mut(..n), raw.get(..n)) {
+                    (Some(d), Some(r)) => {
+                        d.copy_from_slice(r);
+                        &*d
+                    }
+                    _ => &[][..],
                 };
                 self.run_raw_line(line, io);
             }
             other => {
                 let msg = match other {
-                    Assembled::TooLong => F!("line too long (max 96 characters), ignored"),
-                    Assembled::Overrun => F!("serial receive overrun, line dropped"),
+                    Assembled::TooLong => F!("line too long (max 256 characters), ignored"),
+                    Assembled::Overrun => F!("serial receive overrun, line dropped before its checksum was checked"),
                     _ => F!("binary data in line, ignored"),
                 };
-                uwriteln!(io, "Error:{}", msg).ok();
-                self.resend(io);
+                // Numbered if it began with N; after an overrun (its start may
+                // be lost) as the line before it was.
+                self.numbered |= self.asm.dropped_numbered();
+                self.reject_line(io, msg);
                 uwriteln!(io, "ok").ok();
             }
         }
     }
 
-    fn resend(&self, io: &mut impl Io) {
-        if self.numbered {
-            uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
+    /// A line failed a protocol check (checksum, too long, overrun, ...).
+    /// A numbered line is asked for again (`Resend:`), until it has failed
+    /// `protocol::MAX_TRIES` times in a row: then it is given up with an
+    /// error and the line number moves past it (`LineChecker::failed`), so
+    /// that no input keeps a host resending the same line forever.
+    fn reject_line(&mut self, io: &mut impl Io, msg: crate::flash::FStr) {
+        if !self.numbered {
+            uwriteln!(io, "Error:{}", msg).ok();
+            return;
+        }
+        match self.chk.failed() {
+            crate::protocol::Retry::GiveUp(n) => {
+                // No checksum or line-number words in this text: OctoPrint
+                // must not take it for a resend request (it stops the job).
+                uwriteln!(io, "Error:{}{}{}", F!("gave up on line "), n, F!(" after 3 failed tries; it is NOT run")).ok();
+            }
+            crate::protocol::Retry::Resend(n) => {
+                uwriteln!(io, "Error:{}, Last Line: {}", msg, self.chk.last_line()).ok();
+                uwriteln!(io, "Resend:{}", n).ok();
+            }
         }
     }
 
@@ -370,12 +416,22 @@ impl Machine {
         // Numbered for the resend protocol: N and a checksum (an N alone is a
         // file's block number, which the protocol does not track).
         self.numbered = matches!(raw.first(), Some(b'N' | b'n')) && raw.contains(&b'*');
+        self.silenced = false;
         match self.chk.check(raw) {
-            Err(e) => {
+            Err(crate::protocol::ProtoError::LineNumber) => {
+                // A line sent after one that failed (the host had several in
+                // flight): not a new try of the failed line.
+                let e = crate::protocol::ProtoError::LineNumber;
                 uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.last_line()).ok();
                 uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
             }
+            Err(e) => {
+                self.numbered = true;
+                self.reject_line(io, e.message());
+            }
             Ok(cmd) => {
+                self.serial_line = true;
+                self.last_busy_ms = io.millis();
                 self.line_aborts = self.aborts;
                 let sd = crate::ui::sd::sd_code(cmd);
                 let r = match sd {
@@ -385,6 +441,12 @@ impl Machine {
                     Some((code, arg)) => io.sd_command(self, code, arg),
                     None => self.execute(cmd, io),
                 };
+                self.serial_line = false;
+                if self.silenced {
+                    // A soft reset ended the line: grbl prints nothing more
+                    // for it (the banner already went out).
+                    return;
+                }
                 if let Err(e) = r {
                     self.report_error(io, e);
                 }
@@ -443,6 +505,9 @@ impl Machine {
         if text.first() == Some(&b'$') {
             return self.dollar(text, io);
         }
+        if let Some((code, arg)) = crate::hostcodes::code(text) {
+            return crate::hostcodes::run(self, io, code, arg);
+        }
         let mut line = crate::gcode::Line::default();
         crate::gcode::parse_into(text, &mut line).map_err(interp::Error::Parse)?;
         interp::execute(self, &line, text, io)
@@ -454,6 +519,9 @@ impl Machine {
         let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
         match dollar::parse(text).map_err(bad)? {
             dollar::Command::List => dollar::list(&self.settings, io),
+            dollar::Command::Modes => dollar::modes(&self.interp, self.atc.spindle(), io),
+            dollar::Command::Params => dollar::params(&self.interp, io),
+            dollar::Command::Info => dollar::info(io),
             dollar::Command::Home => return self.execute(b"G28", io),
             dollar::Command::Unlock => return self.execute(b"M999", io),
             dollar::Command::Set(n, v) => {
@@ -516,6 +584,7 @@ impl Machine {
     /// One turn of every wait loop: top up segments, serve realtime.
     /// Fails when an alarm stops the machine meanwhile.
     pub fn wait_step(&mut self, io: &mut impl Io) -> CmdResult {
+        self.keepalive(io);
         self.idle(io);
         if self.alarm.is_some() {
             Err(interp::Error::Alarm)
@@ -541,10 +610,19 @@ impl Machine {
         }
     }
 
-    /// Send `busy:processing` every 2 s during long operations (SPEC §4).
+    /// While a serial line waits (M400, G4, G28, M0, a tool change, G37, a
+    /// full planner ...): `busy:processing` every M113 interval (2 s by
+    /// default, Marlin's), counted from the start of the line, so that no
+    /// host times out (SPEC §4). Every wait loop calls it through
+    /// [`Machine::wait_step`]. Not for SD-job or menu lines: no host waits
+    /// for those.
     pub fn keepalive(&mut self, io: &mut impl Io) {
+        let every = self.host.busy_interval_s as u32 * 1000;
+        if !self.serial_line || every == 0 {
+            return;
+        }
         let now = io.millis();
-        if now.wrapping_sub(self.last_busy_ms) >= 2000 {
+        if now.wrapping_sub(self.last_busy_ms) >= every {
             self.last_busy_ms = now;
             uwriteln!(io, "{}", F!("busy:processing")).ok();
         }
@@ -584,6 +662,9 @@ impl Machine {
         self.fill_segments(io);
         let rt = io.poll();
         self.last_rt = rt;
+        if rt.reset {
+            self.soft_reset(io, rt.reset_moving);
+        }
         if rt.estop && self.alarm != Some(Alarm::EmergencyStop) {
             self.raise(io, Alarm::EmergencyStop);
         }
@@ -645,6 +726,48 @@ impl Machine {
             self.state = State::Idle;
         }
         self.aborts = self.aborts.wrapping_add(1);
+    }
+
+    /// 0x18 (Ctrl-X), grbl's soft reset. The RX interrupt has halted the
+    /// stepper already; here every queue is dropped (planner, segments, the
+    /// RX ring and the line being assembled), the spindle goes off, holds
+    /// and aborts end, and the line being run (if any) stops without a
+    /// reply. The position is kept, unless steps were still being produced
+    /// (an abrupt stop may lose steps): then `ALARM:reset while moving`
+    /// (grbl's ALARM:3), and homing or `$X` is needed. An alarm in force
+    /// stays. Then grbl 1.1's banner, which grbl hosts (cncjs) wait for.
+    #[inline(never)]
+    pub fn soft_reset(&mut self, io: &mut impl Io, moving: bool) {
+        io.stop_motion();
+        self.planner.clear();
+        self.prep.reset();
+        if self.alarm.is_none() {
+            io.clear_stop();
+        }
+        let p = io.stepper().position;
+        self.planner.set_position(p);
+        self.interp.sync_position(&self.settings, p);
+        self.spindle_off(io);
+        self.holding = false;
+        self.aborting = false;
+        self.last_rt.home_tripped = false;
+        self.last_rt.probe_tripped = false;
+        self.apply_watch(io, 0, false);
+        io.flush_rx();
+        self.asm.reset();
+        self.aborts = self.aborts.wrapping_add(1);
+        self.silenced = self.serial_line;
+        if self.alarm.is_none() {
+            // Whatever ran (a move, homing, a tool change, a probe) is over.
+            self.state = State::Idle;
+        }
+        if moving && self.alarm.is_none() {
+            self.raise(io, Alarm::ResetWhileMoving);
+        }
+        uwrite!(io, "{}", F!("\r\nGrbl 1.1h ['$' for help]\r\n")).ok();
+        if self.alarm.is_some() {
+            uwriteln!(io, "{}", F!("[MSG:'$H'|'$X' to unlock]")).ok();
+        }
     }
 
     /// Spindle and coolant off (and remembered as off): aborts, program end.

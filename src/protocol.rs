@@ -1,7 +1,8 @@
 //! Host line protocol (SPEC §4): bytes in, checked command text out.
 //!
 //! ```text
-//!  USART0 RX ISR ── MCodeScanner (M112, M108), is_realtime (? ! ~ taken out)
+//!  USART0 RX ISR ── MCodeScanner (M112, M108), RxText (? ! ~ 0x18 taken out,
+//!                   except ? ! ~ inside a comment or a numbered line)
 //!       │ 256-byte ring
 //!       ▼
 //!  main loop ─► LineAssembler (lines ≤ MAX_LINE_LEN, garbage and overruns flagged)
@@ -16,19 +17,106 @@
 //! understand); see [`ProtoError::message`] and [`LineChecker::resend_line`].
 
 /// Longest accepted line, in characters from its first to its last non-blank
-/// (blanks at either end and the terminator do not count). A longer line is
-/// rejected whole ([`Assembled::TooLong`]), never truncated and run.
-pub const MAX_LINE_LEN: usize = 96;
+/// (blanks at either end and the terminator do not count): 256, LinuxCNC's
+/// limit. A longer line is rejected whole ([`Assembled::TooLong`]), never
+/// truncated and run. RAM: the assembler's buffer, plus a copy of the line on
+/// the stack while it runs, plus the SD job's line buffer.
+pub const MAX_LINE_LEN: usize = 256;
 
-/// True for the realtime bytes that the RX ISR takes out of the stream before
-/// they reach the ring: `?` (status), `!` (feed hold), `~` (resume).
-///
-/// They act even when the command queue is full. Because they are removed
-/// wherever they appear, they can never be part of a command, a comment or a
-/// file name.
+/// True for the bytes that can be realtime commands: `?` (status), `!` (feed
+/// hold), `~` (resume) and 0x18 (Ctrl-X, grbl's soft reset). Whether one is
+/// taken out of the stream depends on where it arrives: see [`RxText`].
 #[inline]
 pub fn is_realtime(b: u8) -> bool {
-    matches!(b, b'?' | b'!' | b'~')
+    matches!(b, b'?' | b'!' | b'~' | SOFT_RESET)
+}
+
+/// Ctrl-X: grbl's soft reset, a realtime byte wherever it arrives.
+pub const SOFT_RESET: u8 = 0x18;
+
+/// [`RxText`] state bits.
+const T_START: u8 = 1 << 0;
+const T_NUMBERED: u8 = 1 << 1;
+const T_PAREN: u8 = 1 << 2;
+const T_SEMI: u8 = 1 << 3;
+
+/// The RX ISR's view of the line being received, so that `?`, `!`, `~` are
+/// realtime commands only where they cannot be text (one byte of state).
+///
+/// Inside a comment (`( … )` or after `;`) and anywhere in a numbered line
+/// (first non-blank character `N`, Marlin/Repetier's `N<n> … *<xor>`) they
+/// are text: they reach the line buffer and the checksum covers them.
+/// Elsewhere (grbl hosts send them between or inside unnumbered lines) they
+/// are taken out and act at once. 0x18 (soft reset) always acts.
+///
+/// After lost bytes the state is "mid-line, no comment": a lost `(` or `N`
+/// can only make a `?`, `!`, `~` act that was meant as text, never the other
+/// way round.
+///
+/// The RX ISR's assembly fast path skips [`RxText::classify`] for the usual
+/// bytes: while [`RxText::at_line_start`] is false, a byte from 0x20 to 0x7D
+/// other than `!`, `?`, `(`, `)`, `;` changes nothing
+/// (`the_fast_path_bytes_change_nothing` checks it for every state).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RxText {
+    state: u8,
+}
+
+impl Default for RxText {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RxText {
+    /// At the start of a line.
+    pub const fn new() -> Self {
+        RxText { state: T_START }
+    }
+
+    /// True while only blanks were received since the line began: the next
+    /// byte may make the line a numbered one, so it must see `classify`.
+    #[inline(always)]
+    pub fn at_line_start(&self) -> bool {
+        self.state & T_START != 0
+    }
+
+    /// Bytes were lost: assume mid-line, outside any comment.
+    pub fn note_loss(&mut self) {
+        self.state = 0;
+    }
+
+    /// Classify the received byte `b`: true when it is a realtime command
+    /// (taken out of the stream), false when it is text (the state follows it).
+    #[inline(always)]
+    pub fn classify(&mut self, b: u8) -> bool {
+        if b == SOFT_RESET {
+            // The main loop drops the line in progress: a new one starts.
+            self.state = T_START;
+            return true;
+        }
+        let s = self.state;
+        if matches!(b, b'?' | b'!' | b'~') && s & (T_NUMBERED | T_PAREN | T_SEMI) == 0 {
+            return true;
+        }
+        self.state = match b {
+            b'\n' | b'\r' => T_START,
+            _ if s & T_PAREN != 0 => {
+                if b == b')' {
+                    s & !T_PAREN
+                } else {
+                    s
+                }
+            }
+            _ if s & T_SEMI != 0 => s,
+            b' ' | b'\t' => s,
+            b'(' => (s & !T_START) | T_PAREN,
+            b';' => (s & !T_START) | T_SEMI,
+            b'N' | b'n' if s & T_START != 0 => T_NUMBERED,
+            _ => s & !T_START,
+        };
+        false
+    }
 }
 
 crate::flash_messages! {
@@ -143,7 +231,7 @@ impl RxStore {
     }
 }
 
-/// Collects bytes into lines in a fixed buffer (RAM: `MAX_LINE_LEN` + 2 bytes).
+/// Collects bytes into lines in a fixed buffer (RAM: `MAX_LINE_LEN` + 3 bytes).
 ///
 /// `\n` or `\r` ends a line, so `\r\n` gives one line and one ignored empty
 /// line. Leading blanks are not stored; trailing blanks are trimmed. Blank
@@ -152,9 +240,11 @@ pub struct LineAssembler {
     buf: [u8; MAX_LINE_LEN],
     /// Bytes stored for the line in progress (or of the completed line while
     /// `F_READY` is set), ≤ MAX_LINE_LEN.
-    len: u8,
+    len: u16,
     /// `F_*` bits.
     flags: u8,
+    /// The last dropped line started with `N` (see [`LineAssembler::dropped_numbered`]).
+    dropped_n: bool,
 }
 
 impl Default for LineAssembler {
@@ -170,7 +260,14 @@ impl LineAssembler {
             buf: [0; MAX_LINE_LEN],
             len: 0,
             flags: 0,
+            dropped_n: false,
         }
+    }
+
+    /// True when the line just reported as dropped (too long, overrun, bad
+    /// byte) started with `N`: a numbered line, to be asked for again.
+    pub fn dropped_numbered(&self) -> bool {
+        self.dropped_n
     }
 
     /// Feed one byte from the RX ring. Returns `Some` when a line ends; after
@@ -257,6 +354,7 @@ impl LineAssembler {
         if result == Some(Assembled::Line) {
             self.flags = F_READY;
         } else {
+            self.dropped_n = self.len > 0 && matches!(self.buf.first(), Some(b'N' | b'n'));
             self.flags = 0;
             self.len = 0;
         }
@@ -279,12 +377,45 @@ impl LineAssembler {
 pub struct LineChecker {
     /// Number of the last accepted numbered line.
     last: i32,
+    /// Failed tries of line `last + 1` so far (see [`LineChecker::failed`]).
+    tries: u8,
+}
+
+/// Tries of one numbered line that fail a protocol check (checksum, too
+/// long, overrun, binary byte) before it is given up: no input can keep a
+/// host resending the same line forever.
+pub const MAX_TRIES: u8 = 3;
+
+/// What to tell the host after a numbered line failed its checks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Retry {
+    /// `Resend:<n>`: send line `n` again.
+    Resend(i32),
+    /// Line `n` failed [`MAX_TRIES`] times: it is given up (not run) and the
+    /// next line expected is `n + 1`.
+    GiveUp(i32),
 }
 
 impl LineChecker {
     /// A checker whose last line number is 0.
     pub const fn new() -> Self {
-        LineChecker { last: 0 }
+        LineChecker { last: 0, tries: 0 }
+    }
+
+    /// The next line (`last + 1`) failed a protocol check: ask for it again,
+    /// or, at the [`MAX_TRIES`]th failure in a row, give it up and move the
+    /// line number past it. A line-number error (the host sent a later line)
+    /// is not a try and must not be reported here.
+    pub fn failed(&mut self) -> Retry {
+        let n = self.resend_line();
+        self.tries = self.tries.saturating_add(1);
+        if self.tries >= MAX_TRIES {
+            self.tries = 0;
+            self.last = n;
+            Retry::GiveUp(n)
+        } else {
+            Retry::Resend(n)
+        }
     }
 
     /// Number of the last accepted line (printed as `Last Line: <n>`).
@@ -333,6 +464,7 @@ impl LineChecker {
         } else {
             self.last = n;
         }
+        self.tries = 0;
         Ok(command)
     }
 }
@@ -541,9 +673,135 @@ mod tests {
     }
 
     #[test]
-    fn realtime_bytes_are_question_bang_tilde() {
-        assert!(is_realtime(b'?') && is_realtime(b'!') && is_realtime(b'~'));
+    fn realtime_bytes_are_question_bang_tilde_and_ctrl_x() {
+        assert!(is_realtime(b'?') && is_realtime(b'!') && is_realtime(b'~') && is_realtime(0x18));
         assert!(!is_realtime(b'G') && !is_realtime(b'\n') && !is_realtime(b'*'));
+    }
+
+    /// The bytes of `stream` that `RxText` takes out as realtime commands,
+    /// and the text that is left.
+    fn split_realtime(stream: &[u8]) -> (Vec<u8>, Vec<u8>) {
+        let mut t = RxText::new();
+        let (mut rt, mut text) = (Vec::new(), Vec::new());
+        for &b in stream {
+            if t.classify(b) {
+                rt.push(b);
+            } else {
+                text.push(b);
+            }
+        }
+        (rt, text)
+    }
+
+    #[test]
+    fn realtime_bytes_in_comments_and_numbered_lines_are_text() {
+        assert_eq!(split_realtime(b"G0 X5 Y5 (is this right?)\n"), (vec![], b"G0 X5 Y5 (is this right?)\n".to_vec()));
+        assert_eq!(split_realtime(b"(Warning! check the clamp)\n").0, vec![]);
+        assert_eq!(split_realtime(b"G1 X1 ; ok? ~!\n").0, vec![]);
+        assert_eq!(split_realtime(b"  N12 G1 X1 ?!~*99\n").0, vec![]);
+        assert_eq!(split_realtime(b"n3 M117 Hi!*1\n").0, vec![]);
+        // Outside those: realtime, wherever in the line.
+        assert_eq!(split_realtime(b"G1 X?1 (a) !\n~G1 Y1 N2\n"), (b"?!~".to_vec(), b"G1 X1 (a) \nG1 Y1 N2\n".to_vec()));
+        // The comment and the numbered line end with the line.
+        assert_eq!(split_realtime(b"(open\n?N1*3\n!;x\n~").0, b"?!~".to_vec());
+        // Ctrl-X always acts, and the line after it starts afresh.
+        assert_eq!(split_realtime(b"N1 (\x18)\x18\n").0, vec![0x18, 0x18]);
+        assert_eq!(split_realtime(b"N1 (a\x18?").0, vec![0x18, b'?']);
+    }
+
+    #[test]
+    fn after_a_loss_realtime_bytes_act() {
+        let mut t = RxText::new();
+        for &b in b"N1 G1 (" {
+            assert!(!t.classify(b));
+        }
+        t.note_loss();
+        assert!(t.classify(b'!'));
+        assert!(!t.at_line_start());
+    }
+
+    /// The rule, spelled out on the text of the line so far.
+    fn rx_text_reference(line: &[u8], b: u8) -> bool {
+        if b == 0x18 {
+            return true;
+        }
+        if !matches!(b, b'?' | b'!' | b'~') {
+            return false;
+        }
+        let trimmed: Vec<u8> = line.iter().copied().skip_while(|c| *c == b' ' || *c == b'\t').collect();
+        if matches!(trimmed.first(), Some(b'N' | b'n')) {
+            return false;
+        }
+        let mut in_paren = false;
+        for &c in line {
+            match c {
+                b'(' if !in_paren => in_paren = true,
+                b')' if in_paren => in_paren = false,
+                b';' if !in_paren => return false,
+                _ => {}
+            }
+        }
+        !in_paren
+    }
+
+    #[test]
+    fn rx_text_matches_the_rule_on_random_streams() {
+        const PIECES: &[&[u8]] = &[
+            b"N", b"n", b" ", b"\t", b"(", b")", b";", b"?", b"!", b"~", b"\n", b"\r", b"G1", b"X5", b"*", b"\x18",
+            b"M112", b"\xfe", b"\x00",
+        ];
+        let mut rng = XorShift(0x5EED);
+        let mut t = RxText::new();
+        let mut line: Vec<u8> = Vec::new();
+        let (mut acted, mut kept) = (0, 0);
+        for _ in 0..200_000 {
+            for &b in PIECES[rng.next() as usize % PIECES.len()] {
+                let want = rx_text_reference(&line, b);
+                assert_eq!(t.classify(b), want, "{:?} then {:?}", String::from_utf8_lossy(&line), b as char);
+                if want {
+                    acted += 1;
+                    if b == 0x18 {
+                        line.clear();
+                    }
+                } else {
+                    if matches!(b, b'?' | b'!' | b'~') {
+                        kept += 1;
+                    }
+                    if b == b'\n' || b == b'\r' {
+                        line.clear();
+                    } else {
+                        line.push(b);
+                    }
+                }
+            }
+        }
+        assert!(acted > 5000 && kept > 5000, "{acted} acted, {kept} kept as text");
+    }
+
+    /// What the RX ISR's assembly fast path stores without calling the slow
+    /// path: 0x20..=0x7D except `!` `?` `(` `)` `;` `M` `m`.
+    fn fast_path_byte(b: u8) -> bool {
+        (0x20..0x7e).contains(&b) && !matches!(b, b'!' | b'?' | b'(' | b')' | b';' | b'M' | b'm')
+    }
+
+    #[test]
+    fn the_fast_path_bytes_change_nothing() {
+        let mut n = 0;
+        for state in 0..16u8 {
+            let t0 = RxText { state };
+            if t0.at_line_start() {
+                continue;
+            }
+            for b in 0..=255u8 {
+                if fast_path_byte(b) {
+                    let mut t = t0;
+                    assert!(!t.classify(b));
+                    assert_eq!(t, t0, "state {state:#x}, byte {b:#x}");
+                    n += 1;
+                }
+            }
+        }
+        assert_eq!(n, 8 * (0x7e - 0x20 - 7));
     }
 
     #[test]
@@ -779,6 +1037,64 @@ mod tests {
         let l = format!("{}*{}", body, xor(body.as_bytes()));
         assert_eq!(c.check(l.as_bytes()), Err(ProtoError::BadLineNumber));
         assert_eq!(c.last_line(), 0);
+    }
+
+    /// A host that resends line 1 with the same bad checksum every time.
+    #[test]
+    fn a_line_that_keeps_failing_is_given_up_after_three_tries() {
+        let mut c = LineChecker::new();
+        let mut bad = numbered(1, "G1 X10");
+        let n = bad.len();
+        bad[n - 1] = if bad[n - 1] == b'0' { b'1' } else { b'0' };
+        let mut replies = Vec::new();
+        for _ in 0..3 {
+            assert_eq!(c.check(&bad), Err(ProtoError::Checksum));
+            replies.push(c.failed());
+        }
+        assert_eq!(replies, [Retry::Resend(1), Retry::Resend(1), Retry::GiveUp(1)]);
+        // The host moves on: line 2 is accepted.
+        assert_eq!(c.check(&numbered(2, "G1 X2")), Ok(&b"G1 X2"[..]));
+    }
+
+    #[test]
+    fn a_good_line_resets_the_tries_and_line_number_errors_are_not_tries() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.failed(), Retry::Resend(1));
+        assert_eq!(c.failed(), Retry::Resend(1));
+        // Lines the host had in flight: line-number errors, not reported.
+        assert_eq!(c.check(&numbered(2, "G0")), Err(ProtoError::LineNumber));
+        assert!(c.check(&numbered(1, "G0")).is_ok());
+        // Line 2 starts with a clean slate.
+        assert_eq!(c.failed(), Retry::Resend(2));
+        assert_eq!(c.failed(), Retry::Resend(2));
+        assert_eq!(c.failed(), Retry::GiveUp(2));
+        assert_eq!(c.last_line(), 2);
+        assert_eq!(c.failed(), Retry::Resend(3));
+    }
+
+    /// Whatever a host sends, the same line is never asked for more than
+    /// MAX_TRIES - 1 times in a row by `failed`.
+    #[test]
+    fn random_failures_never_ask_for_the_same_line_more_than_twice() {
+        let mut rng = XorShift(99);
+        let mut c = LineChecker::new();
+        let (mut same, mut last_req) = (0, i32::MIN);
+        for _ in 0..100_000 {
+            let n = c.resend_line();
+            let line = if rng.next() % 3 == 0 { numbered(n, "G0") } else { b"N1 G0*0".to_vec() };
+            match c.check(&line) {
+                Ok(_) => same = 0,
+                Err(ProtoError::LineNumber) => {}
+                Err(_) => match c.failed() {
+                    Retry::Resend(r) => {
+                        same = if r == last_req { same + 1 } else { 1 };
+                        last_req = r;
+                        assert!(same < MAX_TRIES as i32, "line {r} asked for {same} times");
+                    }
+                    Retry::GiveUp(_) => same = 0,
+                },
+            }
+        }
     }
 
     #[test]

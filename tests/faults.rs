@@ -55,12 +55,13 @@ fn binary_garbage_and_over_long_lines_between_job_lines_change_nothing() {
     ok(&mut vm, "G21 G90 G1 F3000");
     for i in 0..40 {
         // A fault: binary garbage (never a realtime byte or printable text,
-        // which could spell a valid command), or a 97..300-character line.
+        // which could spell a valid command), or a 257..456-character line
+        // (over the 256-character limit).
         let fault: Vec<u8> = if rng.next() % 2 == 0 {
             let n = 1 + rng.next() as usize % 60;
             (0..n).map(|_| (rng.next() % 0x80) as u8 | 0x80).collect()
         } else {
-            let n = 97 + rng.next() as usize % 200;
+            let n = 257 + rng.next() as usize % 200;
             (0..n).map(|k| if k % 7 == 0 { b' ' } else { b'X' + (k % 3) as u8 }).collect()
         };
         vm.send(&fault);

@@ -41,6 +41,10 @@ pub mod realtime {
     pub const RESUME: u8 = 1 << 2;
     /// `M112` seen on the wire: the machine is already stopped.
     pub const ESTOP: u8 = 1 << 3;
+    /// 0x18 (Ctrl-X, grbl's soft reset): the stepper is already halted.
+    pub const RESET: u8 = 1 << 4;
+    /// With [`RESET`]: steps were still being produced when it arrived.
+    pub const RESET_MOVING: u8 = 1 << 5;
 }
 
 /// Pending realtime requests (bits of [`realtime`]).

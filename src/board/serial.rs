@@ -1,8 +1,9 @@
 //! USART0, the host serial port (SPEC §4), interrupt driven (datasheet §22).
 //!
 //! RX: the `USART0_RX` interrupt takes every byte as it arrives. Realtime
-//! bytes (`?` `!` `~`) become bits in [`super::REALTIME`] and never reach the
-//! ring; `M112` is spotted by `protocol::MCodeScanner` and stops the machine
+//! bytes (`?` `!` `~` outside comments and numbered lines, and 0x18 anywhere:
+//! `protocol::RxText` decides) become bits in [`super::REALTIME`] and never
+//! reach the ring; `M112` is spotted by `protocol::MCodeScanner` and stops the machine
 //! from inside the ISR, and `M108` (continue after M0) sets the resume bit;
 //! both lines also reach the ring and run as usual. Other bytes go into a
 //! 256-byte single-producer ring (indexed by a `u8`, see [`rx_store`]) whose
@@ -13,7 +14,7 @@
 //!
 //! The interrupt has two halves: a fast path in assembly (`__vector_25`)
 //! stores the usual byte (a digit, a letter other than M, a blank, ...) in
-//! 64 cycles, and hands every other byte to the slow path in Rust
+//! 72 cycles, and hands every other byte to the slow path in Rust
 //! (`usart0_rx_slow`), which does all of the above.
 //!
 //! TX: [`write`] queues bytes in a 128-byte ring drained by `USART0_UDRE`.
@@ -26,7 +27,7 @@ use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicU8, Ordering};
 use heapless::spsc::{Consumer, Producer, Queue};
-use mill::protocol::{is_realtime, MCodeScanner, RxStore, Urgent};
+use mill::protocol::{MCodeScanner, RxStore, RxText, Urgent, SOFT_RESET};
 
 /// RX ring slots; one stays free, so 255 bytes are usable. A
 /// character-counting host may keep this many bytes in flight. RAM: 256 + 2 B.
@@ -81,10 +82,14 @@ static mut MCODE_SCAN: MCodeScanner = MCodeScanner::new();
 static mut RX_PREV: u8 = 0;
 /// The RX ISR's gap-marking store (one byte).
 static mut RX_STORE: RxStore = RxStore::new();
+/// The RX ISR's view of the line (comment, numbered line), which decides
+/// whether `?` `!` `~` are realtime commands or text (one byte).
+static mut RX_TEXT: RxText = RxText::new();
 /// Non-zero while the next byte must take the slow path: a match in
-/// progress in `MCODE_SCAN` or a gap marker pending in `RX_STORE` (written
-/// by the slow path, read by the fast one).
-static mut RX_SLOW: u8 = 0;
+/// progress in `MCODE_SCAN`, a gap marker pending in `RX_STORE`, or the
+/// start of a line in `RX_TEXT` (written by the slow path, read by the fast
+/// one).
+static mut RX_SLOW: u8 = 1; // `RX_TEXT` starts at a line start
 /// The byte the fast path hands to the slow path.
 static mut RX_IN: u8 = 0;
 /// Non-zero when bytes were lost before `RX_IN` (UCSR0A, with DOR0 set).
@@ -195,10 +200,12 @@ const UCSR0A: u16 = 0xC0;
 const UDR0: u16 = 0xC6;
 const DOR0: u8 = 3;
 
-// RX complete (`__vector_25`), fast path. A byte that is neither realtime
-// nor `M`/`m` nor 0x7E and above, with no loss, no M-code match in progress
-// and no gap marker pending, goes straight into the ring and `RX_PREV`:
-// that is what the slow path does for it (`MCodeScanner::ignores` it, and
+// RX complete (`__vector_25`), fast path. A byte from 0x20 to 0x7D other
+// than `!` `?` `(` `)` `;` `M` `m`, with no loss, no M-code match in
+// progress, no gap marker pending and not at the start of a line, goes
+// straight into the ring and `RX_PREV`: that is what the slow path does for
+// it (`MCodeScanner::ignores` it, `RxText::classify` leaves its state alone,
+// `protocol::tests::the_fast_path_bytes_change_nothing`, and
 // `RxStore::store` with no gap pending is a plain enqueue), written out
 // with 4 registers saved instead of the 9 the Rust handler saves (a Rust
 // ISR saves every register any of its paths uses). Any other byte, and a
@@ -207,12 +214,14 @@ const DOR0: u8 = 3;
 // a jump enters the slow path as if the hardware had, so that its `reti`
 // ends the interrupt.
 //
-// Budget: 64 cycles per ordinary byte, entry to `reti` (was 164 in Rust
-// alone), ~1.1 k cycles per streamed G1 line: `__vector_25` in
-// `cargo run -p sim --release --bin profile -- --count 254 --trace 500:300`.
-// A byte for the slow path costs ~38 cycles here plus ~143 in
-// `usart0_rx_slow` (the `M` and `5` of a job of `M5` lines, same command
-// with the job's file name at the end).
+// Budget: 72 cycles per ordinary byte, entry to `reti` (64 before the
+// comment/numbered-line tracking of `RxText`; 164 in Rust alone). Per
+// streamed G1 line (`cargo run -p sim --release --bin profile -- --trace
+// 500:300`, `__vector_25` inclusive): 1550 cycles, of which 331 in
+// `usart0_rx_slow` for the line's two slow bytes (its `\n`, which starts
+// a line, and the first character, which may make it a numbered one);
+// 1144 before `RxText`. A byte for the slow path costs ~38 cycles here
+// plus ~165 in `usart0_rx_slow`.
 //
 // SAFETY: the fast path writes only what the RX interrupt owns (the ring
 // slot at RX_HEAD, then RX_HEAD, and RX_PREV / RX_IN / RX_IN_LOST), keeps
@@ -238,6 +247,14 @@ core::arch::global_asm!(
     "    cpi  r24, 0x21",          // '!'
     "    breq .Lrx_slow",
     "    cpi  r24, 0x3f",          // '?'
+    "    breq .Lrx_slow",
+    "    cpi  r24, 0x3b",          // ';' starts a comment
+    "    breq .Lrx_slow",
+    "    cpi  r24, 0x20",          // control bytes: line ends, tab, Ctrl-X
+    "    brlo .Lrx_slow",
+    "    mov  r25, r24",
+    "    andi r25, 0xfe",
+    "    cpi  r25, 0x28",          // '(' or ')'
     "    breq .Lrx_slow",
     "    mov  r25, r24",
     "    ori  r25, 0x20",
@@ -308,15 +325,26 @@ extern "avr-interrupt" fn usart0_rx_slow() {
         )
     };
     // SAFETY: as above.
-    let (scan, store) = unsafe { (&mut *addr_of_mut!(MCODE_SCAN), &mut *addr_of_mut!(RX_STORE)) };
+    let (scan, store, text) =
+        unsafe { (&mut *addr_of_mut!(MCODE_SCAN), &mut *addr_of_mut!(RX_STORE), &mut *addr_of_mut!(RX_TEXT)) };
     if lost {
         store.note_loss();
+        text.note_loss();
     }
-    if is_realtime(b) {
+    if text.classify(b) {
         raise_in_isr(match b {
             b'?' => realtime::STATUS,
             b'!' => realtime::HOLD,
-            _ => realtime::RESUME,
+            b'~' => realtime::RESUME,
+            _ => {
+                // Ctrl-X: stop stepping now (grbl's mc_reset); the main loop
+                // flushes the queues and reports. Whether steps were still
+                // being produced decides if the position is kept.
+                debug_assert!(b == SOFT_RESET);
+                let moving = super::stepper::busy();
+                super::stepper::halt_from_isr();
+                realtime::RESET | if moving { realtime::RESET_MOVING } else { 0 }
+            }
         });
     } else {
         match scan.feed(prev, b) {
@@ -330,7 +358,7 @@ extern "avr-interrupt" fn usart0_rx_slow() {
         unsafe { addr_of_mut!(RX_PREV).write_volatile(b) };
         store.store(b, rx_store);
     }
-    let slow = !scan.is_idle() || store.gap_pending();
+    let slow = !scan.is_idle() || store.gap_pending() || text.at_line_start();
     // SAFETY: as above; volatile since only the assembly reads it.
     unsafe { addr_of_mut!(RX_SLOW).write_volatile(slow as u8) };
 }

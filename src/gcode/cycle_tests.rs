@@ -4,117 +4,16 @@
 //! block end points in machine steps (internal frame: Z counts down from
 //! the top switch, so user Z −8 mm is step 800 at 100 steps/mm); step
 //! timing and speeds are the simavr test's business (tests/cycles.rs).
-//! The fake board is `interp_tests.rs`'s, plus the time of each block (for
-//! the dwell).
+//! The fake board and the helpers are `interp_tests.rs`'s.
 
 use super::cycles::{Kind, Retract};
+use super::interp::tests::{machine, refused, run, FakeIo};
 use super::Motion;
-use crate::machine::{Io, Machine, Realtime, StepperStatus, Switches};
-use crate::stepper::StepperCmd;
-use crate::N_AXES;
-use core::convert::Infallible;
-
-/// A board without time: every block is stepped out as soon as it is queued;
-/// each poll is one millisecond.
-struct FakeIo {
-    out: String,
-    pos: [i32; N_AXES],
-    /// (millisecond, position) after each block, in order.
-    path: Vec<(u32, [i32; 3])>,
-    ms: u32,
-}
-
-impl ufmt::uWrite for FakeIo {
-    type Error = Infallible;
-    fn write_str(&mut self, s: &str) -> Result<(), Infallible> {
-        self.out.push_str(s);
-        Ok(())
-    }
-}
-
-impl Io for FakeIo {
-    fn poll(&mut self) -> Realtime {
-        self.ms = self.ms.wrapping_add(1);
-        Realtime::default()
-    }
-    fn push_segment(&mut self, cmd: StepperCmd) -> bool {
-        if let StepperCmd::Block(b) = cmd {
-            for a in 0..N_AXES {
-                let s = b.steps[a] as i32;
-                self.pos[a] += if b.direction_bits & (1 << a) != 0 { -s } else { s };
-            }
-            self.path.push((self.ms, [self.pos[0], self.pos[1], self.pos[2]]));
-        }
-        true
-    }
-    fn segment_space(&self) -> usize {
-        16
-    }
-    fn stepper(&self) -> StepperStatus {
-        StepperStatus { position: self.pos, busy: false, trip_position: self.pos, tripped: false }
-    }
-    fn set_stepper_position(&mut self, p: [i32; N_AXES]) {
-        self.pos = p;
-    }
-    fn stop_motion(&mut self) {}
-    fn clear_stop(&mut self) {}
-    fn set_watch(&mut self, _: u8, _: bool, _: u8, _: u8, _: u8, _: [u16; 3]) {}
-    fn drivers(&mut self, _on: bool) {}
-    fn carousel_driver(&mut self, _on: bool) {}
-    fn spindle(&mut self, _duty: u8) {}
-    fn coolant(&mut self, _on: bool) {}
-    fn switches(&self) -> Switches {
-        Switches::default()
-    }
-    fn millis(&self) -> u32 {
-        self.ms
-    }
-    fn eeprom_read(&mut self, _addr: u16, buf: &mut [u8]) {
-        buf.fill(0xFF);
-    }
-    fn eeprom_write(&mut self, _addr: u16, _data: &[u8]) {}
-    fn free_ram(&self) -> u16 {
-        1000
-    }
-    fn rx_pending(&self) -> usize {
-        0
-    }
-}
-
-/// A homed machine at machine 0 (the top of Z), G54 = machine.
-fn machine() -> (Box<Machine>, FakeIo) {
-    let mut m = Box::new(Machine::new());
-    let mut io = FakeIo { out: String::new(), pos: [0; N_AXES], path: Vec::new(), ms: 0 };
-    m.boot(&mut io, "test");
-    m.homed = 0b111;
-    io.out.clear();
-    (m, io)
-}
-
-fn run(m: &mut Machine, io: &mut FakeIo, line: &str) {
-    if let Err(e) = m.execute(line.as_bytes(), io) {
-        panic!("{line:?} refused: {}", msg(e));
-    }
-    m.wait_idle(io).unwrap();
-}
-
-fn refused(m: &mut Machine, io: &mut FakeIo, line: &str) -> String {
-    match m.execute(line.as_bytes(), io) {
-        Ok(()) => panic!("{line:?} accepted"),
-        Err(e) => msg(e),
-    }
-}
-
-fn msg(e: super::interp::Error) -> String {
-    let mut s = String::new();
-    e.message().write_to(&mut s).unwrap();
-    s
-}
 
 /// The block end points since the last call, as user-frame mm (X, Y, Z up).
 fn take(io: &mut FakeIo) -> Vec<[f32; 3]> {
-    let p = io.path.drain(..).map(|(_, p)| [p[0] as f32 / 100.0, p[1] as f32 / 100.0, -(p[2] as f32) / 100.0]).collect();
-    p
+    io.path_ms.clear();
+    io.path.drain(..).map(|p| [p[0] as f32 / 100.0, p[1] as f32 / 100.0, -(p[2] as f32) / 100.0]).collect()
 }
 
 /// Z of every block end, user mm.
@@ -214,10 +113,10 @@ fn g82_dwells_p_seconds_at_the_bottom() {
     let (mut m, mut io) = machine();
     run(&mut m, &mut io, "G0 X10 Y10 Z-5");
     io.path.clear();
+    io.path_ms.clear();
     run(&mut m, &mut io, "G82 X20 Z-15 R-8 P0.5 F300");
-    let p: Vec<(u32, [i32; 3])> = io.path.clone();
-    let bottom = p.iter().position(|q| q.1[2] == 1500).unwrap();
-    let waited = p[bottom + 1].0 - p[bottom].0;
+    let bottom = io.path.iter().position(|q| q[2] == 1500).unwrap();
+    let waited = io.path_ms[bottom + 1] - io.path_ms[bottom];
     assert!((500..520).contains(&waited), "{waited} ms");
 }
 
@@ -227,6 +126,7 @@ fn refused_cycle_lines_change_nothing_and_move_nothing() {
     run(&mut m, &mut io, "G0 X10 Y10 Z-5");
     run(&mut m, &mut io, "F300");
     io.path.clear();
+    io.path_ms.clear();
     let cases = [
         ("G81 X20 R-8", "Z missing"),
         ("G81 X20 Z-15", "R missing"),

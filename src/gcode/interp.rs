@@ -560,12 +560,14 @@ fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Opti
     })
 }
 
-/// G4: wait for the queue to drain, then dwell P ms or S seconds.
+/// G4: wait for the queue to drain, then dwell P or S seconds (P in
+/// seconds as in RS274/NGC, grbl and LinuxCNC, and every CAM file of the
+/// corpus; Marlin's P is ms: README "G4"). `busy:processing` keeps the host
+/// waiting (`Machine::wait_step`).
 fn dwell(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
     let ms = match (l.word(Word::P), l.word(Word::S)) {
-        (Some(p), None) if p >= 0.0 => p,
-        (None, Some(s)) if s >= 0.0 => s * 1000.0,
-        _ => return Err(Error::BadWord(F!("G4 needs one of P<ms> or S<s>, not negative"))),
+        (Some(s), None) | (None, Some(s)) if s >= 0.0 => s * 1000.0,
+        _ => return Err(Error::BadWord(F!("G4 needs one of P<s> or S<s> (seconds), not negative"))),
     };
     g.commit(&mut m.interp);
     wait_ms(m, io, ms)
@@ -577,7 +579,6 @@ fn wait_ms(m: &mut Machine, io: &mut impl Io, ms: f32) -> Result<(), Error> {
     m.wait_idle(io)?;
     let start = io.millis();
     while (io.millis().wrapping_sub(start) as f32) < ms {
-        m.keepalive(io);
         m.wait_step(io)?;
     }
     Ok(())
@@ -1078,10 +1079,17 @@ fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io)
             io.drivers(true);
         }
         18 | 84 => {
+            // Wait for the moves, then spindle off (a mill with its drivers
+            // off cannot cut: OctoPrint's cancel script has M84 but no M5),
+            // drivers off; the position and the homing are kept (Marlin's
+            // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
             m.wait_idle(io)?;
+            m.spindle_off(io);
             io.drivers(false);
-            m.homed = 0;
             m.apply_watch(io, 0, false);
+            if m.homed != 0 {
+                uwriteln!(io, "{}", F!("echo:steppers off, position kept: home again (G28) if an axis was turned by hand")).ok();
+            }
         }
         92 | 201 | 203 => {
             m.wait_idle(io)?;
@@ -1322,4 +1330,4 @@ impl ModalCopy {
 
 #[cfg(test)]
 #[path = "interp_tests.rs"]
-mod tests;
+pub(crate) mod tests;

@@ -2,7 +2,7 @@
 //! [`Machine::execute`] on a fake board whose stepper applies each planner
 //! block at once. The path is the list of block end points (one per chord
 //! of an arc), which is what these tests check; the step timing is the
-//! simavr tests' business.
+//! simavr tests' business. `cycle_tests.rs` drives the same fake board.
 
 use crate::machine::{Io, Machine, Realtime, StepperStatus, Switches};
 use crate::stepper::StepperCmd;
@@ -15,6 +15,8 @@ pub struct FakeIo {
     pub pos: [i32; N_AXES],
     /// Position after each block, in order.
     pub path: Vec<[i32; N_AXES]>,
+    /// The millisecond each block of `path` was queued at (one per poll).
+    pub path_ms: Vec<u32>,
     pub eeprom: Vec<u8>,
     pub ms: u32,
     pub spindle: u8,
@@ -25,7 +27,7 @@ pub struct FakeIo {
 
 impl FakeIo {
     pub fn new() -> FakeIo {
-        FakeIo { out: String::new(), pos: [0; N_AXES], path: Vec::new(), eeprom: vec![0xFF; 4096], ms: 0, spindle: 0, coolant: false, auto_resume: false }
+        FakeIo { out: String::new(), pos: [0; N_AXES], path: Vec::new(), path_ms: Vec::new(), eeprom: vec![0xFF; 4096], ms: 0, spindle: 0, coolant: false, auto_resume: false }
     }
 }
 
@@ -49,6 +51,7 @@ impl Io for FakeIo {
                 self.pos[a] += if b.direction_bits & (1 << a) != 0 { -s } else { s };
             }
             self.path.push(self.pos);
+            self.path_ms.push(self.ms);
         }
         true
     }

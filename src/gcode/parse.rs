@@ -35,9 +35,9 @@ use super::cycles::{Kind, Retract};
 use crate::flash::FStr;
 use ufmt::{uDisplay, uWrite, uwrite};
 
-/// Longest text [`parse`] accepts, in bytes (columns and file name offsets
-/// are `u8`). The protocol already limits lines to 96 characters.
-pub const MAX_PARSE_LEN: usize = 255;
+/// Longest text [`parse`] accepts, in bytes: the protocol's line limit
+/// (columns are `u8`: a problem in column 256 is reported at 255).
+pub const MAX_PARSE_LEN: usize = crate::protocol::MAX_LINE_LEN;
 
 /// Value words, in the bit order of [`Words`].
 ///

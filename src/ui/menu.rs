@@ -674,7 +674,7 @@ impl Ui {
     pub fn line(&self, row: usize, v: &View, m: &Machine, file: &dyn Fn(u8) -> Option<Name>) -> Line {
         let mut l = Line::blank();
         match self.screen {
-            Screen::Status => status_line(row, v, &mut l),
+            Screen::Status => status_line(row, v, &m.host, &mut l),
             Screen::Info => info_line(row, v, &mut l),
             _ => {
                 if row == 0 {
@@ -815,7 +815,7 @@ pub fn state_text(s: State) -> Text {
 }
 
 #[inline(never)]
-fn status_line(row: usize, v: &View, l: &mut Line) {
+fn status_line(row: usize, v: &View, host: &crate::hostcodes::HostState, l: &mut Line) {
     match row {
         0 => {
             l.invert = true;
@@ -847,6 +847,15 @@ fn status_line(row: usize, v: &View, l: &mut Line) {
         // An interrupted change outranks the job: nothing moves until confirmed.
         6 if v.interrupted.is_some() => {
             l.text(0, Text::ChangeCut);
+        }
+        // No SD job: what the host says (M117 message, M73 progress).
+        6 if matches!(v.job, Phase::Idle | Phase::Writing) && (host.msg_len > 0 || host.percent().is_some()) => {
+            l.put(0, host.message());
+            if let Some(p) = host.percent() {
+                l.put(COLS - 5, b"     ");
+                l.uint_right(COLS - 1, p as u32);
+                l.text(COLS - 1, Text::Pct);
+            }
         }
         6 => job_status(v, l),
         7 => {
@@ -1144,6 +1153,25 @@ mod tests {
         assert_eq!(s[6], "PART.NC           45%");
         v.job = Phase::Ended(Outcome::BadLine(40));
         assert_eq!(screen(&Ui::new(), &v)[6], "Stopped: line 40");
+    }
+
+    #[test]
+    fn status_screen_shows_the_host_message_and_progress_when_no_sd_job_runs() {
+        let v = View::new();
+        let mut m = Machine::new();
+        assert_eq!(screen_of(&Ui::new(), &v, &m)[6], "No job");
+        m.host.set_message(b"Layer 3 of 10: roughing");
+        assert_eq!(screen_of(&Ui::new(), &v, &m)[6], "Layer 3 of 10: rough");
+        m.host.pct = 7;
+        assert_eq!(screen_of(&Ui::new(), &v, &m)[6], "Layer 3 of 10: r   7%");
+        m.host.set_message(b"");
+        assert_eq!(screen_of(&Ui::new(), &v, &m)[6], "                   7%".trim_end());
+        // An SD job shows its own name and progress.
+        let mut v = v;
+        v.job = Phase::Running;
+        v.job_pct = 45;
+        v.job_name = Name::parse(b"PART.NC").unwrap();
+        assert_eq!(screen_of(&Ui::new(), &v, &m)[6], "PART.NC           45%");
     }
 
     #[test]

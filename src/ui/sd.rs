@@ -17,7 +17,7 @@
 //! Faults and what they do:
 //! - the card is pulled while a job runs: feed hold, message, the job waits
 //!   for an abort (it cannot go on without its file);
-//! - a read error (or binary garbage, or a line over 96 characters): the job
+//! - a read error (or binary garbage, or a line over 256 characters): the job
 //!   stops at once (decelerated abort), spindle off, message;
 //! - a G-code error on line n: nothing after line n is read; the moves
 //!   before it finish, then the spindle is turned off and line n is reported.
@@ -559,7 +559,15 @@ pub fn command(
     let busy = job.active();
     match code {
         20 => {
-            card.mount().map_err(SdError::text)?;
+            match card.mount() {
+                // Marlin: `echo:No media`, not an error (OctoPrint stops at
+                // an `Error:` it does not know).
+                Err(SdError::NoCard) => {
+                    uwriteln!(out, "{}{}", Text::Echo, Text::MsgNoMedia).ok();
+                    return Ok(());
+                }
+                r => r.map_err(SdError::text)?,
+            }
             uwriteln!(out, "{}", Text::BeginFileList).ok();
             let r = card.list(&mut |n, size| {
                 uwriteln!(out, "{} {}", n, size).ok();
@@ -571,8 +579,18 @@ pub fn command(
             if !busy {
                 card.unmount();
             }
-            card.mount().map_err(SdError::text)?;
-            uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardOk).ok();
+            match card.mount() {
+                // Marlin's answer for a missing card: an echo, not an error
+                // (OctoPrint sends M21 at connect and goes offline on an
+                // `Error:` it does not know).
+                Err(SdError::NoCard) => {
+                    uwriteln!(out, "{}{}", Text::Echo, Text::MsgSdInitFail).ok();
+                }
+                r => {
+                    r.map_err(SdError::text)?;
+                    uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardOk).ok();
+                }
+            }
         }
         22 => {
             if busy {
@@ -852,7 +870,7 @@ pub(crate) mod tests {
     #[test]
     fn a_binary_byte_or_an_overlong_line_is_an_error() {
         assert_eq!(lines_of("G0 X1\nG0\u{1} X2\n"), Err(Text::ErrBinary));
-        let long = format!("G1 X{}\n", "1".repeat(120));
+        let long = format!("G1 X{}\n", "1".repeat(crate::protocol::MAX_LINE_LEN));
         assert_eq!(lines_of(&long), Err(Text::ErrLineTooLong));
     }
 

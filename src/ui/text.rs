@@ -18,6 +18,8 @@ crate::flash_texts! {
     AtSdByte = " at SD byte ",
     JobStopped = "; job stopped at line ",
     MsgCardOk = "SD card ok",
+    MsgSdInitFail = "SD init fail",
+    MsgNoMedia = "No media",
     MsgCardReleased = "SD card released",
     MsgCardRemoved = "SD card removed: job held; abort to end it",
     MsgAborted = "SD job aborted",
@@ -25,10 +27,12 @@ crate::flash_texts! {
     MsgEndedAtLine = "SD job ended with an error at line ",
     MsgReadErrorAt = "SD job ended: read error at byte ",
     MsgDonePrinting = "Done printing file",
-    // Errors.
-    ErrNoCard = "no SD card",
-    ErrNoFs = "no FAT16/FAT32 volume on the SD card",
-    ErrNotFound = "file not found",
+    // Errors. The card's carry one of the words OctoPrint files under SD
+    // card errors ("cannot open", "volume.init", "open failed"): it logs
+    // those instead of disconnecting.
+    ErrNoCard = "no SD card: cannot open files",
+    ErrNoFs = "volume.init failed: no FAT16/FAT32 volume on the SD card",
+    ErrNotFound = "open failed: file not found",
     ErrRead = "SD read error",
     ErrWrite = "SD write error",
     ErrBadName = "not an 8.3 file name",
@@ -36,7 +40,7 @@ crate::flash_texts! {
     ErrNoFileSelected = "no SD file selected",
     ErrSeek = "M26 needs S<byte> within the file",
     ErrJobRunning = "SD job running",
-    ErrLineTooLong = "line too long (max 96 characters)",
+    ErrLineTooLong = "line too long (max 256 characters)",
     ErrBinary = "binary data in file",
     // Machine states on the display.
     StIdle = "Idle",
