@@ -198,7 +198,7 @@ pub fn list(s: &Settings, w: &mut impl uWrite) {
     }
 }
 
-/// `$G`: grbl 1.1's modal-state line. Coolant is not tracked here (`M9`).
+/// `$G`: grbl 1.1's modal-state line.
 pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
     use crate::gcode::parse::{Motion, Plane};
     // Every text through F!: a plain `&str` from a match is a RAM copy on AVR.
@@ -235,10 +235,12 @@ pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
     uwrite!(w, "{}{} G{} G{} G{} G{}", F!("[GC:"), motion, 54 + i.wcs, plane, units, dist).ok();
     uwriteln!(
         w,
-        "{}{}{}{}{}{}{}{}]",
+        "{}{}{}{}{}{}{}{}{}{}]",
         F!(" G94 M"),
         spindle,
-        F!(" M9 T"),
+        F!(" M"),
+        i.coolant_m,
+        F!(" T"),
         tool,
         F!(" F"),
         crate::math::round_i32(feed),
@@ -344,6 +346,11 @@ mod tests {
         let mut out = S(String::new());
         modes(&i, 3, &mut out);
         assert_eq!(out.0, "[GC:G1 G55 G17 G21 G91 G94 M3 M9 T3 F600 S8000]\n");
+        i.coolant_m = 8;
+        let mut out = S(String::new());
+        modes(&i, 3, &mut out);
+        assert_eq!(out.0, "[GC:G1 G55 G17 G21 G91 G94 M3 M8 T3 F600 S8000]\n");
+        i.coolant_m = 9;
         i.wcs_mm[0] = [1.5, -2.0, 0.25];
         i.g92_mm = [0.0, 1.0, 0.0];
         i.tlo_mm = -19.5;

@@ -773,6 +773,7 @@ impl Machine {
     /// Spindle and coolant off (and remembered as off): aborts, program end.
     pub fn spindle_off(&mut self, io: &mut impl Io) {
         self.interp.spindle_on = false;
+        self.interp.coolant_m = 9;
         io.spindle(0);
         io.coolant(false);
     }
@@ -795,6 +796,7 @@ impl Machine {
         io.coolant(false);
         // Off for the interpreter too: an S word alone must not restart it.
         self.interp.spindle_on = false;
+        self.interp.coolant_m = 9;
         if alarm == Alarm::EmergencyStop {
             io.drivers(false);
         }

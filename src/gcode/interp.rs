@@ -147,6 +147,8 @@ pub struct Interp {
     /// Spindle speed, rpm (S), and whether it is on.
     pub spindle_rpm: f32,
     pub spindle_on: bool,
+    /// Coolant as its M code: 7 (mist) or 8 (flood) on, 9 off (one output).
+    pub coolant_m: u8,
     /// Active work coordinate system, 0 = G54.
     pub wcs: u8,
     /// Work offsets G54..G59, machine mm (internal frame: the user's
@@ -190,6 +192,7 @@ impl Interp {
             feed_override_pct: 100,
             spindle_rpm: 0.0,
             spindle_on: false,
+            coolant_m: 9,
             wcs: 0,
             wcs_mm: [[0.0; 3]; N_WCS],
             g92_mm: [0.0; 3],
@@ -879,6 +882,11 @@ fn finish_line(
             m.wait_idle(io)?;
         }
         io.coolant(c != Coolant::Off);
+        m.interp.coolant_m = match c {
+            Coolant::Mist => 7,
+            Coolant::Flood => 8,
+            Coolant::Off => 9,
+        };
     }
 
     if let Some(mo) = do_motion {

@@ -350,13 +350,13 @@ fn refusals_name_what_is_not_supported_and_move_nothing() {
 fn coolant_m7_m8_on_m9_off_and_off_at_program_end_and_alarms() {
     let (mut m, mut io) = machine();
     run(&mut m, &mut io, "M8");
-    assert!(io.coolant);
+    assert!(io.coolant && m.interp.coolant_m == 8, "$G shows M8");
     run(&mut m, &mut io, "M9");
-    assert!(!io.coolant);
+    assert!(!io.coolant && m.interp.coolant_m == 9);
     run(&mut m, &mut io, "M7");
-    assert!(io.coolant);
+    assert!(io.coolant && m.interp.coolant_m == 7);
     run(&mut m, &mut io, "M2");
-    assert!(!io.coolant, "M2");
+    assert!(!io.coolant && m.interp.coolant_m == 9, "M2");
     run(&mut m, &mut io, "S1000 M3 M8");
     assert!(io.coolant && io.spindle > 0);
     run(&mut m, &mut io, "M30");
@@ -364,7 +364,7 @@ fn coolant_m7_m8_on_m9_off_and_off_at_program_end_and_alarms() {
     run(&mut m, &mut io, "M7 M8");
     assert!(io.coolant);
     let _ = m.execute(b"M112", &mut io);
-    assert!(!io.coolant, "M112");
+    assert!(!io.coolant && m.interp.coolant_m == 9, "M112");
     // In alarm M8 is refused, M9 is not.
     assert!(m.execute(b"M8", &mut io).is_err());
     assert!(!io.coolant);
@@ -373,7 +373,7 @@ fn coolant_m7_m8_on_m9_off_and_off_at_program_end_and_alarms() {
     m.homed = 0b111;
     run(&mut m, &mut io, "M8");
     m.raise(&mut io, crate::machine::Alarm::HardLimit);
-    assert!(!io.coolant, "alarm");
+    assert!(!io.coolant && m.interp.coolant_m == 9, "alarm");
 }
 
 #[test]
