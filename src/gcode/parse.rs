@@ -1386,6 +1386,14 @@ mod tests {
     }
 
     #[test]
+    fn non_ascii_text_is_ignored_in_comments_and_refused_outside_them() {
+        assert_eq!(x("G0 X1 (Fräsen, Größe 3)"), 1.0);
+        assert_eq!(x("G0 X2 ; Kühlung"), 2.0);
+        assert_eq!(fails("G0 Xä1").0, ParseErrorKind::BadNumber);
+        assert_eq!(fails("G0 ä X1"), (ParseErrorKind::Unexpected, 4));
+    }
+
+    #[test]
     fn blanks_inside_a_number_are_ignored_as_in_rs274ngc() {
         assert_eq!(x("X1 6.5"), 16.5);
         assert_eq!(x("X1 0"), 10.0);

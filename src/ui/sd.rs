@@ -479,8 +479,10 @@ impl SdJob {
     }
 
     /// Next line of the file into `line`: `Ok(None)` at the end. Blank lines
-    /// are skipped. Errors: the card failed, a byte that is not text, or a
-    /// line over `MAX_LINE_LEN`.
+    /// are skipped. Errors: the card failed, a control byte (binary data), or
+    /// a line over `MAX_LINE_LEN`. Bytes from 0x80 up (UTF-8 or Latin-1 text,
+    /// as in a comment `(fräsen)`) pass to the parser, which ignores them in
+    /// a comment and refuses them anywhere else.
     #[inline(never)]
     fn next_line(&mut self, card: &mut impl Card, line: &mut [u8; MAX_LINE_LEN]) -> Result<Option<usize>, Text> {
         loop {
@@ -509,7 +511,7 @@ impl SdJob {
                         break;
                     }
                     b'\r' => {}
-                    b'\t' | 0x20..=0x7E => {
+                    b'\t' | 0x20..=0x7E | 0x80..=0xFF => {
                         if n == MAX_LINE_LEN {
                             return Err(Text::ErrLineTooLong);
                         }
@@ -870,6 +872,9 @@ pub(crate) mod tests {
     #[test]
     fn a_binary_byte_or_an_overlong_line_is_an_error() {
         assert_eq!(lines_of("G0 X1\nG0\u{1} X2\n"), Err(Text::ErrBinary));
+        assert_eq!(lines_of("G0 X1\nG0\u{7f} X2\n"), Err(Text::ErrBinary));
+        // Text in another encoding is not binary: it reaches the parser.
+        assert_eq!(lines_of("(fräsen)\nG0 X1 ; Größe\n").unwrap(), ["(fräsen)", "G0 X1 ; Größe"]);
         let long = format!("G1 X{}\n", "1".repeat(crate::protocol::MAX_LINE_LEN));
         assert_eq!(lines_of(&long), Err(Text::ErrLineTooLong));
     }
