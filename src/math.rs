@@ -1,4 +1,8 @@
-//! Float helpers that pick the fast implementation per target.
+//! Arithmetic that picks the fast implementation per target: the one place
+//! outside `board/` for cycle tricks (inline assembly included; `tools/test`
+//! fails on an `asm!` anywhere else). Each AVR version sits next to its
+//! plain host twin, which is what the host tests run; the simavr tests run
+//! the AVR versions through the parser, planner and prep.
 //!
 //! On AVR, `sqrt` comes from avr-libc's hand-written assembly (linked through
 //! `-lm` in `avr-atmega2560.json`); `libm`'s generic version would put a
@@ -103,6 +107,42 @@ pub fn atan2f(y: f32, x: f32) -> f32 {
     {
         libm::atan2f(y, x)
     }
+}
+
+/// `m · 10 + d` (no overflow: the number lexer in `gcode::parse` keeps `m` below 10⁸).
+#[cfg(not(target_arch = "avr"))]
+#[inline(always)]
+pub fn times10_plus(m: u32, d: u8) -> u32 {
+    m * 10 + d as u32
+}
+
+/// `m · 10 + d` (no overflow: the number lexer in `gcode::parse` keeps `m` below 10⁸), as
+/// (4m + m)·2 + d in 24 single-cycle instructions: LLVM-AVR turns any form
+/// of `m * 10` it can see through into a call to the ~90-cycle `__mulsi3`.
+/// `m` goes in and out as two register pairs: as four bytes, LLVM spent
+/// ~30 more instructions putting the `u32` back together.
+#[cfg(target_arch = "avr")]
+#[inline(always)]
+pub fn times10_plus(m: u32, d: u8) -> u32 {
+    let (mut lo, mut hi) = (m as u16, (m >> 16) as u16);
+    // SAFETY: register arithmetic only; r1 is LLVM-AVR's zero register.
+    unsafe {
+        core::arch::asm!(
+            "movw {tl}, {lo}", "movw {th}, {hi}",
+            "lsl {lo:l}", "rol {lo:h}", "rol {hi:l}", "rol {hi:h}",
+            "lsl {lo:l}", "rol {lo:h}", "rol {hi:l}", "rol {hi:h}",
+            "add {lo:l}, {tl:l}", "adc {lo:h}, {tl:h}", "adc {hi:l}, {th:l}", "adc {hi:h}, {th:h}",
+            "lsl {lo:l}", "rol {lo:h}", "rol {hi:l}", "rol {hi:h}",
+            "add {lo:l}, {d}", "adc {lo:h}, r1", "adc {hi:l}, r1", "adc {hi:h}, r1",
+            lo = inout(reg_pair) lo,
+            hi = inout(reg_pair) hi,
+            tl = out(reg_pair) _,
+            th = out(reg_pair) _,
+            d = in(reg) d,
+            options(pure, nomem, nostack),
+        );
+    }
+    (hi as u32) << 16 | lo as u32
 }
 
 /// `a · b`, the full 32-bit product of two 16-bit factors. On the AVR four

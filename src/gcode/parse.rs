@@ -602,48 +602,14 @@ const MAX_SIG_DIGITS: u8 = 9;
 /// Most significant digits before the point (|value| < 1e6).
 const MAX_INT_DIGITS: u8 = 6;
 
-/// Skip spaces and tabs from `pos`.
+/// Skip spaces and tabs from `pos`. Inlined: called ~10 times a line, and
+/// the call cost more than the usual single compare (~360 cycles a line).
+#[inline(always)]
 fn skip_blanks(s: &[u8], mut pos: usize) -> usize {
     while matches!(s.get(pos), Some(b' ' | b'\t')) {
         pos += 1;
     }
     pos
-}
-
-/// `m · 10 + d` (no overflow: the lexer keeps `m` below 10⁸).
-#[cfg(not(target_arch = "avr"))]
-#[inline(always)]
-fn times10_plus(m: u32, d: u8) -> u32 {
-    m * 10 + d as u32
-}
-
-/// `m · 10 + d` (no overflow: the lexer keeps `m` below 10⁸), as
-/// (4m + m)·2 + d in 24 single-cycle instructions: LLVM-AVR turns any form
-/// of `m * 10` it can see through into a call to the ~90-cycle `__mulsi3`.
-/// `m` goes in and out as two register pairs: as four bytes, LLVM spent
-/// ~30 more instructions putting the `u32` back together.
-#[cfg(target_arch = "avr")]
-#[inline(always)]
-fn times10_plus(m: u32, d: u8) -> u32 {
-    let (mut lo, mut hi) = (m as u16, (m >> 16) as u16);
-    // SAFETY: register arithmetic only; r1 is LLVM-AVR's zero register.
-    unsafe {
-        core::arch::asm!(
-            "movw {tl}, {lo}", "movw {th}, {hi}",
-            "lsl {lo:l}", "rol {lo:h}", "rol {hi:l}", "rol {hi:h}",
-            "lsl {lo:l}", "rol {lo:h}", "rol {hi:l}", "rol {hi:h}",
-            "add {lo:l}, {tl:l}", "adc {lo:h}, {tl:h}", "adc {hi:l}, {th:l}", "adc {hi:h}, {th:h}",
-            "lsl {lo:l}", "rol {lo:h}", "rol {hi:l}", "rol {hi:h}",
-            "add {lo:l}, {d}", "adc {lo:h}, r1", "adc {hi:l}, r1", "adc {hi:h}, r1",
-            lo = inout(reg_pair) lo,
-            hi = inout(reg_pair) hi,
-            tl = out(reg_pair) _,
-            th = out(reg_pair) _,
-            d = in(reg) d,
-            options(pure, nomem, nostack),
-        );
-    }
-    (hi as u32) << 16 | lo as u32
 }
 
 /// The digit value of byte `c`, or a value above 9 when it is no digit.
@@ -686,9 +652,13 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
         let d = digit(s.get(pos));
         if d > 9 {
             // RS274/NGC ignores blanks inside a number: `X1 6.5` is X16.5.
-            if let Some(next) = blank_then(s, pos, true) {
-                pos = next;
-                continue;
+            // (The blank test inline: a call per number end cost ~400
+            // cycles a streamed line.)
+            if is_blank(s.get(pos)) {
+                if let Some(next) = blank_then(s, pos, true) {
+                    pos = next;
+                    continue;
+                }
             }
             break;
         }
@@ -697,7 +667,7 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
             if sig == MAX_INT_DIGITS {
                 too_long = true;
             } else {
-                mantissa = times10_plus(mantissa, d);
+                mantissa = crate::math::times10_plus(mantissa, d);
                 sig += 1;
             }
         }
@@ -713,9 +683,11 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
         loop {
             let d = digit(s.get(pos));
             if d > 9 {
-                if let Some(next) = blank_then(s, pos, false) {
-                    pos = next;
-                    continue;
+                if is_blank(s.get(pos)) {
+                    if let Some(next) = blank_then(s, pos, false) {
+                        pos = next;
+                        continue;
+                    }
                 }
                 break;
             }
@@ -732,7 +704,7 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
                         too_long = true;
                         break;
                     }
-                    mantissa = times10_plus(mantissa, 0);
+                    mantissa = crate::math::times10_plus(mantissa, 0);
                     sig += 1;
                     pending -= 1;
                 }
@@ -741,7 +713,7 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
             if sig == MAX_SIG_DIGITS {
                 too_long = true;
             } else {
-                mantissa = times10_plus(mantissa, d);
+                mantissa = crate::math::times10_plus(mantissa, d);
                 sig += 1;
             }
             scale = frac;
@@ -767,6 +739,12 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
         },
         pos,
     ))
+}
+
+/// A space or a tab.
+#[inline(always)]
+fn is_blank(c: Option<&u8>) -> bool {
+    matches!(c, Some(b' ' | b'\t'))
 }
 
 /// At a blank inside a number: the index of the digit (or, with `point`,
