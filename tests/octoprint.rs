@@ -93,13 +93,7 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     // The machine `sim --pty` simulates: the changer loaded (tool n is
     // 18 + 1.5 n mm long, 1 + 0.5 n mm across) and the optical setter beam.
     let mut cfg = VmConfig::default();
-    cfg.machine.tool_setter = sim::ToolSetter::Optical(sim::OpticalBeam {
-        x_mm: (3.0, 7.0),
-        y_mm: 10.0,
-        z_mm: 48.0,
-        width_mm: 0.52,
-        steps_per_mm: 100.0,
-    });
+    cfg.machine.tool_setter = sim::ToolSetter::Optical(sim::OpticalBeam::demo());
     let mut vm = boot_with(cfg);
 
     let dir = root().join("target/tmp/octoprint");

@@ -295,13 +295,7 @@ fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
 fn demo_machine() -> VmConfig {
     let mut config = VmConfig::default();
     config.command_timeout_s = 300.0;
-    config.machine.tool_setter = sim::ToolSetter::Optical(sim::OpticalBeam {
-        x_mm: (3.0, 7.0),
-        y_mm: 10.0,
-        z_mm: 48.0,
-        width_mm: 0.52,
-        steps_per_mm: 100.0,
-    });
+    config.machine.tool_setter = sim::ToolSetter::Optical(sim::OpticalBeam::demo());
     config
 }
 

@@ -223,6 +223,13 @@ pub struct OpticalBeam {
 }
 
 impl OpticalBeam {
+    /// The demo machine's beam (`sim` CLI, `--pty`, the OctoPrint test): at
+    /// the firmware's default setter position, X 3–7, Y 10, tip height 48 mm
+    /// below the top switch, 0.52 mm wide, at 100 steps/mm.
+    pub fn demo() -> OpticalBeam {
+        OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.0, z_mm: 48.0, width_mm: 0.52, steps_per_mm: 100.0 }
+    }
+
     /// Is the beam broken with the spindle at `pos` (steps) holding `tool`?
     pub fn broken(&self, pos: &[i64; 4], tool: Option<&Tool>) -> bool {
         let k = self.steps_per_mm;
