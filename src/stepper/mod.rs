@@ -36,6 +36,7 @@
 pub mod bresenham;
 pub mod prep;
 pub mod queue;
+pub mod rings;
 
 pub use bresenham::Bresenham;
 pub use prep::{Prep, CRUISE_SEGMENT_TIME_S, SEGMENT_TIME_S};
