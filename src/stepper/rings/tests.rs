@@ -1,7 +1,8 @@
 //! Host tests of the rings: plain arrays for the board's statics, and a host
 //! ISR that consumes them the way `board::stepper`'s Timer1 ISR does (step
 //! output first, then the next segment, then the next event from the
-//! Bresenham model [`Chunk::tick`]), counting the position it puts on the pins.
+//! ISR's arithmetic, [`Chunk::tick_out`], the twin of its assembly
+//! that `bresenham` checks against the model), counting the position it puts on the pins.
 
 use super::*;
 use crate::stepper::queue::tccr1b;
@@ -88,12 +89,7 @@ impl Board {
         let mut next = 0;
         if self.ticks_left != 0 {
             self.ticks_left -= 1;
-            let bits = self.chunks[self.cur as usize].tick();
-            for i in 0..N_AXES {
-                if bits & (1 << i) != 0 {
-                    next |= MAP.step[i];
-                }
-            }
+            next = self.chunks[self.cur as usize].tick_out(&MAP.step);
             self.events += 1;
         }
         self.pending = next;
