@@ -171,6 +171,9 @@ pub struct FakeBoard {
     pub poll_cycles: u64,
     /// Polls so far.
     pub polls: u64,
+    /// More polls than this panic: a controller stuck in a wait loop fails
+    /// its test instead of hanging it (default 2 000 000: 500 s of machine time).
+    pub poll_limit: u64,
     /// Next timer interrupt, and the timer period now (CPU cycles).
     next_isr: u64,
     period: u64,
@@ -280,6 +283,7 @@ impl FakeBoard {
             cycles: 0,
             poll_cycles: 4_000,
             polls: 0,
+            poll_limit: 2_000_000,
             next_isr: IDLE_PERIOD,
             period: IDLE_PERIOD,
             split: Splitter::new(),
@@ -615,6 +619,7 @@ impl ufmt::uWrite for FakeBoard {
 impl Io for FakeBoard {
     fn poll(&mut self) -> Realtime {
         self.polls += 1;
+        assert!(self.polls <= self.poll_limit, "{} polls ({} ms): the controller is stuck waiting", self.polls, self.ms());
         self.advance(self.poll_cycles);
         let rt = core::mem::take(&mut self.rt);
         Realtime {
