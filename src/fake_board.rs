@@ -35,8 +35,12 @@
 //! forced) at a time or at a step count.
 //!
 //! Positions: `phys` is where the motors really are (steps from where each
-//! home switch closes), `pos` is the firmware's counted position (what
-//! `board::stepper::position` reconstructs; moved by [`Io::set_stepper_position`]).
+//! home switch closes), `pos` is the firmware's counted position (moved by
+//! [`Io::set_stepper_position`]). The board counts no steps: it rebuilds the
+//! position from the retired chunks and `Chunk::steps_done` of the running
+//! one ([`FakeBoard::reconstructed_position`] does the same); after every
+//! timer event that steps, and on every [`Io::stepper`], the fake asserts
+//! that the two agree, so every controller test also checks that arithmetic.
 
 use crate::machine::{Io, Realtime, StepperStatus, Switches};
 use crate::stepper::queue::{Chunk, ChunkWatch, Seg, Sink, Splitter, StepMap};
@@ -184,6 +188,11 @@ pub struct FakeBoard {
     /// Cycles of each queued segment (parallel to `segs`).
     seg_cycles: VecDeque<u64>,
     cur: Chunk,
+    /// `k_end` of the running segment.
+    k_end: u16,
+    /// Counted position at the start of the running chunk (the board's
+    /// `base` once the chunks before it are retired).
+    base: [i32; N_AXES],
     ticks_left: u16,
     pending: u8,
     running: bool,
@@ -291,6 +300,8 @@ impl FakeBoard {
             segs: VecDeque::new(),
             seg_cycles: VecDeque::new(),
             cur: Chunk::EMPTY,
+            k_end: 0,
+            base: [0; N_AXES],
             ticks_left: 0,
             pending: 0,
             running: false,
@@ -518,6 +529,10 @@ impl FakeBoard {
             next = self.cur.tick();
         }
         self.pending = next;
+        if p != 0 || next != 0 {
+            // Between any two interrupts the main loop may ask for the position.
+            assert_eq!(self.reconstructed_position(), self.pos, "board position reconstruction");
+        }
     }
 
     /// The step pins pulse for the axes in `bits` (of the running chunk).
@@ -543,6 +558,25 @@ impl FakeBoard {
         }
         self.steps.push(Step { cycle: self.cycles, axes: bits, neg, phys: self.phys });
         self.fire_due();
+    }
+
+    /// The position as `board::stepper::position` reconstructs it (it
+    /// counts no steps): the finished chunks, the running chunk's
+    /// `Chunk::steps_done` from its error counters, minus the step computed
+    /// but not output yet.
+    pub fn reconstructed_position(&self) -> [i32; N_AXES] {
+        let mut p = self.base;
+        if !self.cur.take_up {
+            let k = self.k_end.wrapping_sub(self.ticks_left);
+            let done = self.cur.signed(self.cur.steps_done(k));
+            for i in 0..N_AXES {
+                p[i] += done[i];
+                if self.pending & (1 << i) != 0 {
+                    p[i] -= if self.cur.axis_dir & (1 << i) != 0 { -1 } else { 1 };
+                }
+            }
+        }
+        p
     }
 
     /// `switches_trip`: hard limit first (spindle off in the ISR), then homing, then probe.
@@ -600,8 +634,16 @@ impl FakeBoard {
         self.seg_cycles.pop_front();
         self.running = true;
         self.ticks_left = s.ticks;
+        self.k_end = s.k_end;
         self.period = seg_period(&s);
         if s.new_chunk != 0 {
+            // The board retires the finished chunk into its base.
+            if !self.cur.take_up {
+                let t = self.cur.total();
+                for i in 0..N_AXES {
+                    self.base[i] += t[i];
+                }
+            }
             self.cur = self.chunks.pop_front().expect("a new-chunk segment without its chunk");
             self.limit = self.cur.limit;
         }
@@ -650,6 +692,8 @@ impl Io for FakeBoard {
     }
 
     fn stepper(&self) -> StepperStatus {
+        // The firmware's position is reconstructed, this one counted: they agree.
+        assert_eq!(self.reconstructed_position(), self.pos, "board position reconstruction");
         StepperStatus {
             position: self.pos,
             busy: self.busy(),
@@ -664,6 +708,9 @@ impl Io for FakeBoard {
             plan[i] += p[i] - self.pos[i];
         }
         self.split.reset(plan);
+        for i in 0..N_AXES {
+            self.base[i] += p[i] - self.pos[i];
+        }
         self.pos = p;
     }
 
@@ -676,12 +723,15 @@ impl Io for FakeBoard {
         self.home_tripped = false;
         self.probe_tripped = false;
         self.ticks_left = 0;
+        self.k_end = 0;
         self.pending = 0;
         self.running = false;
         self.segs.clear();
         self.seg_cycles.clear();
         self.chunks.clear();
+        // As the board: the interrupted chunk is accounted for in `base`.
         self.cur.steps = [0; N_AXES];
+        self.base = self.pos;
         self.split.reset(self.pos);
         self.stopped = false;
     }
