@@ -6,7 +6,9 @@
 //! EEPROM bytes and outputs.
 //!
 //! Each test's doc says how it was checked to fail: the code it guards was
-//! broken once by hand (not committed) and the test failed.
+//! broken once by hand (not committed) and the test failed. The functions
+//! named are those of main at 50ee0e8, before issue 12's restructuring
+//! moved some of them.
 
 use crate::atc::tools::{
     pocket_bit, Journal, ToolState, ToolTable, ALL_POCKETS, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR, EEPROM_TABLE_ADDR,
@@ -639,4 +641,53 @@ fn a_three_axis_move_stays_within_half_a_step_of_its_line() {
             assert!((s.phys[a] as f64 - ideal).abs() <= 0.5 + 1e-9, "axis {a} at {:?}: ideal {ideal}", s.phys);
         }
     }
+}
+
+/// The carousel sensor unplugged: the change homes the carousel, turns a
+/// revolution + 25 % (22.5 pitches, 4000 steps) without finding it, raises
+/// `ALARM:carousel home switch not found` and stops there, with its
+/// journal still active (the spindle must be checked) and the tool record
+/// unchanged.
+///
+/// Checked to fail: with `Ok(false) => { m.raise(..) }` of
+/// `atc::carousel::home` made `Ok(())` (the change carries on unhomed).
+#[test]
+fn a_carousel_switch_never_found_stops_the_change_with_its_journal_active() {
+    let mut r = ready_rig();
+    r.io.carousel_connected = false;
+    let n0 = r.io.steps.len();
+    let out = r.send("T2 M6");
+    assert!(out.contains("ALARM:carousel home switch not found\n"), "{out}");
+    assert!(out.contains("echo:tool change T0->T2 interrupted"), "{out}");
+    assert!(!out.contains("NowSelectedTool"), "{out}");
+    // The switch reads open at the start: no back-off, one whole seek.
+    assert_eq!(runs(&r.io, 3, n0), [4000]);
+    assert_eq!(r.io.phys[2], 4050, "stopped at Z1 in front of the magazine");
+    let (st, jb) = records(&r.io);
+    assert_eq!(Journal::from_bytes(&jb), Some(Journal { from: 0, to: 2 }));
+    assert_eq!(ToolState::from_bytes(&st), Some(ToolState::FACTORY));
+    assert_eq!(r.m.state, State::Alarm);
+}
+
+/// Ctrl-X (grbl's soft reset) in the middle of a move: the stepper halts
+/// at once (the RX interrupt), the queue is dropped, grbl's banner goes out
+/// and, since steps were being produced, `ALARM:reset while moving`.
+///
+/// Checked to fail: with `soft_reset`'s `moving` check removed (no alarm
+/// after an abrupt stop).
+#[test]
+fn a_soft_reset_mid_move_halts_and_raises_reset_while_moving() {
+    let mut r = ready_rig();
+    let n0 = r.io.step_count();
+    r.io.at(At::Step(n0 + 400), Event::Reset);
+    r.send("G1 X40 F1200");
+    assert!(r.idle_until(200_000, |m, _| m.alarm.is_some()), "no alarm");
+    let out = r.io.take_out();
+    assert!(out.contains("\r\nGrbl 1.1h ['$' for help]\r\n"), "{out}");
+    assert!(out.contains("ALARM:reset while moving\n"), "{out}");
+    r.idle_until(4000, |_, _| false);
+    assert_eq!(r.io.step_count(), n0 + 400);
+    assert!(r.m.motion_done(&r.io), "queue dropped");
+    // The position kept is the one the motors are at.
+    assert_eq!(r.counted(), [1000 + 400, 500, 300]);
 }
