@@ -691,3 +691,50 @@ fn a_soft_reset_mid_move_halts_and_raises_reset_while_moving() {
     // The position kept is the one the motors are at.
     assert_eq!(r.counted(), [1000 + 400, 500, 300]);
 }
+
+/// G38.2 on the tool-setter input: the ISR stops on the step that breaks
+/// the beam and `[PRB:…:1]` reports it (T2's tip, 21.3371 mm below the
+/// spindle, reaches the beam 48.0047 mm below home at spindle step 2667);
+/// G38.3 that does not trip reports `:0]` and is no error; G38.2 that does
+/// not trip is (`probe failed` alarm).
+///
+/// Checked to fail: with `interp::probe` arming no probe watch
+/// (`apply_watch(io, 0, false)`: the probe runs to its end).
+#[test]
+fn g38_probes_on_the_tool_setter_input_and_stops_on_the_trip_step() {
+    let mut io = FakeBoard::new();
+    io.beam = Some(BEAM);
+    io.tool = Some(T2);
+    let mut r = Rig::boot(io);
+    r.ok("G28");
+    r.ok("M61 Q2");
+    r.ok("G0 X5 Y10.013");
+    let out = r.ok("G38.2 Z-45 F300");
+    assert!(out.contains("[PRB:5.000,10.010,-26.670:1]\n"), "{out}");
+    assert_eq!(r.io.phys[2], trip_z(T2));
+    assert_eq!(r.io.phys[2], 2667);
+    r.ok("G0 Z-1");
+    r.ok("G0 X30");
+    let out = r.ok("G38.3 Z-20 F300");
+    assert!(out.contains("[PRB:30.000,10.010,-20.000:0]\n"), "{out}");
+    let out = r.refused("G38.2 Z-21 F300");
+    assert!(out.contains("[PRB:30.000,10.010,-21.000:0]\n"), "{out}");
+    assert_eq!(r.io.phys[2], 2100);
+}
+
+/// A long wait (a tool change, ~9 s of machine time) tells the host it is
+/// alive: `busy:processing` every 2 s (M113's default), counted on the
+/// board's clock from the start of the line.
+///
+/// Checked to fail: with `Machine::keepalive`'s interval test made
+/// `>= every * 2` (a line every 4 s).
+#[test]
+fn a_long_wait_sends_busy_every_two_seconds() {
+    let mut r = ready_rig();
+    let t0 = r.io.ms();
+    let out = r.ok("T2 M6");
+    let took = r.io.ms() - t0;
+    assert!(took > 8_000, "{took} ms");
+    let busy = out.lines().filter(|l| *l == "busy:processing").count() as u32;
+    assert_eq!(busy, took / 2000, "{took} ms: {busy} busy lines");
+}
