@@ -24,7 +24,6 @@ struct Board {
     pending: u8,
     running: bool,
     stopped: bool,
-    underruns: u16,
     /// Position output on the pins, take-up steps not counted.
     out: [i32; N_AXES],
     /// Motor position: every step output.
@@ -46,7 +45,6 @@ impl Board {
             pending: 0,
             running: false,
             stopped: false,
-            underruns: 0,
             out: [0; N_AXES],
             motor: [0; N_AXES],
             events: 0,
@@ -71,10 +69,7 @@ impl Board {
         }
         if self.ticks_left == 0 {
             if self.seg_tail == self.seg_head {
-                if self.running {
-                    self.running = false;
-                    self.underruns += 1;
-                }
+                self.running = false;
             } else {
                 self.running = true;
                 let s = self.segs[self.seg_tail as usize];
@@ -313,21 +308,6 @@ fn the_position_follows_every_step_output_through_long_blocks_and_ring_wraps() {
     assert_eq!(bd.out, want);
     assert_ne!(bd.motor, want, "take-up blocks moved the motors only");
     assert!(bd.seg_head as usize + 16 < cmds.len(), "the rings wrapped");
-}
-
-#[test]
-fn an_empty_ring_counts_one_underrun_per_run_of_segments() {
-    let mut r = Rings::new();
-    let mut bd = Board::new();
-    let mut rng = XorShift(9);
-    stream(&mut r, &mut bd, &commands(block([50, 20, 0, 0], 0, false), 10, &mut rng));
-    bd.interrupt();
-    assert_eq!(bd.underruns, 1);
-    for _ in 0..10 {
-        bd.interrupt();
-    }
-    assert_eq!(bd.underruns, 1, "idle: no further underrun");
-    assert_eq!(r.position(&MAP, &bd), [50, 20, 0, 0]);
 }
 
 #[test]
