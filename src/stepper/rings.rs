@@ -245,6 +245,7 @@ impl Rings {
 
     /// Free (segment, chunk) slots. Finished chunks are retired only when the
     /// chunk ring looks short of room (retiring costs ~130 cycles per call).
+    #[inline(always)]
     fn free_slots(&mut self, mem: &impl RingMem) -> (u8, u8) {
         let seg_free = SEG_MASK - (mem.seg_head().wrapping_sub(mem.seg_tail()) & SEG_MASK);
         let mut chunk_free = CHUNK_MASK - (self.w.chunk_head.wrapping_sub(self.retire) & CHUNK_MASK);
