@@ -1,8 +1,8 @@
 //! Host tests of the rings: plain arrays for the board's statics, and a host
-//! ISR that consumes them the way `board::stepper`'s Timer1 ISR does (step
-//! output first, then the next segment, then the next event from the
-//! ISR's arithmetic, [`Chunk::tick_out`], the twin of its assembly
-//! that `bresenham` checks against the model), counting the position it puts on the pins.
+//! ISR that consumes them the way `board::stepper`'s Timer1 ISR does (output
+//! the step computed last time, load the next segment, compute the next
+//! event with `Chunk::tick_out`, the twin of the ISR's assembly), counting
+//! the position it puts on the pins.
 
 use super::*;
 use crate::stepper::queue::tccr1b;
