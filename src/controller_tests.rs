@@ -566,7 +566,9 @@ fn feed_hold_decelerates_to_a_stop_and_resume_ends_exactly_at_the_target() {
     let last = *dt.last().unwrap();
     assert!(last >= 2 * cruise, "no deceleration: last interval {last} cycles");
     let after_hold = &dt[1500..];
-    assert!(after_hold.windows(2).filter(|w| w[1] < w[0]).count() <= 1, "intervals only grow after the hold: {after_hold:?}");
+    // (A shorter interval by more than 1 %: a speed-up.)
+    let faster = after_hold.windows(2).filter(|w| w[1] + w[0] / 100 < w[0]).count();
+    assert_eq!(faster, 0, "intervals only grow after the hold: {after_hold:?}");
     // Held: a second of main-loop turns, no step.
     let n = r.io.step_count();
     r.idle_until(4000, |_, _| false);
@@ -736,8 +738,10 @@ fn a_long_wait_sends_busy_every_two_seconds() {
     let out = r.ok("T2 M6");
     let took = r.io.ms() - t0;
     assert!(took > 8_000, "{took} ms");
+    // One per whole 2 s from the start of the line (the last may fall
+    // in the main-loop turn after the change ends).
     let busy = out.lines().filter(|l| *l == "busy:processing").count() as u32;
-    assert_eq!(busy, took / 2000, "{took} ms: {busy} busy lines");
+    assert!(busy == took / 2000 || busy + 1 == took / 2000, "{took} ms: {busy} busy lines");
 }
 
 // ---- Waits, pauses, aborts, locks -------------------------------------------
