@@ -883,3 +883,57 @@ fn the_measured_length_becomes_the_tool_offset() {
     r.ok("G1 Z-40 F300");
     assert_eq!(r.io.phys[2], 4000 - 2134, "T2's tip at 40 mm (length 21.34)");
 }
+
+/// M112 during homing (Y's seek): everything stops on that step, the
+/// cycle ends in `ALARM:emergency stop` with nothing homed, and X never
+/// moves.
+///
+/// Checked to fail: with `Machine::wait_step` not failing on an alarm
+/// (`if self.alarm.is_some()` → `if false`: homing carries on after the M112).
+#[test]
+fn m112_during_homing_stops_the_cycle() {
+    let mut io = FakeBoard::new();
+    io.place([700, 800, 900, 0]);
+    let mut r = Rig::boot(io);
+    // Z's cycle is 900 + 300 steps; 200 more are Y's fast seek.
+    r.io.at(At::Step(1400), Event::Estop);
+    let out = r.send("G28");
+    assert!(out.contains("ALARM:emergency stop\n"), "{out}");
+    assert!(out.contains("Error:alarm emergency stop"), "{out}");
+    r.idle_until(4000, |_, _| false);
+    assert_eq!(r.io.step_count(), 1400);
+    assert_eq!(runs(&r.io, 1, 0), [-200]);
+    assert!(runs(&r.io, 0, 0).is_empty());
+    assert_eq!((r.m.homed, r.m.state), (0, State::Alarm));
+}
+
+/// `!` in the middle of a tool change (on the way to the station): the
+/// change holds (no step for a second), `~` resumes it, and it completes
+/// exactly as without the hold: the clamp at the station with pocket 2,
+/// the records, back over the start.
+///
+/// Checked to fail: with the resume branch of `Machine::idle` ignoring
+/// `~` while the state is `Tool` (`if rt.resume && self.holding &&
+/// self.state != State::Tool`: the change never resumes).
+#[test]
+fn a_feed_hold_pauses_a_tool_change_and_resume_completes_it() {
+    let mut r = ready_rig();
+    let n0 = r.io.step_count();
+    r.io.at(At::Step(n0 + 1000), Event::Hold);
+    let t = r.io.ms();
+    r.io.at(At::Ms(t + 3000), Event::Resume);
+    let out = r.ok("T2 M6");
+    assert!(out.contains("NowSelectedTool:2\n"), "{out}");
+    // The hold: a gap of over a second in the steps, after step 1000 and a deceleration.
+    let s = &r.io.steps[n0 as usize..];
+    let longest = s.windows(2).map(|w| w[1].cycle - w[0].cycle).max().unwrap();
+    assert!(longest > 1000 * MS, "no pause: longest gap {} ms", longest / MS);
+    let down = arrivals(&r.io, 4500, n0 as usize);
+    assert_eq!(down.len(), 1);
+    let at = r.io.steps[down[0]].phys;
+    assert_eq!((at[0], at[1], at[3].rem_euclid(3200)), (2300, 4400, pocket_steps(2)));
+    let (st, jb) = records(&r.io);
+    assert_eq!(ToolState::from_bytes(&st).map(|s| s.spindle), Some(2));
+    assert_eq!(Journal::from_bytes(&jb), None);
+    assert_eq!(r.xyz(), [1000, 500, 100]);
+}
