@@ -676,43 +676,9 @@ fn parse_s(arg: &[u8]) -> Option<u32> {
     Some(v)
 }
 
-/// If `text` is an SD command (M20–M29 or M524), its code and argument
-/// (trimmed, without a `;` comment).
-pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
-    let t = trim(text);
-    let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;
-    let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
-    if digits == 0 || digits > 4 {
-        return None;
-    }
-    let mut code = 0u16;
-    for &b in &rest[..digits] {
-        code = code * 10 + (b - b'0') as u16;
-    }
-    if !(20..=29).contains(&code) && code != 524 {
-        return None;
-    }
-    let mut arg = &rest[digits..];
-    if let Some(i) = arg.iter().position(|&b| b == b';') {
-        arg = &arg[..i];
-    }
-    Some((code, trim(arg)))
-}
-
-fn trim(mut s: &[u8]) -> &[u8] {
-    while let [b' ' | b'\t', r @ ..] = s {
-        s = r;
-    }
-    while let [r @ .., b' ' | b'\t'] = s {
-        s = r;
-    }
-    s
-}
-
-/// Write `Error:<text>` (used by the machine for SD command errors).
-pub fn write_error(out: &mut impl uWrite, t: Text) {
-    uwriteln!(out, "{}{}", Text::Error, t).ok();
-}
+/// The SD command recogniser lives with the other codes taken before the
+/// parser (the machine, below this module, needs it).
+pub use crate::hostcodes::sd_code;
 
 #[cfg(test)]
 pub(crate) mod tests {
