@@ -361,9 +361,9 @@ impl Io for Hw {
         serial::rx_len()
     }
 
-    fn sd_command(&mut self, m: &mut Machine, code: u16, arg: &[u8]) -> mill::machine::CmdResult {
+    fn sd_command(&mut self, flags: mill::machine::SdJobFlags<'_>, code: u16, arg: &[u8]) -> mill::machine::CmdResult {
         self.names_valid = false;
-        sdjob::command(&mut self.job, &mut self.sd, m, &mut SerialOut, code, arg).map_err(|t| interp::Error::Sd(t.as_fstr()))
+        sdjob::command_with(&mut self.job, &mut self.sd, flags, &mut SerialOut, code, arg).map_err(|t| interp::Error::Sd(t.as_fstr()))
     }
 
     fn sd_capture(&mut self, line: &[u8]) -> bool {

@@ -129,9 +129,10 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn rx_pending(&self) -> usize;
     /// Throw away every byte waiting in the serial RX ring (soft reset).
     fn flush_rx(&mut self) {}
-    /// An SD command (M20–M29, M524; `arg` is the text after the code).
-    /// Without an SD card in the build it is refused.
-    fn sd_command(&mut self, _m: &mut Machine, _code: u16, _arg: &[u8]) -> CmdResult {
+    /// An SD command (M20–M29, M524; `arg` is the text after the code),
+    /// with the little of the machine it may touch (`job`: M24 starts a
+    /// job). Without an SD card in the build it is refused.
+    fn sd_command(&mut self, _job: SdJobFlags<'_>, _code: u16, _arg: &[u8]) -> CmdResult {
         Err(interp::Error::NotAvailable(F!("SD card not available in this build")))
     }
     /// While M28 writes a file, store the line there and return true.
@@ -141,6 +142,15 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     /// End of every [`Machine::idle`]: the standalone UI's turn (encoder,
     /// one slice of the display). Must be short.
     fn background(&mut self, _m: &Machine) {}
+}
+
+/// What an SD command may change of the machine ([`Io::sd_command`]): M24
+/// starts a job, which needs the abort count to watch and sets `sd_job`.
+pub struct SdJobFlags<'a> {
+    /// [`Machine::sd_job`]: set when a job starts.
+    pub sd_job: &'a mut bool,
+    /// [`Machine::aborts`] now.
+    pub aborts: u8,
 }
 
 /// Machine state, as reported by `?` (grbl 1.1 names).
@@ -452,9 +462,9 @@ impl Machine {
                 let sd = crate::hostcodes::sd_code(cmd);
                 let r = match sd {
                     // M28 is writing a file: every line but M29 goes there.
-                    Some((29, _)) => io.sd_command(self, 29, &[]),
+                    Some((29, _)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, 29, &[]),
                     _ if io.sd_capture(cmd) => Ok(()),
-                    Some((code, arg)) => io.sd_command(self, code, arg),
+                    Some((code, arg)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, code, arg),
                     None => self.execute(cmd, io),
                 };
                 self.serial_line = false;
