@@ -1459,3 +1459,7 @@ impl ModalCopy {
 #[cfg(test)]
 #[path = "interp_tests.rs"]
 pub(crate) mod tests;
+
+#[cfg(test)]
+#[path = "command_tests.rs"]
+mod command_tests;
