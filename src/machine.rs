@@ -11,7 +11,7 @@
 //! time and carries each out. Every move, whoever makes it, enters the
 //! planner through [`Machine::queue_line`]: the interpreter's (via
 //! `Machine::dispatch`'s `Command::Move`), homing's and the carousel's
-//! switch seeks ([`Machine::seek_switch`], the one homing seek), and the
+//! switch seeks (`Machine::seek_switch`, the one homing seek), and the
 //! runners in this module's children, which express their sequences over it
 //! ([`Machine::move_mm`]): [`toolchange`] (T/M6, M61, G10 L1, the EEPROM
 //! journal), [`carousel`] (G201–G205), [`setter`] (G37) and [`report`]

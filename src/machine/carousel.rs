@@ -56,7 +56,7 @@ pub fn enable(m: &mut Machine, io: &mut impl Io, on: bool) -> CmdResult {
     Ok(())
 }
 
-/// G205 [S1] [E1]: home the carousel; `back`: turn back to where it was;
+/// G205 `[S1] [E1]`: home the carousel; `back`: turn back to where it was;
 /// `only_if_unhomed`: nothing when it is homed.
 #[inline(never)]
 pub fn home_command(m: &mut Machine, io: &mut impl Io, back: bool, only_if_unhomed: bool) -> CmdResult {
