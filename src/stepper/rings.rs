@@ -260,7 +260,6 @@ impl Rings {
 
     /// Commands that surely fit now (a `Run` may take 2 segments and a
     /// chunk); 0 while [`MAX_QUEUED_CYCLES`] of motion wait.
-    #[inline(always)]
     pub fn space(&mut self, mem: &impl RingMem) -> usize {
         if self.queued_cycles(mem) >= MAX_QUEUED_CYCLES {
             return 0;
