@@ -9,20 +9,22 @@
 //! `controller_tests.rs`) with no simulator.
 //!
 //! ```text
-//!  Machine ─ Io::push_segment ─► queue::Splitter ─► Chunk / Seg rings (VecDeque)
+//!  Machine ─ Io::push_segment ─► stepper::rings::Rings (the board's own
+//!                                 bookkeeping) ─► Chunk / Seg ring arrays
 //!        ◄─ Io::poll ─ clock += poll_cycles ─► timer ISR twin (one event per period):
 //!                      output `pending`, check armed switches, load a segment,
-//!                      Chunk::tick ─► physical and counted positions, step log
+//!                      Chunk::tick_out ─► physical and counted positions, step log
 //! ```
 //!
-//! What is the same as the firmware: the records (`stepper::queue::Splitter`
-//! with the board's watch list, its `Chunk`/`Seg`), the Bresenham arithmetic
-//! (`Chunk::tick`), the order of the ISR's work (`board::stepper`'s
+//! What is the same as the firmware: the main-loop side of the rings is the
+//! board's own code, [`Rings`] (the splitter with the board's watch list,
+//! heads and free slots, the 40 ms cap of queued motion, retiring, the
+//! position from the chunks, `set_position`, the trip latch, `clear`), over
+//! ring arrays of the board's sizes; the ISR's arithmetic (`Chunk::tick_out`,
+//! the twin of its assembly), the order of the ISR's work (`board::stepper`'s
 //! `TIMER1_COMPA`: output the step computed last time, check the switches if
 //! armed, load a segment, compute the next step), its period (OCR1A ×
-//! prescaler CPU cycles, 1 kHz idle), the ring sizes and the 40 ms cap of
-//! queued motion (`board::stepper::space`), what `clear_stop`,
-//! `set_position` and the trip latch do, and the realtime requests
+//! prescaler CPU cycles, 1 kHz idle), what `clear_stop` resets, and the realtime requests
 //! (`firmware.rs`'s `poll`; M112 and Ctrl-X halt the stepper at once, as the
 //! RX interrupt does).
 //!
@@ -36,25 +38,22 @@
 //!
 //! Positions: `phys` is where the motors really are (steps from where each
 //! home switch closes), `pos` is the firmware's counted position (moved by
-//! [`Io::set_stepper_position`]). The board counts no steps: it rebuilds the
-//! position from the retired chunks and `Chunk::steps_done` of the running
-//! one ([`FakeBoard::reconstructed_position`] does the same); after every
-//! timer event that steps, and on every [`Io::stepper`], the fake asserts
-//! that the two agree, so every controller test also checks that arithmetic.
+//! [`Io::set_stepper_position`]). The board counts no steps: [`Rings`]
+//! rebuilds the position from the retired chunks and `Chunk::steps_done` of
+//! the running one ([`FakeBoard::reconstructed_position`]); the fake counts
+//! them as well, and after every timer event that steps, and on every
+//! [`Io::stepper`], it asserts that the two agree (and that the latched trip
+//! position is where the ISR stopped), so every controller test also checks
+//! the board's bookkeeping.
 
 use crate::machine::{Io, Realtime, StepperStatus, Switches};
-use crate::stepper::queue::{Chunk, ChunkWatch, Seg, Sink, Splitter, StepMap};
+use crate::stepper::queue::{Chunk, Seg, StepMap};
+pub use crate::stepper::rings::Watch;
+use crate::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_LEN, SEG_MASK, SEG_RING_LEN};
 use crate::stepper::StepperCmd;
 use crate::N_AXES;
+use core::cell::RefCell;
 use core::convert::Infallible;
-use std::collections::VecDeque;
-
-/// Segment ring length, as `board::stepper::SEG_RING_LEN` (one slot stays free).
-const SEG_RING_LEN: usize = 16;
-/// Chunk ring length, as `board::stepper::CHUNK_RING_LEN` (one slot free, one running).
-const CHUNK_RING_LEN: usize = 16;
-/// Most motion queued in the segment ring, CPU cycles (`board::stepper::MAX_QUEUED_CYCLES`).
-const MAX_QUEUED_CYCLES: u64 = 16_000_000 / 25;
 /// Timer period while idle, CPU cycles (1 kHz, as the board).
 const IDLE_PERIOD: u64 = 16_000;
 /// CPU cycles per millisecond.
@@ -145,15 +144,56 @@ impl Beam {
     }
 }
 
-/// What the ISR twin watches (`board::stepper::Watch`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Watch {
-    pub homing: u8,
-    pub probe: bool,
-    pub limits: u8,
-    pub homed: u8,
-    pub invert_dir: u8,
-    pub release: [u16; 3],
+/// The board's statics (`board::stepper`'s `SEGS`, `SEG_HEAD`, `CHUNKS`
+/// and the ISR's state `ST`), as the rings' memory.
+struct Statics {
+    segs: [Seg; SEG_RING_LEN],
+    /// Next free segment slot (main writes it).
+    seg_head: u8,
+    chunks: [Chunk; CHUNK_RING_LEN],
+    /// Next segment slot the ISR reads.
+    seg_tail: u8,
+    /// Ring index of the running chunk.
+    cur: u8,
+    /// Events left in the running segment, and its `k_end`.
+    ticks_left: u16,
+    k_end: u16,
+    /// Step bits computed, not yet output.
+    pending: u8,
+}
+
+impl Statics {
+    fn cur(&self) -> &Chunk {
+        &self.chunks[self.cur as usize]
+    }
+}
+
+impl RingMem for Statics {
+    fn seg_tail(&self) -> u8 {
+        self.seg_tail
+    }
+    fn seg_head(&self) -> u8 {
+        self.seg_head
+    }
+    fn chunk_cur(&self) -> u8 {
+        self.cur
+    }
+    fn chunk(&self, i: u8) -> &Chunk {
+        &self.chunks[i as usize]
+    }
+    fn set_chunk(&mut self, i: u8, c: &Chunk) {
+        self.chunks[i as usize] = *c;
+    }
+    fn set_seg(&mut self, i: u8, s: &Seg) {
+        assert_ne!((i + 1) & SEG_MASK, self.seg_tail, "segment ring overrun");
+        self.segs[i as usize] = *s;
+    }
+    fn publish_seg_head(&mut self, head: u8) {
+        self.seg_head = head;
+    }
+    fn snapshot(&self) -> IsrSnapshot {
+        IsrSnapshot { cur: self.cur, k: self.k_end.wrapping_sub(self.ticks_left), pending: self.pending, chunk: *self.cur() }
+    }
 }
 
 /// An output change, with the CPU cycle it happened at.
@@ -182,28 +222,23 @@ pub struct FakeBoard {
     next_isr: u64,
     period: u64,
 
-    split: Splitter,
-    chunks: VecDeque<Chunk>,
-    segs: VecDeque<Seg>,
-    /// Cycles of each queued segment (parallel to `segs`).
-    seg_cycles: VecDeque<u64>,
-    cur: Chunk,
-    /// `k_end` of the running segment.
-    k_end: u16,
-    /// Counted position at the start of the running chunk (the board's
-    /// `base` once the chunks before it are retired).
-    base: [i32; N_AXES],
-    ticks_left: u16,
-    pending: u8,
+    /// The rings and the ISR's state.
+    st: Statics,
+    /// The board's main-loop bookkeeping (`board::stepper::MAIN`); in a
+    /// cell because `Io::stepper` and `Io::segment_space` take `&self`.
+    rings: RefCell<Rings>,
+    /// A segment was loaded since the ring was last found empty.
     running: bool,
     /// Hard-limit axes of the running chunk.
     limit: u8,
+    /// The ISR's copy of the watch (`homing`, `probe`).
     pub watch: Watch,
     /// The ISR is stopped (`motion::STOP`), and why.
     stopped: bool,
     home_tripped: bool,
     probe_tripped: bool,
     limit_hit: bool,
+    /// Counted position where the ISR stopped at the last trip.
     trip: [i32; N_AXES],
     /// Times the ISR ran out of segments after running one (`MILL_STEP_UNDERRUNS`).
     pub underruns: u32,
@@ -254,23 +289,6 @@ pub struct FakeBoard {
     rt: Realtime,
 }
 
-/// The ISR twin's rings, as a `Sink` for the splitter.
-struct Rings<'a> {
-    chunks: &'a mut VecDeque<Chunk>,
-    segs: &'a mut VecDeque<Seg>,
-    seg_cycles: &'a mut VecDeque<u64>,
-}
-
-impl Sink for Rings<'_> {
-    fn chunk(&mut self, c: &Chunk) {
-        self.chunks.push_back(*c);
-    }
-    fn seg(&mut self, s: &Seg) {
-        self.segs.push_back(*s);
-        self.seg_cycles.push_back(seg_period(s) * s.ticks as u64);
-    }
-}
-
 /// CPU cycles between the step events of `s`.
 fn seg_period(s: &Seg) -> u64 {
     let div = if s.tccr & 0x07 == 1 { 1 } else { 8 };
@@ -295,15 +313,17 @@ impl FakeBoard {
             poll_limit: 2_000_000,
             next_isr: IDLE_PERIOD,
             period: IDLE_PERIOD,
-            split: Splitter::new(),
-            chunks: VecDeque::new(),
-            segs: VecDeque::new(),
-            seg_cycles: VecDeque::new(),
-            cur: Chunk::EMPTY,
-            k_end: 0,
-            base: [0; N_AXES],
-            ticks_left: 0,
-            pending: 0,
+            st: Statics {
+                segs: [Seg { ticks: 0, period: 0, tccr: 0, new_chunk: 0, k_end: 0 }; SEG_RING_LEN],
+                seg_head: 0,
+                chunks: [Chunk::EMPTY; CHUNK_RING_LEN],
+                seg_tail: 0,
+                cur: 0,
+                ticks_left: 0,
+                k_end: 0,
+                pending: 0,
+            },
+            rings: RefCell::new(Rings::new()),
             running: false,
             limit: 0,
             watch: Watch::default(),
@@ -486,21 +506,18 @@ impl FakeBoard {
 
     /// `board::stepper::busy`.
     fn busy(&self) -> bool {
-        !self.stopped && (self.ticks_left != 0 || self.pending != 0 || !self.segs.is_empty())
+        let st = &self.st;
+        !self.stopped && (st.ticks_left != 0 || st.pending != 0 || st.seg_tail != st.seg_head)
     }
 
     /// `board::stepper::space`.
     fn space(&self) -> usize {
-        if self.seg_cycles.iter().sum::<u64>() >= MAX_QUEUED_CYCLES {
-            return 0;
-        }
-        let seg_free = SEG_RING_LEN - 1 - self.segs.len();
-        let chunk_free = (CHUNK_RING_LEN - 2).saturating_sub(self.chunks.len());
-        if seg_free >= 2 && chunk_free >= 1 {
-            (seg_free / 2).min(chunk_free)
-        } else {
-            0
-        }
+        self.rings.borrow_mut().space(&self.st)
+    }
+
+    /// A homing or probe trip stopped the ISR (`board::stepper::tripped`).
+    fn tripped(&self) -> bool {
+        self.home_tripped || self.probe_tripped
     }
 
     /// The timer interrupt, in `board::stepper::TIMER1_COMPA`'s order.
@@ -510,25 +527,26 @@ impl FakeBoard {
             self.period = IDLE_PERIOD;
             return;
         }
-        let p = self.pending;
+        let p = self.st.pending;
         if p != 0 {
             self.output_steps(p);
         }
         let armed = self.watch.homing | self.watch.probe as u8 | self.limit;
         if armed != 0 && self.switches_trip() {
-            self.pending = 0;
+            self.st.pending = 0;
             self.period = IDLE_PERIOD;
             return;
         }
-        if self.ticks_left == 0 {
+        if self.st.ticks_left == 0 {
             self.load_segment();
         }
         let mut next = 0;
-        if self.ticks_left != 0 {
-            self.ticks_left -= 1;
-            next = self.cur.tick();
+        if self.st.ticks_left != 0 {
+            self.st.ticks_left -= 1;
+            let cur = self.st.cur as usize;
+            next = self.st.chunks[cur].tick_out(&MAP.step);
         }
-        self.pending = next;
+        self.st.pending = next;
         if p != 0 || next != 0 {
             // Between any two interrupts the main loop may ask for the position.
             assert_eq!(self.reconstructed_position(), self.pos, "board position reconstruction");
@@ -542,14 +560,14 @@ impl FakeBoard {
             if bits & (1 << a) == 0 {
                 continue;
             }
-            let d = if self.cur.axis_dir & (1 << a) != 0 {
+            let d = if self.st.cur().axis_dir & (1 << a) != 0 {
                 neg |= 1 << a;
                 -1
             } else {
                 1
             };
             self.phys[a] += d as i64;
-            if !self.cur.take_up {
+            if !self.st.cur().take_up {
                 self.pos[a] += d;
             }
             if a < 3 {
@@ -561,22 +579,11 @@ impl FakeBoard {
     }
 
     /// The position as `board::stepper::position` reconstructs it (it
-    /// counts no steps): the finished chunks, the running chunk's
-    /// `Chunk::steps_done` from its error counters, minus the step computed
-    /// but not output yet.
+    /// counts no steps; [`Rings::position`]): the finished chunks, the
+    /// running chunk's `Chunk::steps_done` from its error counters, minus
+    /// the step computed but not output yet.
     pub fn reconstructed_position(&self) -> [i32; N_AXES] {
-        let mut p = self.base;
-        if !self.cur.take_up {
-            let k = self.k_end.wrapping_sub(self.ticks_left);
-            let done = self.cur.signed(self.cur.steps_done(k));
-            for i in 0..N_AXES {
-                p[i] += done[i];
-                if self.pending & (1 << i) != 0 {
-                    p[i] -= if self.cur.axis_dir & (1 << i) != 0 { -1 } else { 1 };
-                }
-            }
-        }
-        p
+        self.rings.borrow_mut().position(&MAP, &self.st)
     }
 
     /// `switches_trip`: hard limit first (spindle off in the ISR), then homing, then probe.
@@ -614,7 +621,7 @@ impl FakeBoard {
     }
 
     /// Stop on a homing/probe trip; the position is frozen, so the latch
-    /// (`board::stepper::latch_trip`, first asked after the trip) is this.
+    /// (`Rings::trip_position`, first asked after the trip) must say this.
     fn trip_now(&mut self) {
         self.stopped = true;
         self.trip = self.pos;
@@ -622,7 +629,8 @@ impl FakeBoard {
 
     /// `load_segment`.
     fn load_segment(&mut self) {
-        let Some(s) = self.segs.pop_front() else {
+        let st = &mut self.st;
+        if st.seg_tail == st.seg_head {
             if self.running {
                 self.running = false;
                 self.underruns += 1;
@@ -630,23 +638,17 @@ impl FakeBoard {
             }
             self.period = IDLE_PERIOD;
             return;
-        };
-        self.seg_cycles.pop_front();
+        }
+        let s = st.segs[st.seg_tail as usize];
         self.running = true;
-        self.ticks_left = s.ticks;
-        self.k_end = s.k_end;
+        st.ticks_left = s.ticks;
+        st.k_end = s.k_end;
         self.period = seg_period(&s);
         if s.new_chunk != 0 {
-            // The board retires the finished chunk into its base.
-            if !self.cur.take_up {
-                let t = self.cur.total();
-                for i in 0..N_AXES {
-                    self.base[i] += t[i];
-                }
-            }
-            self.cur = self.chunks.pop_front().expect("a new-chunk segment without its chunk");
-            self.limit = self.cur.limit;
+            st.cur = (st.cur + 1) & CHUNK_MASK;
+            self.limit = st.cur().limit;
         }
+        st.seg_tail = (st.seg_tail + 1) & SEG_MASK;
     }
 }
 
@@ -673,18 +675,7 @@ impl Io for FakeBoard {
     }
 
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
-        if self.space() == 0 {
-            return false;
-        }
-        let w = ChunkWatch {
-            limits: self.watch.limits,
-            homed: self.watch.homed,
-            invert_dir: self.watch.invert_dir,
-            release: self.watch.release,
-        };
-        let mut rings = Rings { chunks: &mut self.chunks, segs: &mut self.segs, seg_cycles: &mut self.seg_cycles };
-        self.split.push(&cmd, &MAP, &w, &mut rings);
-        true
+        self.rings.get_mut().push(&cmd, &MAP, &mut self.st)
     }
 
     fn segment_space(&self) -> usize {
@@ -694,23 +685,17 @@ impl Io for FakeBoard {
     fn stepper(&self) -> StepperStatus {
         // The firmware's position is reconstructed, this one counted: they agree.
         assert_eq!(self.reconstructed_position(), self.pos, "board position reconstruction");
-        StepperStatus {
-            position: self.pos,
-            busy: self.busy(),
-            trip_position: self.trip,
-            tripped: self.home_tripped || self.probe_tripped,
+        let tripped = self.tripped();
+        let trip_position = self.rings.borrow_mut().trip_position(tripped, &MAP, &self.st);
+        if tripped {
+            assert_eq!(trip_position, self.trip, "latched trip position");
         }
+        StepperStatus { position: self.pos, busy: self.busy(), trip_position, tripped }
     }
 
     fn set_stepper_position(&mut self, p: [i32; N_AXES]) {
-        let mut plan = self.split.plan_position();
-        for i in 0..N_AXES {
-            plan[i] += p[i] - self.pos[i];
-        }
-        self.split.reset(plan);
-        for i in 0..N_AXES {
-            self.base[i] += p[i] - self.pos[i];
-        }
+        let tripped = self.tripped();
+        self.rings.get_mut().set_position(p, tripped, &MAP, &self.st);
         self.pos = p;
     }
 
@@ -722,17 +707,18 @@ impl Io for FakeBoard {
         self.limit_hit = false;
         self.home_tripped = false;
         self.probe_tripped = false;
-        self.ticks_left = 0;
-        self.k_end = 0;
-        self.pending = 0;
+        // As the board: the position first (it subtracts the pending step),
+        // then the ISR's state, then the rings.
+        let q = self.reconstructed_position();
+        assert_eq!(q, self.pos, "board position reconstruction");
+        let st = &mut self.st;
+        st.ticks_left = 0;
+        st.k_end = 0;
+        st.pending = 0;
+        st.seg_tail = st.seg_head;
         self.running = false;
-        self.segs.clear();
-        self.seg_cycles.clear();
-        self.chunks.clear();
-        // As the board: the interrupted chunk is accounted for in `base`.
-        self.cur.steps = [0; N_AXES];
-        self.base = self.pos;
-        self.split.reset(self.pos);
+        let cur = st.cur;
+        self.rings.get_mut().clear(cur, q, st);
         self.stopped = false;
     }
 
@@ -741,7 +727,9 @@ impl Io for FakeBoard {
     }
 
     fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8, release: [u16; 3]) {
-        self.watch = Watch { homing: homing & 0x0F, probe, limits, homed, invert_dir, release };
+        let w = Watch { homing: homing & 0x0F, probe, limits, homed, invert_dir, release };
+        self.rings.get_mut().set_watch(w);
+        self.watch = w;
     }
 
     fn drivers(&mut self, on: bool) {

@@ -1,19 +1,37 @@
-//! Stepper segment preparation and the step-event records (SPEC §6).
+//! Stepper segment preparation, the step-event records and the rings the
+//! ISR reads them from (SPEC §6).
 //!
-//! Where this sits in the pipeline (grbl's `stepper.c` split in two):
+//! Where this sits in the pipeline (grbl's `stepper.c` split in parts):
 //!
 //! ```text
 //!  planner::Planner (block ring, look-ahead, f32)
 //!      │  current_block(), exec_exit_speed_sqr(), discard_current_block()
 //!      ▼
 //!  prep::Prep::next_segment   (main loop; f32 speed profile → integer segments)
-//!      │  StepperCmd::{Block(StBlock), Run(Segment)}
+//!      │  StepperCmd::{Block(StBlock), Run(Segment)}  through Io::push_segment
 //!      ▼
-//!  queue::Splitter            (main loop; → Chunk and Seg records in two rings)
+//!  rings::Rings::push         (main loop; queue::Splitter cuts the commands
+//!      │                       into records, written through queue::Sink)
+//!      │  queue::Chunk, queue::Seg in the board's two rings
 //!      ▼
 //!  TIMER1_COMPA ISR           (src/board; reads the records in place, 16-bit
-//!                              Bresenham: queue::Chunk::tick)
+//!                              Bresenham: the assembly twin of Chunk::tick)
 //! ```
+//!
+//! One data shape crosses each boundary:
+//!
+//! | stage (file)                  | runs in   | takes                         | emits                              |
+//! |-------------------------------|-----------|-------------------------------|------------------------------------|
+//! | planner (`planner/mod.rs`)    | main loop | `push_line` targets           | `planner::Block` (read in place)   |
+//! | prep (`stepper/prep.rs`)      | main loop | the executing `planner::Block`| [`StepperCmd`] (`Io::push_segment`)|
+//! | rings (`stepper/rings.rs`)    | main loop | [`StepperCmd`]                | [`queue::Chunk`] + [`queue::Seg`] slots |
+//! | ISR (`board/stepper.rs`)      | Timer1    | the slots, by index           | step and direction pins            |
+//!
+//! Prep does not emit the ring records itself: the records carry board
+//! facts (step-output bits, direction-pin levels, the hard-limit mask of the
+//! current watch) and ring bookkeeping (a segment's `new_chunk`, its
+//! `k_end`), so the splitter is the first stage of the rings, not the last
+//! of prep, and `Io::push_segment` stays one small `Copy` enum.
 //!
 //! This module owns the types that cross the main-loop → ISR boundary. They are
 //! small, `Copy` and integer-only, so the ISR never sees a float:
@@ -27,17 +45,19 @@
 //!   segments add up to its `step_event_count` exactly. Segments last about
 //!   5 ms on ramps and 20 ms at cruise ([`prep::SEGMENT_TIME_S`],
 //!   [`prep::CRUISE_SEGMENT_TIME_S`]); a short block is one segment.
-//! - [`bresenham::Bresenham`] is the block-level reference of the ISR's
-//!   arithmetic, used by the host tests.
+//! - [`bresenham`] holds the one Bresenham model, [`queue::Chunk::tick`],
+//!   which every host test runs, and [`queue::Chunk::tick_out`], the plain
+//!   twin of the ISR's assembly, tested against it.
 //!
 //! RAM on AVR: the ISR's rings are 16 [`queue::Seg`]s (8 B) and 16
-//! [`queue::Chunk`]s (26 B), 544 B (`board::stepper`); `Prep` about 80 B.
+//! [`queue::Chunk`]s (26 B), 544 B (`board::stepper`); [`rings::Rings`]
+//! 187 B; `Prep` about 80 B.
 
 pub mod bresenham;
 pub mod prep;
 pub mod queue;
+pub mod rings;
 
-pub use bresenham::Bresenham;
 pub use prep::{Prep, CRUISE_SEGMENT_TIME_S, SEGMENT_TIME_S};
 
 #[cfg(test)]

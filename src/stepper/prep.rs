@@ -37,11 +37,11 @@
 //!   prep re-plans the ring itself on its next call.
 //! - **Abort** ([`Prep::reset`]): forget the block in progress (e-stop, limit).
 //!
-//! The ISR's queue holds `StepperCmd`s; each planner block costs one
-//! `Block` entry plus its `Run` entries. With 0.1 mm moves at 50 mm/s a block
-//! lasts 2 ms, so a 16-entry queue covers only ~16 ms of motion: the main loop
-//! must call [`Prep::fill`] / [`Prep::next_segment`] at least that often (or
-//! the queue must be longer) or the ISR starves.
+//! The ISR's rings ([`super::rings`]) take one chunk per `Block` and one
+//! segment per `Run` (two when a run crosses a chunk cut). With 0.1 mm moves
+//! at 50 mm/s a block lasts 2 ms, so the 16-slot rings cover only ~16 ms of
+//! motion: the main loop must call [`Prep::next_segment`] at least that often
+//! (or the rings must be longer) or the ISR starves.
 //!
 //! The planner's executing block is shared: after every segment prep writes its
 //! remaining distance and current speed² back into it, and it recomputes its

@@ -2,11 +2,13 @@
 //! (SPEC §6: "the ISR stays integer-only and short").
 //!
 //! Where it sits: prep ([`super::Prep`]) emits [`StepperCmd`]s in the main
-//! loop; [`Splitter`] (also main loop) turns them into two kinds of small,
-//! fixed records that `board::stepper` keeps in two rings and its Timer1 ISR
+//! loop; [`Splitter`], the first stage of [`super::rings::Rings::push`]
+//! (also main loop), turns them into two kinds of small, fixed records
+//! that it writes through [`Sink`] into the two rings the board's Timer1 ISR
 //! reads **in place, by index** (nothing is copied per segment):
 //!
-//! - [`Chunk`] (26 B): the Bresenham of one planner block, or of a piece of at
+//! - [`Chunk`] (26 B, defined with its arithmetic in [`super::bresenham`]):
+//!   the Bresenham of one planner block, or of a piece of at
 //!   most [`MAX_CHUNK_EVENTS`] step events of a longer block. Every count fits
 //!   an `i16`, so the ISR's tick is 16-bit. The error counters live in the
 //!   ring slot and the ISR updates them there.
@@ -17,7 +19,7 @@
 //! stepping axis). The main loop knows every chunk it queued: a finished
 //! chunk adds its `steps`, and the chunk in progress adds
 //! [`Chunk::steps_done`], computed from its error counters. See
-//! `board::stepper::position`.
+//! [`super::rings::Rings::position`].
 //!
 //! Splitting a long block: the pieces are cut at k = j·C events (C ≤ 32767),
 //! and piece j makes `F(k_{j+1}) − F(k_j)` steps on each axis, where
@@ -28,6 +30,7 @@
 //! exact. A block of ≤ 32767 events is one chunk and steps exactly as one
 //! Bresenham.
 
+pub use super::bresenham::Chunk;
 use super::{Segment, StBlock, StepperCmd};
 use crate::N_AXES;
 
@@ -43,110 +46,6 @@ pub struct StepMap {
     pub step: [u8; N_AXES],
     /// The direction pin of each axis as (port number 0..3, bit mask).
     pub dir: [(u8, u8); N_AXES],
-}
-
-/// One piece of a planner block as the ISR runs it (`#[repr(C)]`: the ISR
-/// addresses fields by offset from the slot pointer).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(C)]
-pub struct Chunk {
-    /// Bresenham errors minus `events`: −events ≤ error < 0 between ticks, so
-    /// "step now" is a sign test. Owned by the ISR while the chunk runs.
-    pub error: [i16; N_AXES],
-    /// Steps each axis makes in this chunk.
-    pub steps: [i16; N_AXES],
-    /// Step events in this chunk (the Bresenham denominator), 1..=32767.
-    pub events: i16,
-    /// Step-output bits ([`StepMap::step`]) of the axes that step on every event.
-    pub every: u8,
-    /// Axis bits of the axes that step on some events only (the ISR's work).
-    pub partial: u8,
-    /// Direction pin levels per port (0..3), over the [`StepMap::dir`] masks.
-    pub dir_out: [u8; 3],
-    /// Axis bits whose home switch closing stops with a hard-limit alarm
-    /// (every watched axis but a homed one at 0 at either end of the chunk).
-    pub limit: u8,
-    /// Axis bits moving negative.
-    pub axis_dir: u8,
-    /// Backlash take-up: the motors move, the counted position does not.
-    pub take_up: bool,
-}
-
-impl Chunk {
-    /// An empty chunk (no steps; all zero, so a ring of them lives in `.bss`).
-    pub const EMPTY: Chunk = Chunk {
-        error: [0; N_AXES],
-        steps: [0; N_AXES],
-        events: 0,
-        every: 0,
-        partial: 0,
-        dir_out: [0; 3],
-        limit: 0,
-        axis_dir: 0,
-        take_up: false,
-    };
-
-    /// One Bresenham step event, exactly as the ISR does it: bit i of the
-    /// result set = axis i steps (axis bits, not output bits).
-    pub fn tick(&mut self) -> u8 {
-        let n = self.events;
-        let mut bits = 0u8;
-        for i in 0..N_AXES {
-            if self.steps[i] == n {
-                bits |= 1 << i;
-            } else if self.partial & (1 << i) != 0 {
-                let e = self.error[i] + self.steps[i];
-                if e >= 0 {
-                    self.error[i] = e - n;
-                    bits |= 1 << i;
-                } else {
-                    self.error[i] = e;
-                }
-            }
-        }
-        bits
-    }
-
-    /// Steps each axis has made after `k` events (0 ≤ k ≤ `events`), from the
-    /// error counters as they are after those k events. Unsigned counts.
-    pub fn steps_done(&self, k: u16) -> [u16; N_AXES] {
-        let n = self.events as u16;
-        let mut out = [0u16; N_AXES];
-        for i in 0..N_AXES {
-            let s = self.steps[i] as u16;
-            out[i] = if k == 0 || s == 0 {
-                0
-            } else if s == n {
-                k
-            } else if k >= n {
-                s
-            } else {
-                // error + n = (⌊n/2⌋ + k·s) mod n, so the quotient is exact.
-                let r = (self.error[i] as i32 + n as i32) as u32;
-                ((n as u32 / 2 + k as u32 * s as u32 - r) / n as u32) as u16
-            };
-        }
-        out
-    }
-
-    /// Signed steps of `done` (from [`Chunk::steps_done`]) per axis.
-    pub fn signed(&self, done: [u16; N_AXES]) -> [i32; N_AXES] {
-        let mut out = [0i32; N_AXES];
-        for i in 0..N_AXES {
-            let d = done[i] as i32;
-            out[i] = if self.axis_dir & (1 << i) != 0 { -d } else { d };
-        }
-        out
-    }
-
-    /// Signed steps of the whole chunk.
-    pub fn total(&self) -> [i32; N_AXES] {
-        let mut done = [0u16; N_AXES];
-        for i in 0..N_AXES {
-            done[i] = self.steps[i] as u16;
-        }
-        self.signed(done)
-    }
 }
 
 /// A run of step events (`#[repr(C)]`: the ISR reads it by offset).
@@ -482,11 +381,15 @@ mod tests {
         assert_eq!((c.every, c.partial), (0x01, 0b0110));
         // X positive: pin high; Y negative: pin low; Z positive: pin high.
         assert_eq!(c.dir_out, [0x02, 0x02, 0x40]);
-        let mut br = crate::stepper::Bresenham::new();
-        br.load(&b);
+        // Exactly one Bresenham over the whole block: axis i has made
+        // F(k) = ⌊(k·steps_i + ⌊N/2⌋) / N⌋ steps after k events.
         let mut ch = c;
-        for _ in 0..1000 {
-            assert_eq!(ch.tick(), br.tick());
+        for k in 1..=1000u32 {
+            let bits = ch.tick();
+            for a in 0..N_AXES {
+                let f = |k: u32| (k * b.steps[a] + 500) / 1000;
+                assert_eq!(bits & (1 << a) != 0, f(k) > f(k - 1), "axis {a} event {k}");
+            }
         }
         assert_eq!(execute(&b, &rec), [1000, -999, 333, 0]);
         assert_eq!(sp.plan_position(), [1000, -999, 333, 0]);

@@ -1,5 +1,8 @@
-//! Planner + prep + Bresenham run together on the host: what the ISR would do.
+//! Planner + prep + splitter + Bresenham run together on the host: what the
+//! ISR would do (each block cut into the ISR's records by
+//! [`queue::Splitter`], stepped by the model [`queue::Chunk::tick`]).
 
+use super::queue::{Chunk, ChunkWatch, Seg, Sink, Splitter, StepMap};
 use super::*;
 use crate::config::Settings;
 use crate::planner::{PlanError, Planner, BLOCK_BUFFER_LEN};
@@ -14,9 +17,33 @@ struct Ran {
     dt: f64,
 }
 
+/// Step bits = axis bits on the host.
+const AXES: StepMap = StepMap { step: [1, 2, 4, 8], dir: [(0, 1), (0, 2), (0, 4), (0, 8)] };
+
+/// The splitter's records of the current block.
+#[derive(Default)]
+struct Records {
+    chunks: Vec<Chunk>,
+    segs: std::collections::VecDeque<Seg>,
+}
+
+impl Sink for Records {
+    fn chunk(&mut self, c: &Chunk) {
+        self.chunks.push(*c);
+    }
+    fn seg(&mut self, s: &Seg) {
+        self.segs.push_back(*s);
+    }
+}
+
 /// A host stand-in for the ISR: runs the commands, counts steps and time.
 struct Machine {
-    br: Bresenham,
+    split: Splitter,
+    rec: Records,
+    /// The running chunk, its index in `rec.chunks`, events left in the running seg.
+    chunk: Chunk,
+    chunk_index: usize,
+    seg_left: u16,
     st: Option<StBlock>,
     /// Motor position, steps.
     motor: [i64; N_AXES],
@@ -41,7 +68,11 @@ struct Machine {
 impl Machine {
     fn new(s: &Settings) -> Self {
         Machine {
-            br: Bresenham::new(),
+            split: Splitter::new(),
+            rec: Records::default(),
+            chunk: Chunk::EMPTY,
+            chunk_index: usize::MAX,
+            seg_left: 0,
             st: None,
             motor: [0; N_AXES],
             counted: [0; N_AXES],
@@ -57,13 +88,32 @@ impl Machine {
         }
     }
 
+    /// One step event of the current block's records: axis bits.
+    fn tick(&mut self) -> u8 {
+        if self.seg_left == 0 {
+            let s = self.rec.segs.pop_front().expect("a tick without a segment");
+            self.seg_left = s.ticks;
+            if s.new_chunk != 0 {
+                self.chunk_index = self.chunk_index.wrapping_add(1);
+                self.chunk = self.rec.chunks[self.chunk_index];
+            }
+        }
+        self.seg_left -= 1;
+        self.chunk.tick()
+    }
+
     fn exec(&mut self, cmd: StepperCmd) {
+        if let StepperCmd::Block(_) = cmd {
+            assert!(self.rec.segs.is_empty() && self.seg_left == 0, "records of the previous block left");
+            self.rec.chunks.clear();
+            self.chunk_index = usize::MAX;
+        }
+        self.split.push(&cmd, &AXES, &ChunkWatch::default(), &mut self.rec);
         match cmd {
             StepperCmd::Block(b) => {
                 if let Some(prev) = self.st {
                     assert_eq!(self.events, prev.step_event_count, "previous block not finished");
                 }
-                self.br.load(&b);
                 self.st = Some(b);
                 self.events = 0;
                 self.blocks += 1;
@@ -84,7 +134,7 @@ impl Machine {
                 }
                 let tick_s = seg.period as f64 * seg.prescale.divisor() as f64 / crate::F_CPU_HZ as f64;
                 for k in 0..seg.ticks {
-                    let bits = self.br.tick();
+                    let bits = self.tick();
                     if bits & 1 != 0 {
                         self.x_step_times.push(self.time + (k as f64 + 1.0) * tick_s);
                     }
