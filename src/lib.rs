@@ -31,6 +31,12 @@ pub mod stepper;
 pub mod toolsetter;
 pub mod ui;
 
+/// A fake board (time, stepper, switches, EEPROM) for host tests of the controller.
+#[cfg(test)]
+pub mod fake_board;
+#[cfg(test)]
+mod controller_tests;
+
 /// Helpers shared by the library's unit tests.
 #[cfg(test)]
 pub(crate) mod test_util {
