@@ -227,8 +227,9 @@ const DOR0: u8 = 3;
 // ends the interrupt.
 //
 // Budget: 72 cycles per ordinary byte, entry to `reti` (64 before the
-// comment/numbered-line tracking of `RxText`; 164 in Rust alone), ~80 for
-// a line end or a line's first byte (~200 through the slow path). Per
+// comment/numbered-line tracking of `RxText`; 164 in Rust alone), 60 for a
+// digit, `.` or `-` (tested first: most of a G-code line), ~80 for a line
+// end or a line's first byte (~200 through the slow path). Per
 // streamed G1 line (`cargo run -p sim --release --bin profile -- --trace
 // 500:300`, `__vector_25` inclusive): see the README's "Benchmark". A byte
 // for the slow path costs ~38 cycles here plus ~165 in `usart0_rx_slow`.
@@ -266,6 +267,10 @@ core::arch::global_asm!(
     "    lds  r24, {udr0}",
     "    sbrc r25, {dor0}",        // bytes lost before this one
     "    rjmp .Lrx_lost",
+    "    mov  r25, r24",           // '*' to ':' (digits, '.', '-'): usual,
+    "    subi r25, 0x2a",          // most of a G-code line, one test
+    "    cpi  r25, 0x11",
+    "    brlo .Lrx_usual",
     "    cpi  r24, 0x7e",          // '~', DEL, non-ASCII (0xFF is stored as 0xFE)
     "    brsh .Lrx_slow",
     "    cpi  r24, 0x20",          // control bytes: line ends, tab, Ctrl-X
@@ -284,6 +289,7 @@ core::arch::global_asm!(
     "    ori  r25, 0x20",
     "    cpi  r25, 0x6d",          // 'M' or 'm'
     "    breq .Lrx_slow",
+    ".Lrx_usual:",
     "    lds  r25, {slow}",
     "    tst  r25",                // RX_FAST
     "    brne .Lrx_start",
