@@ -675,10 +675,11 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
 /// One pass: the integer digits are multiplied in as they come (at most 9
 /// digits in all, so no overflow), the fraction's zeros only once a
 /// non-zero digit follows them, so that trailing zeros drop out of the
-/// mantissa and the scale. The state fits in the AVR's call-clobbered
-/// registers: ~35 cycles a digit and ~100 a number (the digit-by-digit
-/// loop of `lex_spaced` took ~640 cycles for the usual `X12.345`).
-#[inline(never)]
+/// mantissa and the scale. Inlined (through `lex_number`) into
+/// `parse_into`, with the blank scan after the number written out: as a
+/// call, and with `Iterator::find` a call of its own, ~200 cycles a line
+/// more (`profile --trace`).
+#[inline(always)]
 fn lex_plain(s: &[u8]) -> (u32, u8, u8) {
     const NOT_PLAIN: (u32, u8, u8) = (0, 0, 0);
     let mut rest = s;
@@ -735,11 +736,14 @@ fn lex_plain(s: &[u8]) -> (u32, u8, u8) {
         // An exponent, a second point or sign: errors.
         [b'e' | b'E' | b'.' | b'+' | b'-', ..] => return NOT_PLAIN,
         // Blanks, then more of the number.
-        [b' ' | b'\t', ..] => {
-            let after = rest.iter().find(|&&c| !matches!(c, b' ' | b'\t'));
+        [b' ' | b'\t', tail @ ..] => {
+            let mut after = tail;
+            while let [b' ' | b'\t', more @ ..] = after {
+                after = more;
+            }
             match after {
-                Some(b'0'..=b'9') => return NOT_PLAIN,
-                Some(b'.') if !point => return NOT_PLAIN,
+                [b'0'..=b'9', ..] => return NOT_PLAIN,
+                [b'.', ..] if !point => return NOT_PLAIN,
                 _ => {}
             }
         }
