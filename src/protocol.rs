@@ -558,8 +558,19 @@ fn is_m110(cmd: &[u8]) -> bool {
     }
 }
 
-/// For an M110 command, its own `N<m>` parameter.
+/// For an M110 command, its own `N<m>` parameter. Inline, the first byte
+/// is tested before the call: every unnumbered line comes here.
+#[inline(always)]
 fn m110_param(cmd: &[u8]) -> Option<i32> {
+    if !matches!(cmd.first(), Some(b'M' | b'm')) {
+        return None;
+    }
+    m110_param_of(cmd)
+}
+
+/// [`m110_param`] past its first-byte test.
+#[inline(never)]
+fn m110_param_of(cmd: &[u8]) -> Option<i32> {
     if !is_m110(cmd) {
         return None;
     }
