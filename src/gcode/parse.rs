@@ -160,8 +160,10 @@ impl Words {
         }
     }
 
-    /// The value of word `w`, if present.
-    #[inline]
+    /// The value of word `w`, if present. Always inlined: the callers name
+    /// the word, so the mask test folds to one byte test (as a call, ~110
+    /// cycles with the variable shift building the mask).
+    #[inline(always)]
     pub fn get(&self, w: Word) -> Option<f32> {
         if self.contains(w) {
             self.values.get(w as usize).copied()
@@ -171,7 +173,7 @@ impl Words {
     }
 
     /// True if word `w` is present.
-    #[inline]
+    #[inline(always)]
     pub fn contains(&self, w: Word) -> bool {
         self.present & w.bit() != 0
     }
@@ -426,8 +428,8 @@ pub struct Line {
 const _: () = assert!(core::mem::size_of::<Line>() <= 120);
 
 impl Line {
-    /// The value of word `w`, if present.
-    #[inline]
+    /// The value of word `w`, if present (inlined, see [`Words::get`]).
+    #[inline(always)]
     pub fn word(&self, w: Word) -> Option<f32> {
         self.words.get(w)
     }
