@@ -48,7 +48,8 @@ impl Rig {
         let r = self.send(line);
         assert!(!r.contains("Error") && !r.contains("ALARM"), "{line:?}: {r:?}");
         let w = self.send("M400");
-        assert_eq!(w, "ok\n", "M400 after {line:?}");
+        let w: Vec<&str> = w.lines().filter(|l| *l != "busy:processing").collect();
+        assert_eq!(w, ["ok"], "M400 after {line:?}");
         r
     }
 
@@ -565,7 +566,9 @@ fn feed_hold_decelerates_to_a_stop_and_resume_ends_exactly_at_the_target() {
     let last = *dt.last().unwrap();
     assert!(last >= 2 * cruise, "no deceleration: last interval {last} cycles");
     let after_hold = &dt[1500..];
-    assert!(after_hold.windows(2).filter(|w| w[1] < w[0]).count() <= 1, "intervals only grow after the hold: {after_hold:?}");
+    // (A shorter interval by more than 1 %: a speed-up.)
+    let faster = after_hold.windows(2).filter(|w| w[1] + w[0] / 100 < w[0]).count();
+    assert_eq!(faster, 0, "intervals only grow after the hold: {after_hold:?}");
     // Held: a second of main-loop turns, no step.
     let n = r.io.step_count();
     r.idle_until(4000, |_, _| false);
@@ -735,6 +738,202 @@ fn a_long_wait_sends_busy_every_two_seconds() {
     let out = r.ok("T2 M6");
     let took = r.io.ms() - t0;
     assert!(took > 8_000, "{took} ms");
+    // One per whole 2 s from the start of the line (the last may fall
+    // in the main-loop turn after the change ends).
     let busy = out.lines().filter(|l| *l == "busy:processing").count() as u32;
-    assert_eq!(busy, took / 2000, "{took} ms: {busy} busy lines");
+    assert!(busy == took / 2000 || busy + 1 == took / 2000, "{took} ms: {busy} busy lines");
+}
+
+// ---- Waits, pauses, aborts, locks -------------------------------------------
+
+/// CPU cycles per millisecond of the board clock.
+const MS: u64 = 16_000;
+
+/// Board cycle of the last step in `steps[..end]` and of the first in `steps[end..]`.
+fn gap(io: &FakeBoard, end: usize) -> (u64, u64) {
+    (io.steps[end - 1].cycle, io.steps[end].cycle)
+}
+
+/// G4 P1.5 between two moves: the first ends, nothing moves for 1.5 s of
+/// board time, then the second starts (within a few main-loop turns).
+///
+/// Checked to fail: with `interp::wait_ms` waiting `ms / 2.0`.
+#[test]
+fn g4_dwells_its_seconds_on_the_board_clock() {
+    let mut r = ready_rig();
+    r.send("G1 X20 F600");
+    r.send("G4 P1.5");
+    let end = r.io.steps.len();
+    assert_eq!(r.io.phys[0], 2000, "the move ended before the dwell");
+    r.ok("G1 X30 F600");
+    let (a, b) = gap(&r.io, end);
+    assert!(b - a >= 1500 * MS && b - a <= 1510 * MS, "dwell {} ms", (b - a) as f64 / MS as f64);
+    assert_eq!(r.io.phys[0], 3000);
+}
+
+/// M0 waits for `~`: a `?` meanwhile says Hold, nothing moves until the
+/// resume (scripted 1 s later), then the program goes on.
+///
+/// Checked to fail: with `Machine::pause_until_resume` returning at once.
+#[test]
+fn m0_pauses_until_resume() {
+    let mut r = ready_rig();
+    r.send("G1 X20 F600");
+    let t = r.io.ms();
+    r.io.at(At::Ms(t + 2500), Event::Status);
+    r.io.at(At::Ms(t + 3000), Event::Resume);
+    let out = r.send("M0");
+    assert!(out.contains("<Hold|"), "{out}");
+    let end = r.io.steps.len();
+    r.ok("G1 X30 F600");
+    let (_, b) = gap(&r.io, end);
+    assert!(b >= (t as u64 + 3000) * MS, "moved before the resume");
+    assert_eq!(r.io.phys[0], 3000);
+}
+
+/// An abort (the menu's, or an SD job's) in the middle of a move:
+/// decelerates like a hold, then drops everything queued (the next move
+/// never starts), turns the spindle off, and the machine carries on from
+/// where it stopped, with no alarm.
+///
+/// Checked to fail: with `self.planner.clear()` removed from
+/// `Machine::finish_abort` (the queued Y move runs after the abort).
+#[test]
+fn an_abort_decelerates_drops_the_queue_and_stops_the_spindle() {
+    let mut r = ready_rig();
+    r.ok("M3 S8000");
+    let n0 = r.io.step_count() as usize;
+    r.io.at(At::Step(n0 as u64 + 1500), Event::Abort);
+    r.send("G1 X40 F1200");
+    r.send("G1 Y30");
+    let stopped = r.idle_until(200_000, |m, io| !m.is_aborting() && m.motion_done(io));
+    assert!(stopped);
+    r.idle_until(4000, |_, _| false);
+    let x = r.io.phys[0];
+    assert!(x > 1000 + 1500 && x < 4000, "stopped short: {x}");
+    assert!(runs(&r.io, 1, n0).is_empty(), "the queued Y move was dropped");
+    let dt: Vec<u64> = r.io.steps[n0..].windows(2).map(|w| w[1].cycle - w[0].cycle).collect();
+    assert!(*dt.last().unwrap() >= 2 * dt[1400], "decelerated");
+    assert_eq!((r.io.spindle, r.m.alarm), (0, None));
+    assert_eq!(r.counted(), [x as i32, 500, 300]);
+    r.ok("G0 X5");
+    assert_eq!(r.io.phys[0], 500);
+}
+
+/// After power-on (homing lock on), motion is refused and nothing moves
+/// until G28 or M999; M999 unlocks at the unknown position.
+///
+/// Checked to fail: with `Machine::motion_allowed` always true.
+#[test]
+fn motion_before_homing_is_refused_until_homed_or_unlocked() {
+    let mut r = Rig::boot(FakeBoard::new());
+    let boot = r.io.take_out();
+    assert!(boot.contains("echo:home (G28) before moving, or M999 to unlock"), "{boot}");
+    let out = r.refused("G0 X5");
+    assert!(out.contains("Error:not homed: home (G28) or unlock (M999) first, nothing moved"), "{out}");
+    assert_eq!(r.io.step_count(), 0);
+    r.ok("M999");
+    r.ok("G0 X5");
+    assert_eq!(r.io.phys[0], 2250 + 500);
+}
+
+/// G205 P0 homes the carousel (it starts on its switch: back off half a
+/// pitch, seek, back off, slow seek; 0 is where the switch closes), G201
+/// P0 X5 turns it to 5 pitches (889 steps), G203 reports it.
+///
+/// Checked to fail: with the first back-off (starting on the switch)
+/// removed from `atc::carousel::home_steps` (the seek trips at once).
+#[test]
+fn g205_homes_the_carousel_and_g201_turns_it() {
+    let mut r = ready_rig();
+    let n0 = r.io.steps.len();
+    r.ok("G205 P0");
+    assert_eq!(runs(&r.io, 3, n0), [-89, 89, -89, 89]);
+    assert_eq!((r.io.phys[3], r.io.pos[3]), (0, 0));
+    r.ok("G201 P0 X5");
+    assert_eq!((r.io.phys[3], r.io.pos[3]), (889, 889));
+    let out = r.ok("G203 P0");
+    assert!(out.contains("Motor0 Pos:5.000 Endstop Hit:0\n"), "{out}");
+    assert!(runs(&r.io, 0, n0).is_empty() && runs(&r.io, 1, n0).is_empty() && runs(&r.io, 2, n0).is_empty());
+}
+
+/// The length G37 measures becomes the tool offset (auto offset, the
+/// default): the same program line `G1 Z-40` puts each tool's tip 40 mm
+/// below home, so the spindle stands higher by the length difference.
+///
+/// Checked to fail: with `apply_offset` removed from the end of
+/// `toolsetter::run::store` (T2 cuts with the offset M61 gave it: none).
+#[test]
+fn the_measured_length_becomes_the_tool_offset() {
+    let mut io = FakeBoard::new();
+    io.beam = Some(BEAM);
+    let mut r = Rig::boot(io);
+    r.ok("G28");
+    r.ok("M61 Q1");
+    r.io.tool = Some(T1);
+    r.ok("G37 L19.5 R1.5");
+    r.ok("G0 X30 Y20");
+    r.ok("G1 Z-40 F300");
+    assert_eq!(r.io.phys[2], 4000 - 1950, "T1's tip at 40 mm");
+    r.ok("G0 Z-30");
+    r.ok("M61 Q2");
+    r.io.tool = Some(T2);
+    r.ok("G37");
+    r.ok("G0 X30 Y20");
+    r.ok("G1 Z-40 F300");
+    assert_eq!(r.io.phys[2], 4000 - 2134, "T2's tip at 40 mm (length 21.34)");
+}
+
+/// M112 during homing (Y's seek): everything stops on that step, the
+/// cycle ends in `ALARM:emergency stop` with nothing homed, and X never
+/// moves.
+///
+/// Checked to fail: with `Machine::wait_step` not failing on an alarm
+/// (`if self.alarm.is_some()` → `if false`: homing carries on after the M112).
+#[test]
+fn m112_during_homing_stops_the_cycle() {
+    let mut io = FakeBoard::new();
+    io.place([700, 800, 900, 0]);
+    let mut r = Rig::boot(io);
+    // Z's cycle is 900 + 300 steps; 200 more are Y's fast seek.
+    r.io.at(At::Step(1400), Event::Estop);
+    let out = r.send("G28");
+    assert!(out.contains("ALARM:emergency stop\n"), "{out}");
+    assert!(out.contains("Error:alarm emergency stop"), "{out}");
+    r.idle_until(4000, |_, _| false);
+    assert_eq!(r.io.step_count(), 1400);
+    assert_eq!(runs(&r.io, 1, 0), [-200]);
+    assert!(runs(&r.io, 0, 0).is_empty());
+    assert_eq!((r.m.homed, r.m.state), (0, State::Alarm));
+}
+
+/// `!` in the middle of a tool change (on the way to the station): the
+/// change holds (no step for a second), `~` resumes it, and it completes
+/// exactly as without the hold: the clamp at the station with pocket 2,
+/// the records, back over the start.
+///
+/// Checked to fail: with the resume branch of `Machine::idle` ignoring
+/// `~` while the state is `Tool` (`if rt.resume && self.holding &&
+/// self.state != State::Tool`: the change never resumes).
+#[test]
+fn a_feed_hold_pauses_a_tool_change_and_resume_completes_it() {
+    let mut r = ready_rig();
+    let n0 = r.io.step_count();
+    r.io.at(At::Step(n0 + 1000), Event::Hold);
+    let t = r.io.ms();
+    r.io.at(At::Ms(t + 3000), Event::Resume);
+    let out = r.ok("T2 M6");
+    assert!(out.contains("NowSelectedTool:2\n"), "{out}");
+    // The hold: a gap of over a second in the steps, after step 1000 and a deceleration.
+    let s = &r.io.steps[n0 as usize..];
+    let longest = s.windows(2).map(|w| w[1].cycle - w[0].cycle).max().unwrap();
+    assert!(longest > 1000 * MS, "no pause: longest gap {} ms", longest / MS);
+    let down = arrivals(&r.io, 4500, n0 as usize);
+    assert_eq!(down.len(), 1);
+    let at = r.io.steps[down[0]].phys;
+    assert_eq!((at[0], at[1], at[3].rem_euclid(3200)), (2300, 4400, pocket_steps(2)));
+    let (st, jb) = records(&r.io);
+    assert_eq!(ToolState::from_bytes(&st).map(|s| s.spindle), Some(2));
+    assert_eq!(Journal::from_bytes(&jb), None);
+    assert_eq!(r.xyz(), [1000, 500, 100]);
 }

@@ -361,9 +361,9 @@ impl Io for Hw {
         serial::rx_len()
     }
 
-    fn sd_command(&mut self, m: &mut Machine, code: u16, arg: &[u8]) -> mill::machine::CmdResult {
+    fn sd_command(&mut self, flags: mill::machine::SdJobFlags<'_>, code: u16, arg: &[u8]) -> mill::machine::CmdResult {
         self.names_valid = false;
-        sdjob::command(&mut self.job, &mut self.sd, m, &mut SerialOut, code, arg).map_err(interp::Error::Sd)
+        sdjob::command_with(&mut self.job, &mut self.sd, flags, &mut SerialOut, code, arg).map_err(|t| interp::Error::Sd(t.as_fstr()))
     }
 
     fn sd_capture(&mut self, line: &[u8]) -> bool {
@@ -713,10 +713,10 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         }
         Cmd::RunFile(i) => match hw.file_name(i) {
             Some(name) => match hw.job.select(&mut hw.sd, &name) {
-                Ok(()) => hw.job.start(m).map_err(interp::Error::Sd),
-                Err(e) => Err(interp::Error::Sd(e.text())),
+                Ok(()) => hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr())),
+                Err(e) => Err(interp::Error::Sd(e.text().as_fstr())),
             },
-            None => Err(interp::Error::Sd(SdError::NotFound.text())),
+            None => Err(interp::Error::Sd(SdError::NotFound.text().as_fstr())),
         },
         Cmd::Override(pct) => {
             m.interp.feed_override_pct = pct;
@@ -729,7 +729,7 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             Ok(())
         }
         Cmd::Jog { axis, delta_um } => {
-            interp::jog(m, hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN)
+            m.jog(hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN)
         }
         Cmd::Home(mask) => mill::machine::home(m, hw, mask),
         Cmd::Tool(op) => {

@@ -9,7 +9,7 @@
 //! ```
 //!
 //! Recognised before the G-code parser, like the SD commands
-//! (`ui::sd::sd_code`): a line that starts with one of these codes is taken
+//! ([`sd_code`], run by `ui::sd`): a line that starts with one of these codes is taken
 //! whole (`M117` keeps the rest of the line as its text). The same codes on a
 //! line with other words (`G0 X1 M104`) stay parse errors.
 //!
@@ -25,7 +25,7 @@
 //! | M155, M300 | accepted, nothing to do (no temperatures, no buzzer) |
 
 use crate::gcode::interp::Error;
-use crate::machine::{CmdResult, Io, Machine};
+use core::convert::Infallible;
 use ufmt::uwriteln;
 
 /// Characters of an M117 message kept for the status screen (RAM: this + 2 B).
@@ -111,9 +111,10 @@ fn code_of(text: &[u8]) -> Option<(u16, &[u8])> {
     is_host_code(code).then(|| (code, trim(rest.get(digits..).unwrap_or(&[]))))
 }
 
-/// Run one of this module's codes; `arg` is the rest of the line.
+/// Run one of this module's codes on the host state; `arg` is the rest of
+/// the line, replies go to `io`.
 #[inline(never)]
-pub fn run(m: &mut Machine, io: &mut impl Io, code: u16, arg: &[u8]) -> CmdResult {
+pub fn run(host: &mut HostState, io: &mut impl ufmt::uWrite<Error = Infallible>, code: u16, arg: &[u8]) -> Result<(), Error> {
     match code {
         104 | 109 | 140 | 190 => {
             uwriteln!(io, "{}{}{}", F!("echo:M"), code, F!(" ignored: a mill has no heaters")).ok();
@@ -129,22 +130,58 @@ pub fn run(m: &mut Machine, io: &mut impl Io, code: u16, arg: &[u8]) -> CmdResul
             // temperatures, also during an SD job; a mill reports none.
             uwriteln!(io, "{}", F!("T:0.0 /0.0")).ok();
         }
-        117 => m.host.set_message(strip_comment(arg)),
+        117 => host.set_message(strip_comment(arg)),
         73 => {
             if let Some(p) = word(arg, b'P') {
-                m.host.pct = if (0..=100).contains(&p) { p as u8 } else { HostState::NO_PCT };
+                host.pct = if (0..=100).contains(&p) { p as u8 } else { HostState::NO_PCT };
             }
         }
         113 => match word(arg, b'S') {
-            Some(s) if (0..=60).contains(&s) => m.host.busy_interval_s = s as u8,
+            Some(s) if (0..=60).contains(&s) => host.busy_interval_s = s as u8,
             Some(_) => return Err(Error::BadWord(F!("M113 S must be 0-60 seconds"))),
             None => {
-                uwriteln!(io, "{}{}", F!("echo:M113 S"), m.host.busy_interval_s).ok();
+                uwriteln!(io, "{}{}", F!("echo:M113 S"), host.busy_interval_s).ok();
             }
         },
         _ => {} // 155, 300: nothing to do.
     }
     Ok(())
+}
+
+/// If `text` is an SD command (M20–M29 or M524), its code and argument
+/// (trimmed, without a `;` comment).
+///
+/// Inline, the first byte is looked at before anything else, as in
+/// [`code`] (~110 cycles a streamed line).
+#[inline(always)]
+pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
+    if !matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t')) {
+        return None;
+    }
+    sd_code_of(text)
+}
+
+/// [`sd_code`] past its first-byte test.
+#[inline(never)]
+fn sd_code_of(text: &[u8]) -> Option<(u16, &[u8])> {
+    let t = trim(text);
+    let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;
+    let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
+    if digits == 0 || digits > 4 {
+        return None;
+    }
+    let mut code = 0u16;
+    for &b in &rest[..digits] {
+        code = code * 10 + (b - b'0') as u16;
+    }
+    if !(20..=29).contains(&code) && code != 524 {
+        return None;
+    }
+    let mut arg = &rest[digits..];
+    if let Some(i) = arg.iter().position(|&b| b == b';') {
+        arg = &arg[..i];
+    }
+    Some((code, trim(arg)))
 }
 
 /// The integer part of word `letter` in `arg` (`P50`, `p 50.5`), if any.
@@ -182,6 +219,18 @@ fn trim(mut s: &[u8]) -> &[u8] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_first_byte_test_only_skips_lines_without_an_sd_code() {
+        for t in [&b"G1 X1"[..], b"M23 a.gco", b" M24", b"\tm20", b"M524", b"", b"  ", b"(M24)", b"N5 M24"] {
+            assert_eq!(sd_code(t), sd_code_of(t), "{:?}", String::from_utf8_lossy(t));
+        }
+        for b in 0..=255u8 {
+            if sd_code_of(&[b, b'2', b'4']).is_some() || sd_code_of(&[b, b'M', b'2', b'4']).is_some() {
+                assert!(matches!(b, b'M' | b'm' | b' ' | b'\t'), "{b:#x}");
+            }
+        }
+    }
 
     #[test]
     fn the_first_byte_test_only_skips_lines_without_a_code() {

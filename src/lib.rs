@@ -2,7 +2,8 @@
 //!
 //! ```text
 //!  serial / SD bytes ─► protocol (line assembly, N/*, realtime bytes)
-//!                    ─► gcode (parse, modal state, interpreter)
+//!                    ─► gcode (parse; the interpreter turns a line into Commands)
+//!                    ─► machine (the controller: carries the Commands out)
 //!                    ─► planner (block ring, look-ahead, arcs → chords)
 //!                    ─► stepper::prep (segments, in the main loop)
 //!                    ─► stepper ISR (board, Bresenham tick over stepper::queue records)
@@ -11,6 +12,25 @@
 //! Nothing in this crate touches a register: `src/board` (AVR only) does that,
 //! and `src/main.rs` wires the pieces together. Everything here compiles and is
 //! unit-tested on the host with plain `cargo test`.
+//!
+//! # Layers
+//!
+//! A module may name (`use crate::…`, `crate::…::`) only modules of its own
+//! layer or of a lower one, and a layer has no cycle. `tools/layers` checks
+//! it (run by `tools/test`; the same table is in that script):
+//!
+//! | layer | modules | what |
+//! |---|---|---|
+//! | 0 | `math`, `fixed`, `flash`, `config`, `protocol` | arithmetic, settings, wire protocol |
+//! | 1 | `planner`, `stepper`, `frame` | motion pipeline, the Z flip |
+//! | 2 | `atc`, `toolsetter` | the tool changer's and the setter's pure logic |
+//! | 3 | `gcode` | parser, interpreter (pure: returns `Command`s), canned cycles |
+//! | 4 | `hostcodes`, `dollar` | codes taken before the parser |
+//! | 5 | `machine` | the controller, and the runners that move the machine (homing, `machine::toolchange`, `machine::carousel`, `machine::setter`) |
+//! | 6 | `ui` | menu, display, SD jobs (uses the machine) |
+//! | 7 | `board`, `firmware`, `main` | the AVR binary (not in this library) |
+//!
+//! Unit tests may reach up (`gcode`'s tests drive `Machine::execute`).
 #![cfg_attr(not(test), no_std)]
 #![cfg_attr(target_arch = "avr", feature(asm_experimental_arch))]
 

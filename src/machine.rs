@@ -3,8 +3,19 @@
 //!
 //! ```text
 //!  bytes ─► protocol::LineAssembler ─► protocol::LineChecker ─► gcode::parse
-//!        ─► interpreter (gcode::interp, modal state) ─► Planner ─► Prep ─► Io::push_segment
+//!        ─► Interp::next (gcode::interp: modal state, returns a Command)
+//!        ─► Machine::dispatch ─► Machine::queue_line ─► Planner ─► Prep ─► Io::push_segment
 //! ```
+//!
+//! `Machine::run_line` asks the interpreter for a line's commands one at a
+//! time and carries each out. Every move, whoever makes it, enters the
+//! planner through [`Machine::queue_line`]: the interpreter's (via
+//! `Machine::dispatch`'s `Command::Move`), homing's and the carousel's
+//! switch seeks (`Machine::seek_switch`, the one homing seek), and the
+//! runners in this module's children, which express their sequences over it
+//! ([`Machine::move_mm`]): [`toolchange`] (T/M6, M61, G10 L1, the EEPROM
+//! journal), [`carousel`] (G201–G205), [`setter`] (G37) and [`report`]
+//! (M114, M119, M503). Nothing here calls back into the interpreter.
 //!
 //! The firmware implements [`Io`] over `board` (AVR); host tests implement it
 //! with a fake stepper, so the whole controller (alarms, homing, hold, the
@@ -17,13 +28,18 @@
 use crate::config::Settings;
 use crate::dollar;
 use crate::fixed::Micros;
-use crate::gcode::interp::{self, Interp};
+use crate::gcode::interp::{self, Command, Interp};
 use crate::planner::{PlanError, Planner};
 use crate::protocol::{Assembled, LineAssembler, LineChecker};
 use crate::stepper::{Prep, StepperCmd};
 use crate::N_AXES;
 use core::convert::Infallible;
 use ufmt::{uwrite, uwriteln};
+
+pub mod carousel;
+pub mod report;
+pub mod setter;
+pub mod toolchange;
 
 /// Realtime events collected by the hardware since the last poll.
 #[derive(Clone, Copy, Default, Debug)]
@@ -113,9 +129,10 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn rx_pending(&self) -> usize;
     /// Throw away every byte waiting in the serial RX ring (soft reset).
     fn flush_rx(&mut self) {}
-    /// An SD command (M20–M29, M524; `arg` is the text after the code).
-    /// Without an SD card in the build it is refused.
-    fn sd_command(&mut self, _m: &mut Machine, _code: u16, _arg: &[u8]) -> CmdResult {
+    /// An SD command (M20–M29, M524; `arg` is the text after the code),
+    /// with the little of the machine it may touch (`job`: M24 starts a
+    /// job). Without an SD card in the build it is refused.
+    fn sd_command(&mut self, _job: SdJobFlags<'_>, _code: u16, _arg: &[u8]) -> CmdResult {
         Err(interp::Error::NotAvailable(F!("SD card not available in this build")))
     }
     /// While M28 writes a file, store the line there and return true.
@@ -125,6 +142,15 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     /// End of every [`Machine::idle`]: the standalone UI's turn (encoder,
     /// one slice of the display). Must be short.
     fn background(&mut self, _m: &Machine) {}
+}
+
+/// What an SD command may change of the machine ([`Io::sd_command`]): M24
+/// starts a job, which needs the abort count to watch and sets `sd_job`.
+pub struct SdJobFlags<'a> {
+    /// [`Machine::sd_job`]: set when a job starts.
+    pub sd_job: &'a mut bool,
+    /// [`Machine::aborts`] now.
+    pub aborts: u8,
 }
 
 /// Machine state, as reported by `?` (grbl 1.1 names).
@@ -306,7 +332,7 @@ impl Machine {
         if loaded.is_none() {
             uwriteln!(io, "{}", F!("echo:EEPROM settings invalid or blank, using defaults")).ok();
         }
-        crate::atc::run::boot(self, io);
+        toolchange::boot(self, io);
         if reset_cause == "watchdog" {
             self.raise(io, Alarm::WatchdogReset);
         } else if self.settings.homing_lock {
@@ -433,12 +459,12 @@ impl Machine {
                 self.serial_line = true;
                 self.last_busy_ms = io.millis();
                 self.line_aborts = self.aborts;
-                let sd = crate::ui::sd::sd_code(cmd);
+                let sd = crate::hostcodes::sd_code(cmd);
                 let r = match sd {
                     // M28 is writing a file: every line but M29 goes there.
-                    Some((29, _)) => io.sd_command(self, 29, &[]),
+                    Some((29, _)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, 29, &[]),
                     _ if io.sd_capture(cmd) => Ok(()),
-                    Some((code, arg)) => io.sd_command(self, code, arg),
+                    Some((code, arg)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, code, arg),
                     None => self.execute(cmd, io),
                 };
                 self.serial_line = false;
@@ -465,7 +491,10 @@ impl Machine {
             interp::Error::Parse(p) => {
                 uwriteln!(io, "Error:{} at col {}", p.kind.message(), p.col).ok();
             }
-            interp::Error::Sd(t) => crate::ui::sd::write_error(io, t),
+            interp::Error::Sd(t) => {
+                // SD card errors print their own text.
+                uwriteln!(io, "Error:{}", t).ok();
+            }
             other => {
                 uwriteln!(io, "Error:{}", other.message()).ok();
             }
@@ -477,7 +506,7 @@ impl Machine {
     #[inline(never)]
     pub fn run_job_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
         self.line_aborts = self.aborts;
-        if crate::ui::sd::sd_code(text).is_some() {
+        if crate::hostcodes::sd_code(text).is_some() {
             return Err(interp::Error::BadWord(F!("SD commands are not allowed inside an SD job")));
         }
         self.job_line = true;
@@ -506,11 +535,258 @@ impl Machine {
             return self.dollar(text, io);
         }
         if let Some((code, arg)) = crate::hostcodes::code(text) {
-            return crate::hostcodes::run(self, io, code, arg);
+            return crate::hostcodes::run(&mut self.host, io, code, arg);
         }
         let mut line = crate::gcode::Line::default();
         crate::gcode::parse_into(text, &mut line).map_err(interp::Error::Parse)?;
-        interp::execute(self, &line, text, io)
+        self.run_line(&line, io)
+    }
+
+    /// Run a parsed line: ask the interpreter for its commands, one at a
+    /// time, and carry each out ([`Machine::dispatch`]) before asking for
+    /// the next. The first error ends the line.
+    #[inline(never)]
+    fn run_line(&mut self, l: &crate::gcode::Line, io: &mut impl Io) -> CmdResult {
+        self.interp.begin_line();
+        // `line_done` spares the last call (a streamed G1 is one move).
+        while !self.interp.line_done() {
+            let cx = interp::Ctx {
+                settings: &self.settings,
+                atc: &self.atc,
+                alarm: self.alarm.is_some(),
+                estop: self.alarm == Some(Alarm::EmergencyStop),
+                status_only: self.sd_job && !self.job_line,
+            };
+            // Matched by reference: the command is not copied again.
+            let r = self.interp.next(&cx, l);
+            match &r {
+                Ok(Some(Command::Move { feed_mm_per_min, rapid })) => self.move_interp(io, *feed_mm_per_min, *rapid)?,
+                Ok(Some(cmd)) => self.dispatch(cmd, io)?,
+                Ok(None) => return Ok(()),
+                Err(e) => return Err(*e),
+            }
+        }
+        Ok(())
+    }
+
+    /// Carry out one command of the interpreter.
+    #[inline(never)]
+    fn dispatch(&mut self, cmd: &Command, io: &mut impl Io) -> CmdResult {
+        match *cmd {
+            Command::Move { feed_mm_per_min, rapid } => self.move_interp(io, feed_mm_per_min, rapid),
+            Command::CycleMove { feed_mm_per_min, rapid } => self.cycle_move(io, feed_mm_per_min, rapid),
+            Command::Probe { feed_mm_per_min, must_trip } => self.probe(io, *self.interp.target(), feed_mm_per_min, must_trip),
+            Command::Dwell { ms } => {
+                self.keepalive(io);
+                self.wait_ms(io, ms)
+            }
+            Command::Home { mask } => home(self, io, mask),
+            Command::Measure { mode, x_mm, y_mm } => setter::g37(self, io, mode, x_mm, y_mm),
+            Command::SelectTool { to } => toolchange::select(self, io, to),
+            Command::PreselectTool(t) => {
+                // NGC: T selects (pre-stages) the tool; the next M6 changes to it.
+                self.atc.last_t = t;
+                Ok(())
+            }
+            Command::ConfirmTool { tool } => {
+                toolchange::confirm_tool(self, io, tool);
+                Ok(())
+            }
+            Command::SetPocket { pocket, full } => toolchange::set_pocket(self, io, pocket, full),
+            Command::SetTool { tool, length_mm, radius_mm } => {
+                toolchange::set_tool(self, io, tool, length_mm, radius_mm);
+                Ok(())
+            }
+            Command::StoreOffsets => {
+                self.save_settings(io);
+                Ok(())
+            }
+            Command::CarouselTurn { x } => carousel::turn_to(self, io, x),
+            Command::CarouselSetPosition { x } => carousel::set_position(self, io, x),
+            Command::CarouselReport => {
+                carousel::report(self, io);
+                Ok(())
+            }
+            Command::CarouselEnable { on } => carousel::enable(self, io, on),
+            Command::CarouselHome { back, only_if_unhomed } => carousel::home_command(self, io, back, only_if_unhomed),
+            Command::Spindle { on, duty } => {
+                self.wait_idle(io)?;
+                self.interp.spindle_on = on;
+                io.spindle(duty);
+                Ok(())
+            }
+            Command::Coolant { m } => {
+                // One output for both M7 (mist) and M8 (flood), switched in
+                // step with the motion like the spindle (M9 in an alarm: at
+                // once, nothing moves).
+                if self.alarm.is_none() {
+                    self.wait_idle(io)?;
+                }
+                io.coolant(m != 9);
+                self.interp.coolant_m = m;
+                Ok(())
+            }
+            Command::AxisSettings { code, values } => self.axis_settings(io, code, values),
+            Command::M(code) => self.m_code(io, code),
+            Command::Report(r) => {
+                match r {
+                    interp::Report::Position => report::position(self, io),
+                    interp::Report::Firmware => self.firmware_line(io),
+                    interp::Report::Temperatures => {
+                        uwriteln!(io, "T:0.0 /0.0").ok();
+                    }
+                    interp::Report::Switches => report::switches(self, io),
+                    interp::Report::Settings => report::settings(self, io),
+                }
+                Ok(())
+            }
+            Command::ClearAlarm => {
+                self.clear_alarm(io);
+                uwriteln!(io, "{}", F!("echo:alarm cleared; position unknown until homed (G28)")).ok();
+                Ok(())
+            }
+            Command::EmergencyStop => {
+                // The RX interrupt's scanner has usually raised it already.
+                if self.alarm != Some(Alarm::EmergencyStop) {
+                    self.raise(io, Alarm::EmergencyStop);
+                }
+                Ok(())
+            }
+            Command::ProgramEnd => {
+                self.wait_idle(io)?;
+                self.spindle_off(io);
+                uwriteln!(io, "{}", F!("echo:program end")).ok();
+                Ok(())
+            }
+            Command::Pause => {
+                self.wait_idle(io)?;
+                uwriteln!(io, "{}", F!("echo:paused, send ~ to resume")).ok();
+                self.pause_until_resume(io)
+            }
+        }
+    }
+
+    /// A canned cycle's move: wait for room first (two slots: a backlash
+    /// take-up may come first), so the keepalive goes out while the queue
+    /// is full.
+    #[inline(never)]
+    fn cycle_move(&mut self, io: &mut impl Io, feed: f32, rapid: bool) -> CmdResult {
+        self.keepalive(io);
+        while self.planner.free() < 2 {
+            self.keepalive(io);
+            self.wait_step(io)?;
+        }
+        self.move_interp(io, feed, rapid)
+    }
+
+    /// Let the queue drain, then wait `ms` milliseconds, serving realtime
+    /// requests and sending the keepalive (G4, the canned cycles' P).
+    fn wait_ms(&mut self, io: &mut impl Io, ms: f32) -> CmdResult {
+        self.wait_idle(io)?;
+        let start = io.millis();
+        while (io.millis().wrapping_sub(start) as f32) < ms {
+            self.wait_step(io)?;
+        }
+        Ok(())
+    }
+
+    /// G38.2/G38.3: move toward `target` until the tool-setter input trips.
+    #[inline(never)]
+    fn probe(&mut self, io: &mut impl Io, target: [f32; N_AXES], feed: f32, must_trip: bool) -> CmdResult {
+        if self.alarm.is_some() {
+            return Err(interp::Error::Alarm);
+        }
+        if !self.motion_allowed() {
+            return Err(interp::Error::NotHomed);
+        }
+        self.wait_idle(io)?;
+        if io.switches().tool_setter {
+            return Err(interp::Error::ProbeAlreadyTriggered);
+        }
+        let prev = self.state;
+        self.state = State::Probe;
+        self.apply_watch(io, 0, true);
+        let steps = self.interp.steps_of(&self.settings, &target);
+        let r = self.queue_line(io, steps, feed, false).and_then(|_| self.wait_motion_or_trip(io));
+        self.apply_watch(io, 0, false);
+        self.state = prev;
+        let tripped = r?;
+        let pos = if tripped { io.stepper().trip_position } else { io.stepper().position };
+        self.resync_after_stop(io);
+        let mm = self.steps_to_mm(pos);
+        uwrite!(io, "[PRB:").ok();
+        self.write_xyz(io, self.interp.work_user(mm));
+        uwriteln!(io, ":{}]", if tripped { 1u8 } else { 0u8 }).ok();
+        if !tripped && must_trip {
+            return Err(interp::Error::ProbeFailed);
+        }
+        Ok(())
+    }
+
+    /// M92 / M201 / M203 (`values`: X Y Z E, NaN where absent), once the
+    /// machine is still.
+    #[inline(never)]
+    fn axis_settings(&mut self, io: &mut impl Io, code: u16, values: [f32; N_AXES]) -> CmdResult {
+        self.wait_idle(io)?;
+        let mut s = self.settings;
+        for (a, &v) in values.iter().enumerate() {
+            if v.is_nan() {
+                continue;
+            }
+            if !(v > 0.0) {
+                return Err(interp::Error::BadWord(F!("value must be positive")));
+            }
+            match code {
+                92 => s.steps_per_mm[a] = v,
+                201 => s.accel_mm_per_s2[a] = v,
+                _ => s.max_feed_mm_per_min[a] = v * 60.0, // M203 is mm/s (Marlin)
+            }
+        }
+        if !s.is_sane() {
+            return Err(interp::Error::BadWord(F!("value out of range")));
+        }
+        self.replace_settings(s, io)
+    }
+
+    /// M17, M18/M84, M400, M500, M501, M502.
+    #[inline(never)]
+    fn m_code(&mut self, io: &mut impl Io, code: u16) -> CmdResult {
+        match code {
+            17 => io.drivers(true),
+            18 | 84 => {
+                // Wait for the moves, then spindle off (a mill with its drivers
+                // off cannot cut: OctoPrint's cancel script has M84 but no M5),
+                // drivers off; the position and the homing are kept (Marlin's
+                // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
+                self.wait_idle(io)?;
+                self.spindle_off(io);
+                io.drivers(false);
+                self.apply_watch(io, 0, false);
+                if self.homed != 0 {
+                    uwriteln!(io, "{}", F!("echo:steppers off, position kept: home again (G28) if an axis was turned by hand")).ok();
+                }
+            }
+            400 => self.wait_idle(io)?,
+            500 => {
+                self.save_settings(io);
+                uwriteln!(io, "{}", F!("echo:settings stored")).ok();
+            }
+            501 => {
+                self.wait_idle(io)?;
+                if self.load_settings(io) {
+                    uwriteln!(io, "{}", F!("echo:settings loaded")).ok();
+                } else {
+                    return Err(interp::Error::BadWord(F!("EEPROM settings invalid; kept the current ones")));
+                }
+            }
+            _ => {
+                self.wait_idle(io)?;
+                self.set_settings(Settings::defaults());
+                self.interp.load_settings(&self.settings);
+                uwriteln!(io, "{}", F!("echo:factory settings restored (M500 to store)")).ok();
+            }
+        }
+        Ok(())
     }
 
     /// A grbl-style `$` line (see `crate::dollar`).
@@ -579,6 +855,65 @@ impl Machine {
                 Err(_) => return Err(interp::Error::BadFeed),
             }
         }
+    }
+
+    /// Queue a straight move to `target` (internal machine mm, E in carousel
+    /// units): the one entry point of every move in mm (the interpreter's
+    /// moves, chords and cycle steps, the tool changer's and the tool
+    /// setter's rapids, the carousel's turns, the menu's jog). The homing
+    /// lock guards X/Y/Z (the carousel alone has its own homing, G205); the
+    /// commanded position follows once the planner took the move.
+    #[inline(never)]
+    pub fn move_mm(&mut self, io: &mut impl Io, target: &[f32; N_AXES], feed_mm_per_min: f32, rapid: bool) -> CmdResult {
+        self.may_move_to(target)?;
+        let steps = self.interp.steps_of(&self.settings, target);
+        self.queue_line(io, steps, feed_mm_per_min, rapid)?;
+        self.interp.pos_mm = *target;
+        Ok(())
+    }
+
+    /// [`Machine::move_mm`] to the interpreter's [`Interp::target`]
+    /// (`Command::Move`), without copying it out.
+    #[inline(never)]
+    fn move_interp(&mut self, io: &mut impl Io, feed_mm_per_min: f32, rapid: bool) -> CmdResult {
+        self.may_move_to(self.interp.target())?;
+        let steps = self.interp.target_steps(&self.settings);
+        self.queue_line(io, steps, feed_mm_per_min, rapid)?;
+        self.interp.target_reached();
+        Ok(())
+    }
+
+    /// Motion to `target` is allowed: no alarm, and the homing lock
+    /// (`$22`) guards X/Y/Z (the carousel alone has its own homing, G205;
+    /// an interrupted tool change is locked separately).
+    #[inline(always)]
+    fn may_move_to(&self, target: &[f32; N_AXES]) -> CmdResult {
+        if self.alarm.is_some() {
+            return Err(interp::Error::Alarm);
+        }
+        // The cheap test first: homed or unlocked, any target goes.
+        if self.motion_allowed() {
+            return Ok(());
+        }
+        let xyz_moves = (0..3).any(|a| !interp::same_f32(target[a], self.interp.pos_mm[a]));
+        if xyz_moves {
+            return Err(interp::Error::NotHomed);
+        }
+        Ok(())
+    }
+
+    /// The menu's jog: `axis` (0..3) by `delta_mm` (user frame: +Z up) at
+    /// `feed` mm/min from the commanded position; soft limits apply, the
+    /// modal state is untouched.
+    #[inline(never)]
+    pub fn jog(&mut self, io: &mut impl Io, axis: usize, delta_mm: f32, feed: f32) -> CmdResult {
+        if self.alarm.is_some() {
+            return Err(interp::Error::Alarm);
+        }
+        let mut target = self.interp.pos_mm;
+        target[axis] += crate::frame::axis_internal_from_user(axis, delta_mm);
+        self.interp.check_soft_limits(&self.settings, &target)?;
+        self.move_mm(io, &target, feed, false)
     }
 
     /// One turn of every wait loop: top up segments, serve realtime.
@@ -969,13 +1304,15 @@ impl Machine {
         }
     }
 
-    /// One homing seek on `axis` toward its switch by up to `dist_mm`.
-    /// Returns true when the switch tripped; the axis position is then 0 at
-    /// the trip step (SPEC §6: Marlin's convention).
-    fn home_seek(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> Result<bool, interp::Error> {
+    /// One homing seek, the only one (G28's axes and the carousel's G205):
+    /// move `axis` by up to `steps` (signed, toward its switch) with the ISR
+    /// watching the switch (`set_watch`'s homing mask bit `axis`: X, Y, Z or
+    /// the carousel on E). Returns true when the switch tripped; the axis
+    /// position is then 0 at the trip step (SPEC §6: Marlin's convention).
+    pub(crate) fn seek_switch(&mut self, io: &mut impl Io, axis: usize, steps: i32, feed: f32) -> Result<bool, interp::Error> {
         self.apply_watch(io, 1 << axis, false);
         let mut target = io.stepper().position;
-        target[axis] -= crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
+        target[axis] += steps;
         let r = self.queue_line(io, target, feed, false).and_then(|_| self.wait_motion_or_trip(io));
         self.apply_watch(io, 0, false);
         let tripped = r?;
@@ -987,6 +1324,12 @@ impl Machine {
         }
         self.resync_after_stop(io);
         Ok(tripped)
+    }
+
+    /// A linear axis' homing seek toward its switch (−) by up to `dist_mm`.
+    fn home_seek(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> Result<bool, interp::Error> {
+        let steps = crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
+        self.seek_switch(io, axis, -steps, feed)
     }
 
     /// Move `axis` away from its switch by `dist_mm` (no switch watching:

@@ -216,7 +216,7 @@ mod tests {
 
     #[test]
     fn div10_is_exact() {
-        let mut check = |v: u32| assert_eq!(div10(v), (v / 10, (v % 10) as u8), "{v}");
+        let check = |v: u32| assert_eq!(div10(v), (v / 10, (v % 10) as u8), "{v}");
         for v in 0..2_000_000 {
             check(v);
         }

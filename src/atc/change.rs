@@ -2,7 +2,7 @@
 //! state machine whose transitions are a table.
 //!
 //! Pure: it never moves anything. It hands out one [`Action`] at a time; the
-//! executor (`atc::run`) performs it through the planner and answers with an
+//! executor (`machine::toolchange`) performs it through the planner and answers with an
 //! [`Event`]. Host tests drive it with a fake executor.
 //!
 //! [`TABLE`] lists every state in order with the condition under which it

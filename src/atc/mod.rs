@@ -3,29 +3,31 @@
 //! remembers about the tools.
 //!
 //! ```text
-//!  gcode::interp ─ T/M6 ─► run::select ─► change::Change (pure table) ─► actions
-//!                                              ▲ events                  │
-//!                                              └── run: planner moves, carousel, EEPROM
-//!  gcode::interp ─ G201..G205 ─► carousel (E0 axis through the planner)
+//!  gcode::interp ─ Command::SelectTool ─► machine::toolchange::select
+//!        ─► change::Change (pure table) ─► actions ─► Machine::move_mm, carousel, EEPROM
+//!                     ▲ events ◄────────────────────────┘
+//!  gcode::interp ─ Command::Carousel… ─► machine::carousel (E0 axis through the planner)
 //! ```
+//!
+//! This module is the pure part, below `gcode` in the layers (`src/lib.rs`):
+//! the runners that move the machine are in `machine` (`machine::toolchange`,
+//! `machine::carousel`).
 //!
 //! - [`change`]: the sequence as a state machine whose transitions are a
 //!   table; pure, host-tested.
 //! - [`tools`]: tool table, spindle/pocket state, change journal and their
 //!   EEPROM records.
-//! - [`carousel`]: G201–G205 on motor P0 (the E0 axis) and carousel homing.
-//! - [`run`]: the executor over `machine::Machine`, boot, M61, G10 L1.
+//! - `machine::carousel`: G201–G205 on motor P0 (the E0 axis) and carousel homing.
+//! - `machine::toolchange`: the executor over `machine::Machine`, boot, M61, G10 L1.
 //!
 //! Carousel units: one unit is one pocket pitch (20°), counted from the home
 //! switch (0°). Pocket `p` sits at position `p + 3` (pocket 1 at 80°), the
 //! thesis's `ATC_OFFSET + id` with `ATC_OFFSET = 3` in these units.
 //!
 //! All operator-facing ATC texts are in [`Fault::message`] and in
-//! `run::report_*`, so they can move to flash in one place.
+//! `machine::toolchange::report_*`, so they can move to flash in one place.
 
-pub mod carousel;
 pub mod change;
-pub mod run;
 pub mod tools;
 
 pub use tools::{Journal, ToolState, ToolTable, N_POCKETS};

@@ -1,31 +1,51 @@
-//! G-code interpreter (SPEC §5): modal state and the meaning of each code.
+//! G-code interpreter (SPEC §5): modal state and the meaning of each code,
+//! as a pure function of (modal state, parsed line, a read-only [`Ctx`]).
 //!
-//! Sits between [`super::parse`] and the planner. It owns the modal state
-//! (units, distance mode, plane, work offsets, tool length offset, feed) and
-//! the commanded position in machine millimetres, turns each parsed [`Line`]
-//! into planner moves (absolute integer step targets, rounded from absolute
-//! mm so rounding never accumulates) and runs the M-codes.
+//! ```text
+//!  gcode::parse ─► Line ─► Interp::next ─► Command ─► machine::Machine (dispatch)
+//!                                ▲                         │
+//!                                └──── called again ◄──────┘  until None
+//! ```
+//!
+//! Sits between [`super::parse`] and the controller (`machine`), and names
+//! nothing above it: no `Machine`, no `Io`, no tool-changer or tool-setter
+//! runner, no UI. It owns the modal state (units, distance mode, plane, work
+//! offsets, tool length offset, feed) and the commanded position in machine
+//! millimetres, and turns each parsed [`Line`] into [`Command`]s: a move
+//! with its feed, home a mask, dwell, spindle, coolant, select or change a
+//! tool, measure, probe, carousel, settings, reports.
+//!
+//! Design: a step API. The controller calls [`Interp::begin_line`], then
+//! [`Interp::next`] until it returns `None`, carrying out each command
+//! before asking for the next (calling again means the last one was done).
+//! Lines that need several actions run in RS274/NGC order
+//! (`S1000 M3 T2 M6` is a tool change, then the spindle); an arc's chords
+//! and a canned cycle's moves are worked out one per call, their progress
+//! kept in the interpreter (`LineRun`, ~110 B static), so no list of
+//! commands is built and the stack stays as small as before. A move's
+//! target stays here too ([`Interp::target`]): the `Command` is a few bytes.
+//! A streamed `G1 X.. Y..` is one call: its first step validates the line,
+//! commits it and returns its move.
 //!
 //! Everything it keeps is in the internal frame (Z counts down from the top
 //! switch); G-code words come in, and reports go out, in the user's frame
 //! (+Z up) through [`crate::frame`]: [`word_mm`] for every axis word,
 //! [`Interp::work_user`] and `frame::user_from_internal` for every report.
+//! Targets are absolute mm; [`Interp::steps_of`] rounds them to absolute
+//! integer steps, so rounding never accumulates.
 //!
 //! A line is validated completely before anything on it runs: a bad word,
-//! a missing feed or a target outside travel returns an [`Error`] and leaves
-//! the machine exactly as it was.
+//! a missing feed or a target outside travel returns an [`Error`] from the
+//! first [`Interp::next`] and leaves the machine exactly as it was.
 
 use crate::flash::FStr;
 use super::cycles::{self, Retract};
 use super::{Coolant, Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
 use crate::config::{Settings, N_WCS};
-use crate::fixed::Micros;
 use crate::frame;
-use crate::machine::{Alarm, Io, Machine, State};
 use crate::math::round_i32;
 use crate::planner::arc::{self, ArcError};
 use crate::N_AXES;
-use ufmt::{uwrite, uwriteln};
 
 /// Millimetres per inch.
 const MM_PER_INCH: f32 = 25.4;
@@ -93,8 +113,8 @@ pub enum Error {
     Aborted,
     /// An SD job is running: serial lines may only ask for status.
     JobRunning,
-    /// An SD card error (message in flash).
-    Sd(crate::ui::text::Text),
+    /// An SD card error (its message in flash, printed after `Error:`).
+    Sd(FStr),
 }
 
 impl Error {
@@ -173,6 +193,10 @@ pub struct Interp {
     /// (bits of the programmed feed, override %, the feed with the override,
     /// mm/min). See [`Interp::feed_with_override`].
     feed_cache: (u32, u16, f32),
+    /// The line in progress: where [`Interp::next`] is, and an arc's or a
+    /// canned cycle's state between its moves (~110 B, static: on the stack
+    /// it would sit under every wait of the line).
+    run: LineRun,
 }
 
 impl Interp {
@@ -202,6 +226,7 @@ impl Interp {
             travel_steps: [0; 3],
             conv_fresh: false,
             feed_cache: (0, 0, 0.0),
+            run: LineRun::new(),
         }
     }
 
@@ -213,15 +238,17 @@ impl Interp {
         if !self.conv_fresh {
             self.refresh_conv(s);
         }
-        let mut st = [0i32; N_AXES];
-        for a in 0..N_AXES {
-            let c = &mut self.steps_cache[a];
-            if c.0 != mm[a].to_bits() {
-                *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
-            }
-            st[a] = c.1;
+        steps_cached(&mut self.steps_cache, s, mm)
+    }
+
+    /// Soft limits: the target, rounded to steps as it will be queued, must
+    /// lie within 0..=travel (rounded to steps) on X, Y and Z. Integer
+    /// compares on the steps [`Interp::steps_of`] caches for the move itself.
+    pub fn check_soft_limits(&mut self, s: &Settings, t: &[f32; N_AXES]) -> Result<(), Error> {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
         }
-        st
+        soft_limits(&mut self.steps_cache, &self.travel_steps, s, t)
     }
 
     /// The settings changed: the step conversions are made afresh.
@@ -244,7 +271,7 @@ impl Interp {
 
     /// The programmed feed with the override applied, mm/min (cached: both
     /// rarely change between lines).
-    fn feed_with_override(&mut self) -> f32 {
+    pub fn feed_with_override(&mut self) -> f32 {
         let key = (self.feed_mm_per_min.to_bits(), self.feed_override_pct);
         if (self.feed_cache.0, self.feed_cache.1) != key {
             let f = self.feed_mm_per_min * self.feed_override_pct as f32 * 0.01;
@@ -317,43 +344,402 @@ fn axis_words_are_settings(l: &Line) -> bool {
     matches!(l.other_m, Some(92 | 201 | 203))
 }
 
-/// Execute one parsed line (RS274/NGC order of execution).
-///
-/// The work is split over small non-inlined steps on purpose: AVR loads and
-/// stores reach only 63 bytes into a stack frame, and in one function with
-/// all of this inlined (a 445-byte frame) every access beyond that cost
-/// 10 extra bytes of code (about 6 KB in all).
-///
-/// Not for flash alone: with the 248 KiB budget (issue 11) they were measured
-/// again, in simavr on the real ELF (a G1 line sent to its `ok`, 60 lines;
-/// the stack high-water of the demo job). Inlining all eleven steps here
-/// (`execute` … `finish_line`, the arc helpers) cost +4 176 B of flash,
-/// +117 B of stack and +716 cycles per G1 line (55 613 against 54 897);
-/// the four arc helpers alone +1 760 B for no arc speed-up; `parse_into`
-/// inlined +123 B of stack and +280 cycles per line. All are kept.
-#[inline(never)]
-pub fn execute(m: &mut Machine, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
-    if let Some(done) = execute_early(m, l, io) {
-        return done;
+/// What a line asks of the controller: one action, as data. [`Interp::next`]
+/// hands them out one at a time, in RS274/NGC order; `Machine` performs
+/// them (`machine::Machine::dispatch`). Positions are internal machine mm
+/// (E in carousel units), feeds mm/min with the override applied.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// Queue a straight move (G0/G1, an arc chord or its end, G53) to
+    /// [`Interp::target`] (the target stays in the interpreter: copying it
+    /// through the command cost ~300 cycles a streamed line).
+    Move { feed_mm_per_min: f32, rapid: bool },
+    /// A canned cycle's move to [`Interp::target`]: send the keepalive and
+    /// wait for two planner slots first (a cycle of many holes is one long line).
+    CycleMove { feed_mm_per_min: f32, rapid: bool },
+    /// G38.2 (`must_trip`) / G38.3: move toward [`Interp::target`] until the
+    /// probe trips.
+    Probe { feed_mm_per_min: f32, must_trip: bool },
+    /// G4, a cycle's P: let the queue drain, then wait `ms` milliseconds.
+    Dwell { ms: f32 },
+    /// G28: home the axes of `mask` (bit 0 X, 1 Y, 2 Z).
+    Home { mask: u8 },
+    /// G37 in `mode`; X/Y (mm) move the setter first (calibration only).
+    Measure { mode: crate::toolsetter::Mode, x_mm: Option<f32>, y_mm: Option<f32> },
+    /// M6 / T with `$151=1`: change to tool `to` (`None`: the last T word).
+    SelectTool { to: Option<u16> },
+    /// A T word alone (NGC): the tool the next M6 changes to.
+    PreselectTool(u8),
+    /// M61 Q<tool>: the operator confirms the tool in the spindle (0: none).
+    ConfirmTool { tool: u8 },
+    /// M61 P<pocket> S<0|1>: the pocket holds its tool (`full`) or is empty.
+    SetPocket { pocket: u8, full: bool },
+    /// G10 L1: tool table entry `tool` (mm, converted from inches).
+    SetTool { tool: u8, length_mm: Option<f32>, radius_mm: Option<f32> },
+    /// G10 L2/L20 changed a work offset: store the settings image.
+    StoreOffsets,
+    /// G201: turn the carousel to `x` pitches.
+    CarouselTurn { x: f32 },
+    /// G202: the carousel is at `x` pitches.
+    CarouselSetPosition { x: f32 },
+    /// G203: report the carousel.
+    CarouselReport,
+    /// G204 S0/S1: carousel driver off/on.
+    CarouselEnable { on: bool },
+    /// G205 `[S1] [E1]`: home the carousel (`back`: return to where it was;
+    /// `only_if_unhomed`: skip when homed).
+    CarouselHome { back: bool, only_if_unhomed: bool },
+    /// M3 (`on`, `duty` from S) / M5, or a new S with the spindle on: in
+    /// step with the motion.
+    Spindle { on: bool, duty: u8 },
+    /// M7 / M8 / M9 (`m` is the code), in step with the motion.
+    Coolant { m: u8 },
+    /// M92 / M201 / M203 (`code`) with the X Y Z E values (NaN: absent).
+    AxisSettings { code: u16, values: [f32; N_AXES] },
+    /// An M code the controller runs as it is: 17, 18, 84, 400, 500, 501, 502.
+    M(u16),
+    /// M114, M115, M105, M119, M503.
+    Report(Report),
+    /// M999: leave the alarm state.
+    ClearAlarm,
+    /// M112.
+    EmergencyStop,
+    /// M2 / M30: drain, spindle and coolant off.
+    ProgramEnd,
+    /// M0, or M1 with optional stop on: drain, then wait for `~`.
+    Pause,
+}
+
+/// The reports a line can ask for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Report {
+    /// M114.
+    Position,
+    /// M115.
+    Firmware,
+    /// M105 (no heaters).
+    Temperatures,
+    /// M119.
+    Switches,
+    /// M503.
+    Settings,
+}
+
+/// What the interpreter may read of the rest of the machine while it
+/// works out a line (built by the controller for each call).
+pub struct Ctx<'a> {
+    pub settings: &'a Settings,
+    /// The tool table and the tool in the spindle (G43 H, interrupted changes).
+    pub atc: &'a crate::atc::Atc,
+    /// The machine is in alarm.
+    pub alarm: bool,
+    /// The alarm is the emergency stop (G28 does not clear it).
+    pub estop: bool,
+    /// A serial line while an SD job runs: status requests only (SPEC §9).
+    pub status_only: bool,
+}
+
+/// Where [`Interp::next`] is within the current line.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Phase {
+    /// Validate and work out the whole line.
+    Start,
+    /// Tool change or tool selection.
+    Tool,
+    /// S, M3, M5.
+    Spindle,
+    /// M7, M8, M9.
+    Coolant,
+    /// The line's motion.
+    Motion,
+    /// An arc's chords, then its end.
+    Chords,
+    /// A canned cycle's steps.
+    Cycle,
+    /// Other M codes.
+    OtherM,
+    /// M0, M1, M2, M30.
+    Stop,
+    /// After G10 L1: the tool length offset the line leaves in force.
+    Tlo,
+    /// Nothing more on this line.
+    Done,
+}
+
+/// An arc's chords (and its end, X Y Z) or a canned cycle's steps still
+/// to hand out.
+enum Progress {
+    None,
+    Arc(arc::Arc, [f32; 3]),
+    Cycle(CycleRun),
+}
+
+/// The line in progress (see [`Interp::next`]).
+pub struct LineRun {
+    phase: Phase,
+    /// The target of the move handed out last (the line's end point, a
+    /// chord's, a cycle step's), internal machine mm.
+    target: [f32; N_AXES],
+    /// The motion to run, if the line moves.
+    motion: Option<Motion>,
+    /// `Phase::Tlo`: the tool length offset to put back.
+    tlo_mm: f32,
+    /// The line has a T word, M6, S, M3/M5 or M7–M9 (set by [`early`]).
+    extras: bool,
+    progress: Progress,
+}
+
+impl LineRun {
+    const fn new() -> LineRun {
+        LineRun { phase: Phase::Done, target: [0.0; N_AXES], motion: None, tlo_mm: 0.0, extras: false, progress: Progress::None }
     }
-    // Work on a copy of the modal state; commit only when the line is valid.
-    let mut g = ModalCopy::from(&m.interp);
-    modal_words(m, l, &mut g)?;
-    if l.non_modal.is_some() {
-        if let Some(done) = non_modal(m, &g, l, io) {
-            return done;
+}
+
+impl Interp {
+    /// Start a new line: the next [`Interp::next`] validates it.
+    pub fn begin_line(&mut self) {
+        self.run.phase = Phase::Start;
+    }
+
+    /// The target of the last `Move`, `CycleMove` or `Probe`, internal
+    /// machine mm (E in carousel units).
+    pub fn target(&self) -> &[f32; N_AXES] {
+        &self.run.target
+    }
+
+    /// [`Interp::target`] in steps (see [`Interp::steps_of`]).
+    pub fn target_steps(&mut self, s: &Settings) -> [i32; N_AXES] {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
+        }
+        steps_cached(&mut self.steps_cache, s, &self.run.target)
+    }
+
+    /// The move to [`Interp::target`] was queued: it is the commanded position.
+    pub fn target_reached(&mut self) {
+        self.pos_mm = self.run.target;
+    }
+
+    /// The line begun last has nothing more to do: [`Interp::next`] would
+    /// return `None`.
+    #[inline]
+    pub fn line_done(&self) -> bool {
+        self.run.phase == Phase::Done
+    }
+
+    /// The next action of line `l` (begun with [`Interp::begin_line`]), or
+    /// `None` when the line is done. The first call validates the whole
+    /// line: an error then has changed nothing. Calling again means the
+    /// previous command was carried out; after an error the caller stops.
+    ///
+    /// Chords and canned-cycle steps are worked out one per call, so that a
+    /// line of many moves needs no list of them (RAM).
+    ///
+    /// Small and inlined: the first call goes straight to `Interp::start`
+    /// (a streamed G1 is done there), the others to `Interp::resume`.
+    #[inline]
+    pub fn next(&mut self, cx: &Ctx, l: &Line) -> Result<Option<Command>, Error> {
+        if self.run.phase == Phase::Start {
+            self.run.phase = Phase::Done;
+            // Returned as it is, not unwrapped and wrapped again (that was
+            // an 18-byte copy a line).
+            let r = self.start(cx, l);
+            if !matches!(r, Ok(None)) || self.run.phase == Phase::Done {
+                return r;
+            }
+        }
+        self.resume(cx, l)
+    }
+
+    /// [`Interp::next`] after the first step: the line's phases in order.
+    #[inline(never)]
+    fn resume(&mut self, cx: &Ctx, l: &Line) -> Result<Option<Command>, Error> {
+        loop {
+            match self.run.phase {
+                Phase::Start => return Ok(None),
+                Phase::Tool => {
+                    self.run.phase = Phase::Spindle;
+                    if is_tool_change(cx, l) {
+                        return Ok(Some(Command::SelectTool { to: l.tool().map(u16::from) }));
+                    } else if let Some(t) = l.tool() {
+                        return Ok(Some(Command::PreselectTool(t)));
+                    }
+                }
+                Phase::Spindle => {
+                    self.run.phase = Phase::Coolant;
+                    if let Some(c) = self.spindle(cx, l) {
+                        return Ok(Some(c));
+                    }
+                }
+                Phase::Coolant => {
+                    self.run.phase = Phase::Motion;
+                    if let Some(c) = l.coolant {
+                        let m = match c {
+                            Coolant::Mist => 7,
+                            Coolant::Flood => 8,
+                            Coolant::Off => 9,
+                        };
+                        return Ok(Some(Command::Coolant { m }));
+                    }
+                }
+                Phase::Motion => {
+                    // Nothing after the motion on most lines: done at once.
+                    self.run.phase = if l.other_m.is_none() && l.stopping.is_none() { Phase::Done } else { Phase::OtherM };
+                    if let Some(c) = self.motion() {
+                        return Ok(Some(c));
+                    }
+                }
+                Phase::Chords => {
+                    let feed = self.feed_with_override();
+                    let run = &mut self.run;
+                    match &mut run.progress {
+                        Progress::Arc(plan, end) => match next_chord(plan) {
+                            Some(p) => run.target[..3].copy_from_slice(&p),
+                            None => {
+                                // The programmed end last.
+                                run.target[..3].copy_from_slice(end);
+                                run.phase = Phase::OtherM;
+                            }
+                        },
+                        _ => run.phase = Phase::OtherM,
+                    }
+                    return Ok(Some(Command::Move { feed_mm_per_min: feed, rapid: false }));
+                }
+                Phase::Cycle => {
+                    if let Some(c) = self.cycle_step() {
+                        return Ok(Some(c));
+                    }
+                    self.run.phase = Phase::OtherM;
+                }
+                Phase::OtherM => {
+                    self.run.phase = Phase::Stop;
+                    if let Some(code) = l.other_m {
+                        if let Some(c) = self.other_m(l, code)? {
+                            return Ok(Some(c));
+                        }
+                    }
+                }
+                Phase::Stop => {
+                    self.run.phase = Phase::Done;
+                    match l.stopping {
+                        Some(Stopping::End | Stopping::EndRewind) => return Ok(Some(Command::ProgramEnd)),
+                        // M1 pauses only with optional stop on (`$152`, Job menu).
+                        Some(Stopping::OptionalPause) if !cx.settings.optional_stop => {}
+                        Some(Stopping::Pause | Stopping::OptionalPause) => return Ok(Some(Command::Pause)),
+                        None => {}
+                    }
+                }
+                Phase::Tlo => {
+                    self.run.phase = Phase::Done;
+                    self.tlo_mm = self.run.tlo_mm;
+                }
+                Phase::Done => return Ok(None),
+            }
         }
     }
-    motion_line(m, &g, l, text, io)
+
+    /// The first step of a line: the checks that need no modal state, the
+    /// modal words, the non-modal codes and the motion's target. A command
+    /// that ends the line is returned with `phase` left at `Done`; a line
+    /// that goes on is committed ([`Interp::commit_line`]).
+    ///
+    /// The work is split over small non-inlined steps on purpose: AVR loads
+    /// and stores reach only 63 bytes into a stack frame, and in one function
+    /// with all of this inlined (a 445-byte frame) every access beyond that
+    /// cost 10 extra bytes of code (about 6 KB in all). Measured again with
+    /// the 248 KiB budget (issue 11), in simavr on the real ELF: inlining
+    /// them all cost +4 176 B of flash, +117 B of stack and +716 cycles per
+    /// G1 line; the four arc helpers alone +1 760 B for no arc speed-up.
+    #[inline(never)]
+    fn start(&mut self, cx: &Ctx, l: &Line) -> Result<Option<Command>, Error> {
+        if let Some(done) = early(cx, l, &mut self.run.extras) {
+            return done;
+        }
+        // Work on a copy of the modal state; commit only when the line is valid.
+        let mut g = ModalCopy::from(self);
+        modal_words(cx, l, &mut g)?;
+        if l.non_modal.is_some() {
+            if let Some(done) = self.non_modal(&g, l) {
+                return done;
+            }
+        }
+        self.motion_line(cx, &g, l)
+    }
+
+    /// Commit the modal state and go on with the line's actions: the
+    /// motion `motion` to `run.target` (an arc's or a cycle's line sets
+    /// `run.progress` too).
+    #[inline(never)]
+    /// `progress` is only looked at for an arc or a cycle, whose lines set it.
+    fn commit_line(&mut self, g: &ModalCopy, motion: Option<Motion>) {
+        g.commit(self);
+        self.run.motion = motion;
+        self.run.phase = Phase::Tool;
+    }
+
+    /// S, M3, M5: the spindle command, if any.
+    fn spindle(&mut self, cx: &Ctx, l: &Line) -> Option<Command> {
+        let s = l.word(Word::S);
+        if let Some(s) = s {
+            self.spindle_rpm = s;
+        }
+        match l.spindle {
+            Some(Spindle::Cw) => Some(Command::Spindle { on: true, duty: spindle_duty(cx.settings, self.spindle_rpm) }),
+            Some(Spindle::Off) => Some(Command::Spindle { on: false, duty: 0 }),
+            _ if s.is_some() && self.spindle_on => Some(Command::Spindle { on: true, duty: spindle_duty(cx.settings, self.spindle_rpm) }),
+            _ => None,
+        }
+    }
+
+    /// The line's motion: one move, a probe, or the start of an arc's
+    /// chords or a cycle's steps.
+    #[inline(always)]
+    fn motion(&mut self) -> Option<Command> {
+        let mo = self.run.motion?;
+        let feed = self.feed_with_override();
+        match mo {
+            Motion::ArcCw | Motion::ArcCcw if matches!(self.run.progress, Progress::Arc(..)) => {
+                self.run.phase = Phase::Chords;
+                None
+            }
+            Motion::ProbeToward | Motion::ProbeTowardNoError => {
+                Some(Command::Probe { feed_mm_per_min: feed, must_trip: mo == Motion::ProbeToward })
+            }
+            Motion::Cycle(_) => {
+                if matches!(self.run.progress, Progress::Cycle(_)) {
+                    self.run.phase = Phase::Cycle;
+                }
+                None
+            }
+            _ => Some(Command::Move { feed_mm_per_min: feed, rapid: mo == Motion::Rapid }),
+        }
+    }
+
+    /// The cycle's next move or dwell, `None` when it is done.
+    #[inline(never)]
+    fn cycle_step(&mut self) -> Option<Command> {
+        let feed = self.feed_with_override();
+        let pos = self.pos_mm;
+        let Progress::Cycle(run) = &mut self.run.progress else {
+            return None;
+        };
+        let (t, rapid) = match run.cycle.next_step()? {
+            cycles::Step::Dwell(s) => return Some(Command::Dwell { ms: s * 1000.0 }),
+            cycles::Step::Rapid(t) => (t, true),
+            cycles::Step::Feed(t) => (t, false),
+        };
+        self.run.target = cycle_target(pos, run, t);
+        Some(Command::CycleMove { feed_mm_per_min: feed, rapid })
+    }
 }
 
 /// The checks and commands before the modal state: the SD-job filter, the
 /// codes that work in any state, the alarm and interrupted-change locks and
 /// the validation of words that need no modal state. `Some` ends the line.
 #[inline(never)]
-fn execute_early(m: &mut Machine, l: &Line, io: &mut impl Io) -> Option<Result<(), Error>> {
+fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
     // During an SD job the serial line may only ask for status (SPEC §9).
-    if m.sd_job && !m.in_job_line() {
+    if cx.status_only {
         let status_only = l.motion.is_none()
             && !has_axis_words(l)
             && l.non_modal.is_none()
@@ -368,47 +754,33 @@ fn execute_early(m: &mut Machine, l: &Line, io: &mut impl Io) -> Option<Result<(
     }
     // Commands that work in any state first.
     if let Some(code) = l.other_m {
-        match code {
-            115 => {
-                m.firmware_line(io);
-                return Some(Ok(()));
-            }
-            114 => {
-                report_position(m, io);
-                return Some(Ok(()));
-            }
-            105 => {
-                // Senders (printcore, Pronterface, OctoPrint) poll M105 for
-                // temperatures; a mill has no heaters, so it reports none
-                // rather than an error every few seconds.
-                uwriteln!(io, "T:0.0 /0.0").ok();
-                return Some(Ok(()));
-            }
-            119 => {
-                report_switches(m, io);
-                return Some(Ok(()));
-            }
-            503 => {
-                report_settings(m, io);
-                return Some(Ok(()));
-            }
-            61 => return Some(crate::atc::run::m61(m, io, l)),
-            999 => {
-                m.clear_alarm(io);
-                uwriteln!(io, "{}", F!("echo:alarm cleared; position unknown until homed (G28)")).ok();
-                return Some(Ok(()));
-            }
-            110 => return Some(Ok(())), // handled by the line checker
-            112 => {
-                // The RX interrupt's scanner has usually raised it already.
-                if m.alarm != Some(Alarm::EmergencyStop) {
-                    m.raise(io, Alarm::EmergencyStop);
-                }
-                return Some(Ok(()));
-            }
-            _ => {}
+        let c = match code {
+            115 => Some(Command::Report(Report::Firmware)),
+            114 => Some(Command::Report(Report::Position)),
+            // Senders (printcore, Pronterface, OctoPrint) poll M105 for
+            // temperatures; a mill has no heaters, so it reports none
+            // rather than an error every few seconds.
+            105 => Some(Command::Report(Report::Temperatures)),
+            119 => Some(Command::Report(Report::Switches)),
+            503 => Some(Command::Report(Report::Settings)),
+            61 => return Some(m61(l).map(Some)),
+            999 => Some(Command::ClearAlarm),
+            110 => return Some(Ok(None)), // handled by the line checker
+            // The RX interrupt's scanner has usually raised it already.
+            112 => Some(Command::EmergencyStop),
+            _ => None,
+        };
+        if c.is_some() {
+            return Some(Ok(c));
         }
     }
+    early_checks(cx, l, extras)
+}
+
+/// The locks and the validation of [`early`]; `extras`: the line has more
+/// than its motion (T, M6, S, M3/M5, M7–M9), from the lookups made here.
+#[inline(always)]
+fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
     let moves = l.motion.is_some()
         || has_axis_words(l)
         || l.words.contains(Word::E)
@@ -420,18 +792,17 @@ fn execute_early(m: &mut Machine, l: &Line, io: &mut impl Io) -> Option<Result<(
         || l.other_m.is_some()
         || l.stopping.is_some();
     if l.non_modal == Some(NonModal::AuxReport) {
-        crate::atc::carousel::report(m, io);
-        return Some(Ok(()));
+        return Some(Ok(Some(Command::CarouselReport)));
     }
     let harmless = matches!(l.other_m, Some(500..=502) | Some(17) | Some(18) | Some(84)) || l.spindle == Some(Spindle::Off);
-    if m.alarm.is_some() && moves {
-        let homing_allowed = l.non_modal == Some(NonModal::Home) && m.alarm != Some(Alarm::EmergencyStop);
+    if cx.alarm && moves {
+        let homing_allowed = l.non_modal == Some(NonModal::Home) && !cx.estop;
         if !homing_allowed && !harmless {
             return Some(Err(Error::Alarm));
         }
     }
     // After an interrupted tool change nothing moves until M61 confirms the spindle.
-    if m.atc.interrupted.is_some() && moves && !harmless {
+    if cx.atc.interrupted.is_some() && moves && !harmless {
         return Some(Err(Error::Atc(crate::atc::Fault::Interrupted)));
     }
 
@@ -439,10 +810,11 @@ fn execute_early(m: &mut Machine, l: &Line, io: &mut impl Io) -> Option<Result<(
     if l.spindle == Some(Spindle::Ccw) {
         return Some(Err(Error::SpindleCcw));
     }
-    if l.tool().is_some_and(|t| t as usize >= N_TOOLS) {
+    let tool = l.tool();
+    if tool.is_some_and(|t| t as usize >= N_TOOLS) {
         return Some(Err(Error::Atc(crate::atc::Fault::ToolRange)));
     }
-    if is_tool_change(m, l) && (l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some()) {
+    if is_tool_change(cx, l) && (l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some()) {
         return Some(Err(Error::Atc(crate::atc::Fault::WithMotion)));
     }
     if let Some(code) = l.other_m {
@@ -455,24 +827,26 @@ fn execute_early(m: &mut Machine, l: &Line, io: &mut impl Io) -> Option<Result<(
             return Some(Err(Error::BadFeed));
         }
     }
-    if let Some(s) = l.word(Word::S) {
+    let s_word = l.word(Word::S);
+    if let Some(s) = s_word {
         if s < 0.0 && l.non_modal != Some(NonModal::Dwell) {
             return Some(Err(Error::BadWord(F!("S must not be negative"))));
         }
     }
+    *extras = l.tool_change || l.spindle.is_some() || l.coolant.is_some() || tool.is_some() || s_word.is_some();
     None
 }
 
 /// True when the line changes tools: M6 (with or without a T word), or,
 /// with the Repetier setting `$151=1`, a T word alone. By default (NGC) a T
 /// word alone only selects the tool the next M6 changes to.
-fn is_tool_change(m: &Machine, l: &Line) -> bool {
-    l.tool_change || (m.settings.immediate_tool_change && l.words.contains(Word::T))
+fn is_tool_change(cx: &Ctx, l: &Line) -> bool {
+    l.tool_change || (cx.settings.immediate_tool_change && l.words.contains(Word::T))
 }
 
 /// The line's modal words into the copy `g` (nothing is committed yet).
 #[inline(never)]
-fn modal_words(m: &Machine, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
+fn modal_words(cx: &Ctx, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
     if let Some(u) = l.units {
         g.inches = u == Units::Inch;
     }
@@ -503,145 +877,408 @@ fn modal_words(m: &Machine, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
             ToolLength::Apply => {
                 let t = match l.word(Word::H) {
                     Some(h) => tool_index(h).ok_or(Error::BadWord(F!("H must be a tool number 0-12")))?,
-                    None => m.atc.spindle() as usize,
+                    None => cx.atc.spindle() as usize,
                 };
-                crate::atc::tool_length_offset_mm(m.atc.length_mm(t as u8))
+                crate::atc::tool_length_offset_mm(cx.atc.length_mm(t as u8))
             }
         };
     }
     Ok(())
 }
 
-/// Non-modal codes that end the line (G4, G10, G92, G28, G37, G201–G205);
-/// `None` for the others (G53), which go on to the motion.
-#[inline(never)]
-fn non_modal(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Option<Result<(), Error>> {
-    Some(match l.non_modal {
-        Some(NonModal::Dwell) => dwell(m, g, l, io),
-        Some(NonModal::SetOffsets) => set_offsets(m, g, l, io).map(|_| g.commit(&mut m.interp)),
-        Some(NonModal::SetPosition) => {
-            let mut off = m.interp.g92_mm;
-            for (a, &w) in AXIS_WORDS.iter().enumerate() {
-                if let Some(v) = l.word(w) {
-                    let v = word_mm(g.inches, a, v);
-                    // work = machine - wcs - g92 - tlo  =>  g92 = machine - wcs - tlo - v
-                    let tlo = if a == 2 { g.tlo } else { 0.0 };
-                    off[a] = m.interp.pos_mm[a] - m.interp.wcs_mm[g.wcs as usize][a] - tlo - v;
+impl Interp {
+    /// Non-modal codes that end the line (G4, G10, G92, G28, G37,
+    /// G201–G205); `None` for the others (G53), which go on to the motion.
+    #[inline(never)]
+    fn non_modal(&mut self, g: &ModalCopy, l: &Line) -> Option<Result<Option<Command>, Error>> {
+        Some(match l.non_modal {
+            Some(NonModal::Dwell) => dwell(l).map(|ms| {
+                g.commit(self);
+                Some(Command::Dwell { ms })
+            }),
+            Some(NonModal::SetOffsets) => self.set_offsets(g, l),
+            Some(NonModal::SetPosition) => {
+                let mut off = self.g92_mm;
+                for (a, &w) in AXIS_WORDS.iter().enumerate() {
+                    if let Some(v) = l.word(w) {
+                        let v = word_mm(g.inches, a, v);
+                        // work = machine - wcs - g92 - tlo  =>  g92 = machine - wcs - tlo - v
+                        let tlo = if a == 2 { g.tlo } else { 0.0 };
+                        off[a] = self.pos_mm[a] - self.wcs_mm[g.wcs as usize][a] - tlo - v;
+                    }
+                }
+                g.commit(self);
+                self.g92_mm = off;
+                Ok(None)
+            }
+            Some(NonModal::ClearG92) => {
+                g.commit(self);
+                self.g92_mm = [0.0; 3];
+                Ok(None)
+            }
+            Some(NonModal::Home) => {
+                g.commit(self);
+                let mut mask = 0u8;
+                for (a, &w) in AXIS_WORDS.iter().enumerate() {
+                    if l.word(w).is_some() {
+                        mask |= 1 << a;
+                    }
+                }
+                if mask == 0 {
+                    mask = 0b111;
+                }
+                Ok(Some(Command::Home { mask }))
+            }
+            Some(NonModal::MeasureTool) => {
+                g.commit(self);
+                measure_mode(self.inches, l).map(|(mode, x_mm, y_mm)| Some(Command::Measure { mode, x_mm, y_mm }))
+            }
+            Some(nm @ (NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxEnable | NonModal::AuxHome)) => {
+                g.commit(self);
+                carousel_command(l, nm).map(Some)
+            }
+            _ => return None,
+        })
+    }
+
+    /// The motion part of a line: target, checks, then (through
+    /// [`Interp::arc_line`] for arcs, [`Interp::cycle_line`] for cycles)
+    /// [`Interp::commit_line`].
+    #[inline(never)]
+    fn motion_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
+        let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
+        // The target is worked out in place (`run.target` means nothing
+        // until the line commits): no copy on the way to the move.
+        self.run.target = self.pos_mm;
+        let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
+        for (a, &w) in AXIS_WORDS.iter().enumerate() {
+            if let Some(v) = l.word(w) {
+                let v = word_mm(g.inches, a, v);
+                self.run.target[a] = if machine_coords {
+                    v
+                } else if g.incremental {
+                    self.pos_mm[a] + v
+                } else {
+                    work_to_machine(self, g, a, v)
+                };
+            }
+        }
+        if machine_coords && matches!(g.motion, Motion::Cycle(_)) {
+            return Err(Error::BadWord(F!("G53 not allowed with a canned cycle (G80 first)")));
+        }
+        let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
+        // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
+        // offsets (Repetier's E0 motor), so all four motors can move at once.
+        let e_word = if axis_words_are_settings(l) { None } else { l.word(Word::E) };
+        if let Some(v) = e_word {
+            if !matches!(motion, Motion::Rapid | Motion::Linear) {
+                return Err(Error::BadWord(F!("E only with G0/G1")));
+            }
+            self.run.target[3] = if g.incremental { self.pos_mm[3] + v } else { v };
+        }
+        if let Motion::Cycle(kind) = g.motion {
+            if any_axis || l.motion.is_some() {
+                return self.cycle_line(cx, g, l, kind);
+            }
+        }
+        let mut do_motion = None;
+        if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
+            match motion {
+                Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active)"))),
+                Motion::Rapid => {}
+                _ => {
+                    if !(g.feed > 0.0) {
+                        return Err(Error::BadFeed);
+                    }
                 }
             }
-            g.commit(&mut m.interp);
-            m.interp.g92_mm = off;
-            Ok(())
-        }
-        Some(NonModal::ClearG92) => {
-            g.commit(&mut m.interp);
-            m.interp.g92_mm = [0.0; 3];
-            Ok(())
-        }
-        Some(NonModal::Home) => {
-            g.commit(&mut m.interp);
-            let mut mask = 0u8;
-            for (a, &w) in AXIS_WORDS.iter().enumerate() {
-                if l.word(w).is_some() {
-                    mask |= 1 << a;
-                }
+            if !self.conv_fresh {
+                self.refresh_conv(cx.settings);
             }
-            if mask == 0 {
-                mask = 0b111;
+            soft_limits(&mut self.steps_cache, &self.travel_steps, cx.settings, &self.run.target)?;
+            do_motion = Some(motion);
+        }
+        match do_motion {
+            Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) => {
+                let target = self.run.target;
+                self.arc_line(cx, g, l, &target, mo)
             }
-            crate::machine::home(m, io, mask)
-        }
-        Some(NonModal::MeasureTool) => {
-            g.commit(&mut m.interp);
-            crate::toolsetter::run::g37(m, io, l)
-        }
-        Some(nm @ (NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxEnable | NonModal::AuxHome)) => {
-            g.commit(&mut m.interp);
-            crate::atc::carousel::command(m, io, l, nm)
-        }
-        _ => return None,
-    })
-}
-
-/// G4: wait for the queue to drain, then dwell P or S seconds (P in
-/// seconds as in RS274/NGC, grbl and LinuxCNC, and every CAM file of the
-/// corpus; Marlin's P is ms: README "G4"). `busy:processing` keeps the host
-/// waiting (`Machine::wait_step`).
-fn dwell(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
-    let ms = match (l.word(Word::P), l.word(Word::S)) {
-        (Some(s), None) | (None, Some(s)) if s >= 0.0 => s * 1000.0,
-        _ => return Err(Error::BadWord(F!("G4 needs one of P<s> or S<s> (seconds), not negative"))),
-    };
-    g.commit(&mut m.interp);
-    wait_ms(m, io, ms)
-}
-
-/// Let the queue drain, then wait `ms` milliseconds, serving realtime
-/// requests and sending the keepalive (G4, the canned cycles' P).
-fn wait_ms(m: &mut Machine, io: &mut impl Io, ms: f32) -> Result<(), Error> {
-    m.wait_idle(io)?;
-    let start = io.millis();
-    while (io.millis().wrapping_sub(start) as f32) < ms {
-        m.wait_step(io)?;
-    }
-    Ok(())
-}
-
-/// The motion part of a line: target, checks, then (through [`arc_line`]
-/// for arcs) [`finish_line`].
-#[inline(never)]
-fn motion_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl Io) -> Result<(), Error> {
-    let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
-    let mut target = m.interp.pos_mm;
-    let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
-    for (a, &w) in AXIS_WORDS.iter().enumerate() {
-        if let Some(v) = l.word(w) {
-            let v = word_mm(g.inches, a, v);
-            target[a] = if machine_coords {
-                v
-            } else if g.incremental {
-                m.interp.pos_mm[a] + v
-            } else {
-                work_to_machine(m, g, a, v)
-            };
-        }
-    }
-    if machine_coords && matches!(g.motion, Motion::Cycle(_)) {
-        return Err(Error::BadWord(F!("G53 not allowed with a canned cycle (G80 first)")));
-    }
-    let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
-    // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
-    // offsets (Repetier's E0 motor), so all four motors can move at once.
-    let e_word = if axis_words_are_settings(l) { None } else { l.word(Word::E) };
-    if let Some(v) = e_word {
-        if !matches!(motion, Motion::Rapid | Motion::Linear) {
-            return Err(Error::BadWord(F!("E only with G0/G1")));
-        }
-        target[3] = if g.incremental { m.interp.pos_mm[3] + v } else { v };
-    }
-    if let Motion::Cycle(kind) = g.motion {
-        if any_axis || l.motion.is_some() {
-            return cycle_line(m, g, l, text, io, kind);
-        }
-    }
-    let mut do_motion = None;
-    if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
-        match motion {
-            Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active)"))),
-            Motion::Rapid => {}
             _ => {
-                if !(g.feed > 0.0) {
-                    return Err(Error::BadFeed);
+                self.commit_line(g, do_motion);
+                // A line with nothing but its move (a streamed G1): the move
+                // now, without a turn of `next`'s phases.
+                if do_motion.is_some() && !self.run.extras {
+                    self.run.phase = if l.other_m.is_none() && l.stopping.is_none() { Phase::Done } else { Phase::OtherM };
+                    return Ok(self.motion());
                 }
+                Ok(None)
             }
         }
-        check_soft_limits(m, &target)?;
-        do_motion = Some(motion);
     }
-    match do_motion {
-        Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) => arc_line(m, g, l, text, io, &target, mo),
-        _ => finish_line(m, g, l, text, io, &target, do_motion, None, None),
+
+    /// A line that runs a canned cycle (G73, G81–G89, or bare X/Y/Z while
+    /// one is modal): resolve the words against the sticky ones, check every
+    /// point the cycle can reach against the soft limits, then commit the
+    /// line with it. A bad cycle line changes nothing and moves nothing.
+    #[inline(never)]
+    fn cycle_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line, kind: cycles::Kind) -> Result<Option<Command>, Error> {
+        match g.plane {
+            Plane::Xy => {}
+            Plane::Zx => return Err(Error::BadWord(F!("canned cycles only in the XY plane (G17); G18 (ZX) is active, nothing moved"))),
+            Plane::Yz => return Err(Error::BadWord(F!("canned cycles only in the XY plane (G17); G19 (YZ) is active, nothing moved"))),
+        }
+        if !(g.feed > 0.0) {
+            return Err(Error::BadFeed);
+        }
+        let mm = |w: Word| l.word(w).map(|v| to_mm(g.inches, v));
+        let words = cycles::LineWords { x: mm(Word::X), y: mm(Word::Y), z: mm(Word::Z), r: mm(Word::R), q: mm(Word::Q), p: l.word(Word::P), l: l.word(Word::L) };
+        let mut off = [0.0f32; 3];
+        let mut pos = [0.0f32; 3];
+        for a in 0..3 {
+            let tlo = if a == 2 { g.tlo } else { 0.0 };
+            off[a] = self.wcs_mm[g.wcs as usize][a] + g.g92[a] + tlo;
+            pos[a] = frame::axis_user_from_internal(a, self.pos_mm[a] - off[a]);
+        }
+        let prev = match self.motion {
+            Motion::Cycle(k) => Some(k),
+            _ => None,
+        };
+        let bad = |e: cycles::Error| Error::BadWord(e.message());
+        let (params, sticky) = cycles::resolve(kind, g.retract, g.incremental, prev, &self.cycle, &words, pos).map_err(bad)?;
+        let cycle = cycles::Cycle::new(params, pos).map_err(bad)?;
+        let run = CycleRun { cycle, sticky, off };
+        let (lo, hi) = run.cycle.bounds();
+        self.check_soft_limits(cx.settings, &cycle_target(self.pos_mm, &run, lo))?;
+        self.check_soft_limits(cx.settings, &cycle_target(self.pos_mm, &run, hi))?;
+        self.run.target = self.pos_mm;
+        self.commit_line(g, Some(g.motion));
+        self.cycle = run.sticky;
+        self.run.progress = Progress::Cycle(run);
+        Ok(None)
     }
+
+    /// Arcs: compute the chord plan before committing anything, then commit
+    /// the line with it.
+    #[inline(never)]
+    fn arc_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line, target: &[f32; N_AXES], mo: Motion) -> Result<Option<Command>, Error> {
+        let (a0, a1, a2) = match g.plane {
+            Plane::Xy => (0, 1, 2),
+            Plane::Zx => (2, 0, 1),
+            Plane::Yz => (1, 2, 0),
+        };
+        let off_words = [Word::I, Word::J, Word::K];
+        let r = l.word(Word::R).map(|r| to_mm(g.inches, r));
+        let start = [self.pos_mm[0], self.pos_mm[1], self.pos_mm[2]];
+        let mut centre_off = [0.0f32; 3];
+        let mut any_off = false;
+        for (a, &w) in off_words.iter().enumerate() {
+            if let Some(v) = l.word(w) {
+                let v = word_mm(g.inches, a, v);
+                // G90.1: the word is the centre's work coordinate.
+                centre_off[a] = if g.arc_absolute { work_to_machine(self, g, a, v) - start[a] } else { v };
+                any_off = true;
+            }
+        }
+        if g.arc_absolute && any_off && (l.word(off_words[a0]).is_none() || l.word(off_words[a1]).is_none()) {
+            return Err(Error::BadWord(F!("arc under G90.1: give both centre coordinates of the plane")));
+        }
+        // An end that rounds to the start's steps in the plane is the start: a
+        // full circle (arc.rs), never a sliver of an arc from float round-off.
+        let mut target = *target;
+        let spm = cx.settings.steps_per_mm;
+        if to_steps(start[a0], spm[a0]) == to_steps(target[a0], spm[a0]) && to_steps(start[a1], spm[a1]) == to_steps(target[a1], spm[a1]) {
+            target[a0] = start[a0];
+            target[a1] = start[a1];
+        }
+        let end = [target[0], target[1], target[2]];
+        let spec = match (r, any_off) {
+            (Some(r), false) => arc::Centre::Radius(r),
+            (None, true) => arc::Centre::Offset(centre_off),
+            (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
+            (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
+        };
+        // G18 and G19 contain Z: mirrored into the internal frame, they turn the other way.
+        let cw = frame::internal_clockwise(mo == Motion::ArcCw, g.plane != Plane::Xy);
+        let plan = new_arc(start, end, spec, (a0, a1, a2), cw, cx.settings.arc_tolerance_mm)?;
+        self.check_arc_limits(cx, &plan)?;
+        self.run.target = target;
+        self.commit_line(g, Some(mo));
+        self.run.progress = Progress::Arc(plan, end);
+        Ok(None)
+    }
+
+    /// Every chord end stays inside the arc's bounding box; check it.
+    #[inline(never)]
+    fn check_arc_limits(&mut self, cx: &Ctx, plan: &arc::Arc) -> Result<(), Error> {
+        let (lo, hi) = plan.bounds();
+        let mut lo4 = self.pos_mm;
+        let mut hi4 = self.pos_mm;
+        lo4[..3].copy_from_slice(&lo);
+        hi4[..3].copy_from_slice(&hi);
+        self.check_soft_limits(cx.settings, &lo4)?;
+        self.check_soft_limits(cx.settings, &hi4)
+    }
+
+    /// G10 L1 / L2 / L20.
+    #[inline(never)]
+    fn set_offsets(&mut self, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
+        let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;
+        let p = l.word(Word::P).ok_or(Error::BadWord(F!("G10 needs P")))?;
+        let conv = |v: f32| to_mm(g.inches, v);
+        match round_i32(lv) {
+            1 if lv == 1.0 => {
+                let t = tool_index(p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool number 0-12")))?;
+                if t == 0 {
+                    return Err(Error::BadWord(F!("G10 L1: P must be a tool number 1-12")));
+                }
+                let r = l.word(Word::R);
+                if r.is_some_and(|r| r < 0.0) {
+                    return Err(Error::BadWord(F!("G10 L1: R must not be negative")));
+                }
+                g.commit(self);
+                // The line leaves the modal tool length offset in force, even
+                // when the entry is the spindle tool's (as it always did: the
+                // table entry applies at the next change, M61 or G43).
+                self.run.tlo_mm = g.tlo;
+                self.run.phase = Phase::Tlo;
+                Ok(Some(Command::SetTool { tool: t as u8, length_mm: l.word(Word::Z).map(conv), radius_mm: r.map(conv) }))
+            }
+            n @ (2 | 20) if lv == n as f32 => {
+                let idx = round_i32(p);
+                if idx as f32 != p || !(0..=N_WCS as i32).contains(&idx) {
+                    return Err(Error::BadWord(F!("G10 L2/L20: P must be 0-6")));
+                }
+                let w = if idx == 0 { g.wcs as usize } else { (idx - 1) as usize };
+                let mut off = self.wcs_mm[w];
+                for (a, &aw) in AXIS_WORDS.iter().enumerate() {
+                    if let Some(v) = l.word(aw) {
+                        let v = word_mm(g.inches, a, v);
+                        off[a] = if n == 2 {
+                            v
+                        } else {
+                            let tlo = if a == 2 { g.tlo } else { 0.0 };
+                            self.pos_mm[a] - g.g92[a] - tlo - v
+                        };
+                    }
+                }
+                self.wcs_mm[w] = off;
+                g.commit(self);
+                // Work offsets are persistent (SPEC §5): stored now; the
+                // EEPROM layer programs only the bytes that changed.
+                Ok(Some(Command::StoreOffsets))
+            }
+            _ => Err(Error::BadWord(F!("G10: L must be 1, 2 or 20"))),
+        }
+    }
+
+    /// M codes of the "other" group: M220 here, the rest for the controller.
+    #[inline(never)]
+    fn other_m(&mut self, l: &Line, code: u16) -> Result<Option<Command>, Error> {
+        Ok(Some(match code {
+            17 | 18 | 84 | 400 | 500 | 501 | 502 => Command::M(code),
+            92 | 201 | 203 => {
+                let mut values = [f32::NAN; N_AXES];
+                for (a, &w) in [Word::X, Word::Y, Word::Z, Word::E].iter().enumerate() {
+                    if let Some(v) = l.word(w) {
+                        values[a] = v;
+                    }
+                }
+                Command::AxisSettings { code, values }
+            }
+            220 => {
+                let s = l.word(Word::S).ok_or(Error::BadWord(F!("M220 needs S<percent>")))?;
+                if !(10.0..=500.0).contains(&s) {
+                    return Err(Error::BadWord(F!("M220 S must be 10-500")));
+                }
+                self.feed_override_pct = round_i32(s) as u16;
+                return Ok(None);
+            }
+            108 => return Ok(None),
+            _ => return Err(Error::NotAvailable(F!("M code not supported"))),
+        }))
+    }
+}
+
+/// M61's words: `Q<0-12>`, or `P<1-12> S<0|1>`.
+#[inline(never)]
+fn m61(l: &Line) -> Result<Command, Error> {
+    let whole = |v: f32, lo: i32, hi: i32| {
+        let n = round_i32(v);
+        (n as f32 == v && (lo..=hi).contains(&n)).then_some(n as u8)
+    };
+    let bad = Error::Atc(crate::atc::Fault::M61Words);
+    match (l.word(Word::Q), l.word(Word::P), l.word(Word::S)) {
+        (Some(q), None, None) => Ok(Command::ConfirmTool { tool: whole(q, 0, 12).ok_or(bad)? }),
+        (None, Some(p), Some(s)) => {
+            let pocket = whole(p, 1, 12).ok_or(bad)?;
+            let full = whole(s, 0, 1).ok_or(bad)? == 1;
+            Ok(Command::SetPocket { pocket, full })
+        }
+        _ => Err(bad),
+    }
+}
+
+/// G4's time: P or S seconds (P in seconds as in RS274/NGC, grbl and
+/// LinuxCNC, and every CAM file of the corpus; Marlin's P is ms: README
+/// "G4"), in ms.
+fn dwell(l: &Line) -> Result<f32, Error> {
+    match (l.word(Word::P), l.word(Word::S)) {
+        (Some(s), None) | (None, Some(s)) if s >= 0.0 => Ok(s * 1000.0),
+        _ => Err(Error::BadWord(F!("G4 needs one of P<s> or S<s> (seconds), not negative"))),
+    }
+}
+
+/// G37's words as a measurement mode, with the setter position (mm) for a
+/// calibration.
+#[inline(never)]
+fn measure_mode(inches: bool, l: &Line) -> Result<(crate::toolsetter::Mode, Option<f32>, Option<f32>), Error> {
+    use crate::toolsetter::{Fault, Mode};
+    let bad = Error::Setter(Fault::Words);
+    let k = if inches { 25.4 } else { 1.0 };
+    let um = |v: f32| round_i32(v * k * 1000.0);
+    let (d, b, len, r) = (l.word(Word::D), l.word(Word::B), l.word(Word::L), l.word(Word::R));
+    let (x, y) = (l.word(Word::X).map(|v| v * k), l.word(Word::Y).map(|v| v * k));
+    let mode = match (d, b, len, r) {
+        (None, None, None, None) => Mode::Length,
+        (Some(d), None, None, None) if d == 1.0 => Mode::Diameter,
+        (None, Some(t), None, None) if t >= 0.0 => Mode::Check { tol_um: um(t) },
+        (None, None, Some(len), Some(r)) if len > 0.0 && r >= 0.0 => {
+            Mode::Calibrate { length_um: um(len), diameter_um: 2 * um(r) }
+        }
+        _ => return Err(bad),
+    };
+    if (x.is_some() || y.is_some()) && !matches!(mode, Mode::Calibrate { .. }) {
+        return Err(bad);
+    }
+    Ok((mode, x, y))
+}
+
+/// Largest |X| accepted by G201/G202, pitches (20 revolutions).
+const CAROUSEL_MAX_X: f32 = 360.0;
+
+/// G201, G202, G204, G205 (motor P0, the carousel): the words checked.
+#[inline(never)]
+fn carousel_command(l: &Line, nm: NonModal) -> Result<Command, Error> {
+    use crate::atc::Fault;
+    if l.word(Word::P) != Some(0.0) {
+        return Err(Error::Atc(Fault::Motor));
+    }
+    let bit = |w: Word| match l.word(w) {
+        None => Ok(None),
+        Some(v) if v == 0.0 || v == 1.0 => Ok(Some(v == 1.0)),
+        Some(_) => Err(Error::Atc(Fault::OnOff)),
+    };
+    let x = match l.word(Word::X) {
+        Some(x) if x.abs() <= CAROUSEL_MAX_X => Some(x),
+        Some(_) => return Err(Error::Atc(Fault::CarouselX)),
+        None => None,
+    };
+    Ok(match nm {
+        NonModal::AuxMove => Command::CarouselTurn { x: x.ok_or(Error::Atc(Fault::CarouselX))? },
+        NonModal::AuxSetPosition => Command::CarouselSetPosition { x: x.ok_or(Error::Atc(Fault::CarouselX))? },
+        NonModal::AuxEnable => Command::CarouselEnable { on: bit(Word::S)?.ok_or(Error::Atc(Fault::OnOff))? },
+        _ => Command::CarouselHome { back: bit(Word::S)?.unwrap_or(false), only_if_unhomed: bit(Word::E)?.unwrap_or(false) },
+    })
 }
 
 /// A canned cycle resolved and checked, ready to run once the line commits.
@@ -654,48 +1291,10 @@ struct CycleRun {
     off: [f32; 3],
 }
 
-/// A line that runs a canned cycle (G73, G81–G89, or bare X/Y/Z while one
-/// is modal): resolve the words against the sticky ones, check every point
-/// the cycle can reach against the soft limits, then finish the line with it.
-/// A bad cycle line changes nothing and moves nothing.
-#[inline(never)]
-fn cycle_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl Io, kind: cycles::Kind) -> Result<(), Error> {
-    match g.plane {
-        Plane::Xy => {}
-        Plane::Zx => return Err(Error::BadWord(F!("canned cycles only in the XY plane (G17); G18 (ZX) is active, nothing moved"))),
-        Plane::Yz => return Err(Error::BadWord(F!("canned cycles only in the XY plane (G17); G19 (YZ) is active, nothing moved"))),
-    }
-    if !(g.feed > 0.0) {
-        return Err(Error::BadFeed);
-    }
-    let mm = |w: Word| l.word(w).map(|v| to_mm(g.inches, v));
-    let words = cycles::LineWords { x: mm(Word::X), y: mm(Word::Y), z: mm(Word::Z), r: mm(Word::R), q: mm(Word::Q), p: l.word(Word::P), l: l.word(Word::L) };
-    let mut off = [0.0f32; 3];
-    let mut pos = [0.0f32; 3];
-    for a in 0..3 {
-        let tlo = if a == 2 { g.tlo } else { 0.0 };
-        off[a] = m.interp.wcs_mm[g.wcs as usize][a] + g.g92[a] + tlo;
-        pos[a] = frame::axis_user_from_internal(a, m.interp.pos_mm[a] - off[a]);
-    }
-    let prev = match m.interp.motion {
-        Motion::Cycle(k) => Some(k),
-        _ => None,
-    };
-    let bad = |e: cycles::Error| Error::BadWord(e.message());
-    let (params, sticky) = cycles::resolve(kind, g.retract, g.incremental, prev, &m.interp.cycle, &words, pos).map_err(bad)?;
-    let cycle = cycles::Cycle::new(params, pos).map_err(bad)?;
-    let run = CycleRun { cycle, sticky, off };
-    let (lo, hi) = run.cycle.bounds();
-    check_soft_limits(m, &cycle_target(m, &run, lo))?;
-    check_soft_limits(m, &cycle_target(m, &run, hi))?;
-    let target = m.interp.pos_mm;
-    finish_line(m, g, l, text, io, &target, Some(g.motion), None, Some(run))
-}
-
 /// A cycle's point `t` (user frame, work coordinates; NaN: the axis stays)
-/// → internal machine mm, the other axes where the tool is.
-fn cycle_target(m: &Machine, run: &CycleRun, t: [f32; 3]) -> [f32; N_AXES] {
-    let mut target = m.interp.pos_mm;
+/// → internal machine mm, the other axes at `pos` (where the tool is).
+fn cycle_target(pos: [f32; N_AXES], run: &CycleRun, t: [f32; 3]) -> [f32; N_AXES] {
+    let mut target = pos;
     for a in 0..3 {
         if !t[a].is_nan() {
             target[a] = add_nz(frame::axis_internal_from_user(a, t[a]), run.off[a]);
@@ -704,108 +1303,11 @@ fn cycle_target(m: &Machine, run: &CycleRun, t: [f32; 3]) -> [f32; N_AXES] {
     target
 }
 
-/// Queue the cycle's moves (each through [`move_to`], as G0/G1) and wait
-/// out its dwells (as G4), sending the keepalive: a cycle of many holes is
-/// one long line.
-#[inline(never)]
-fn run_cycle(m: &mut Machine, io: &mut impl Io, run: &mut CycleRun) -> Result<(), Error> {
-    while let Some(step) = run.cycle.next_step() {
-        m.keepalive(io);
-        let (t, rapid) = match step {
-            cycles::Step::Dwell(s) => {
-                wait_ms(m, io, s * 1000.0)?;
-                continue;
-            }
-            cycles::Step::Rapid(t) => (t, true),
-            cycles::Step::Feed(t) => (t, false),
-        };
-        // Wait for room here (two slots: a backlash take-up may come
-        // first), so the keepalive goes out while the queue is full.
-        while m.planner.free() < 2 {
-            m.keepalive(io);
-            m.wait_step(io)?;
-        }
-        let feed = m.interp.feed_with_override();
-        move_to(m, io, cycle_target(m, run, t), feed, rapid)?;
-    }
-    Ok(())
-}
-
 /// Absolute work coordinate `v` (mm) of axis `a` → machine mm, with the
 /// line's modal offsets (axis words under G90, I/J/K under G90.1).
-fn work_to_machine(m: &Machine, g: &ModalCopy, a: usize, v: f32) -> f32 {
+fn work_to_machine(i: &Interp, g: &ModalCopy, a: usize, v: f32) -> f32 {
     let tlo = if a == 2 { g.tlo } else { 0.0 };
-    add_nz(add_nz(add_nz(v, m.interp.wcs_mm[g.wcs as usize][a]), g.g92[a]), tlo)
-}
-
-/// Arcs: compute the chord plan before committing anything, then finish the
-/// line with it.
-#[inline(never)]
-fn arc_line(m: &mut Machine, g: &ModalCopy, l: &Line, text: &[u8], io: &mut impl Io, target: &[f32; N_AXES], mo: Motion) -> Result<(), Error> {
-    let (a0, a1, a2) = match g.plane {
-        Plane::Xy => (0, 1, 2),
-        Plane::Zx => (2, 0, 1),
-        Plane::Yz => (1, 2, 0),
-    };
-    let off_words = [Word::I, Word::J, Word::K];
-    let r = l.word(Word::R).map(|r| to_mm(g.inches, r));
-    let start = [m.interp.pos_mm[0], m.interp.pos_mm[1], m.interp.pos_mm[2]];
-    let mut centre_off = [0.0f32; 3];
-    let mut any_off = false;
-    for (a, &w) in off_words.iter().enumerate() {
-        if let Some(v) = l.word(w) {
-            let v = word_mm(g.inches, a, v);
-            // G90.1: the word is the centre's work coordinate.
-            centre_off[a] = if g.arc_absolute { work_to_machine(m, g, a, v) - start[a] } else { v };
-            any_off = true;
-        }
-    }
-    if g.arc_absolute && any_off && (l.word(off_words[a0]).is_none() || l.word(off_words[a1]).is_none()) {
-        return Err(Error::BadWord(F!("arc under G90.1: give both centre coordinates of the plane")));
-    }
-    // An end that rounds to the start's steps in the plane is the start: a
-    // full circle (arc.rs), never a sliver of an arc from float round-off.
-    let mut target = *target;
-    let spm = m.settings.steps_per_mm;
-    if to_steps(start[a0], spm[a0]) == to_steps(target[a0], spm[a0]) && to_steps(start[a1], spm[a1]) == to_steps(target[a1], spm[a1]) {
-        target[a0] = start[a0];
-        target[a1] = start[a1];
-    }
-    let end = [target[0], target[1], target[2]];
-    let spec = match (r, any_off) {
-        (Some(r), false) => arc::Centre::Radius(r),
-        (None, true) => arc::Centre::Offset(centre_off),
-        (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
-        (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
-    };
-    // G18 and G19 contain Z: mirrored into the internal frame, they turn the other way.
-    let cw = frame::internal_clockwise(mo == Motion::ArcCw, g.plane != Plane::Xy);
-    let mut plan = new_arc(start, end, spec, (a0, a1, a2), cw, m.settings.arc_tolerance_mm)?;
-    check_arc_limits(m, &plan)?;
-    finish_line(m, g, l, text, io, &target, Some(mo), Some(&mut plan), None)
-}
-
-/// Every chord end stays inside the arc's bounding box; check it.
-#[inline(never)]
-fn check_arc_limits(m: &mut Machine, plan: &arc::Arc) -> Result<(), Error> {
-    let (lo, hi) = plan.bounds();
-    let mut lo4 = m.interp.pos_mm;
-    let mut hi4 = m.interp.pos_mm;
-    lo4[..3].copy_from_slice(&lo);
-    hi4[..3].copy_from_slice(&hi);
-    check_soft_limits(m, &lo4)?;
-    check_soft_limits(m, &hi4)
-}
-
-/// Queue the chords of `plan`, then the programmed end `target`.
-#[inline(never)]
-fn arc_chords(m: &mut Machine, io: &mut impl Io, plan: &mut arc::Arc, target: [f32; N_AXES], feed: f32) -> Result<(), Error> {
-    while let Some(p) = next_chord(plan) {
-        let mut t = target;
-        t[..3].copy_from_slice(&p);
-        move_to(m, io, t, feed, false)?;
-    }
-    move_to(m, io, target, feed, false)
+    add_nz(add_nz(add_nz(v, i.wcs_mm[g.wcs as usize][a]), g.g92[a]), tlo)
 }
 
 /// The next chord end of `plan`, in a frame of its own (see [`new_arc`]).
@@ -815,7 +1317,7 @@ fn next_chord(plan: &mut arc::Arc) -> Option<[f32; 3]> {
 }
 
 /// [`arc::Arc::new`] in a frame of its own (its many f32 temporaries
-/// would otherwise push [`arc_line`]'s locals out of `ldd` reach).
+/// would otherwise push [`Interp::arc_line`]'s locals out of `ldd` reach).
 #[inline(never)]
 fn new_arc(
     start: [f32; 3],
@@ -828,144 +1330,10 @@ fn new_arc(
     arc::Arc::new(start, end, spec, axes, clockwise, tolerance_mm).map_err(Error::Arc)
 }
 
-/// Commit the modal state, then act: tool change, spindle, the motion (the
-/// arc's chords when `arc` is given), other M codes, program stops.
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn finish_line(
-    m: &mut Machine,
-    g: &ModalCopy,
-    l: &Line,
-    text: &[u8],
-    io: &mut impl Io,
-    target: &[f32; N_AXES],
-    do_motion: Option<Motion>,
-    arc: Option<&mut arc::Arc>,
-    cycle: Option<CycleRun>,
-) -> Result<(), Error> {
-    let target = *target;
-    g.commit(&mut m.interp);
-    if let Some(run) = &cycle {
-        m.interp.cycle = run.sticky;
-    }
-    if is_tool_change(m, l) {
-        crate::atc::run::select(m, io, l.tool().map(u16::from))?;
-    } else if let Some(t) = l.tool() {
-        // NGC: T selects (pre-stages) the tool; the next M6 changes to it.
-        m.atc.last_t = t;
-    }
-    if let Some(s) = l.word(Word::S) {
-        m.interp.spindle_rpm = s;
-    }
-    match l.spindle {
-        Some(Spindle::Cw) => {
-            m.wait_idle(io)?;
-            m.interp.spindle_on = true;
-            io.spindle(spindle_duty(&m.settings, m.interp.spindle_rpm));
-        }
-        Some(Spindle::Off) => {
-            m.wait_idle(io)?;
-            m.interp.spindle_on = false;
-            io.spindle(0);
-        }
-        _ => {
-            if l.word(Word::S).is_some() && m.interp.spindle_on {
-                m.wait_idle(io)?;
-                io.spindle(spindle_duty(&m.settings, m.interp.spindle_rpm));
-            }
-        }
-    }
-    // One output for both M7 (mist) and M8 (flood), switched in step with
-    // the motion like the spindle (M9 in an alarm: at once, nothing moves).
-    if let Some(c) = l.coolant {
-        if m.alarm.is_none() {
-            m.wait_idle(io)?;
-        }
-        io.coolant(c != Coolant::Off);
-        m.interp.coolant_m = match c {
-            Coolant::Mist => 7,
-            Coolant::Flood => 8,
-            Coolant::Off => 9,
-        };
-    }
-
-    if let Some(mo) = do_motion {
-        let rapid = mo == Motion::Rapid;
-        let feed = m.interp.feed_with_override();
-        match mo {
-            Motion::ArcCw | Motion::ArcCcw => match arc {
-                Some(plan) => arc_chords(m, io, plan, target, feed)?,
-                None => move_to(m, io, target, feed, false)?,
-            },
-            Motion::ProbeToward | Motion::ProbeTowardNoError => {
-                probe(m, io, target, feed, mo == Motion::ProbeToward)?;
-            }
-            Motion::Cycle(_) => {
-                if let Some(mut run) = cycle {
-                    run_cycle(m, io, &mut run)?;
-                }
-            }
-            _ => move_to(m, io, target, feed, rapid)?,
-        }
-    }
-
-    // ---- Other M codes and program stops ----------------------------------
-    if let Some(code) = l.other_m {
-        other_m(m, l, code, text, io)?;
-    }
-    match l.stopping {
-        Some(Stopping::End | Stopping::EndRewind) => {
-            m.wait_idle(io)?;
-            m.spindle_off(io);
-            uwriteln!(io, "{}", F!("echo:program end")).ok();
-        }
-        // M1 pauses only with optional stop on (`$152`, Job menu).
-        Some(Stopping::OptionalPause) if !m.settings.optional_stop => {}
-        Some(Stopping::Pause | Stopping::OptionalPause) => {
-            m.wait_idle(io)?;
-            uwriteln!(io, "{}", F!("echo:paused, send ~ to resume")).ok();
-            m.pause_until_resume(io)?;
-        }
-        None => {}
-    }
-    Ok(())
-}
-
-/// Jog `axis` (0..3) by `delta_mm` (user frame: +Z up) at `feed` mm/min
-/// from the commanded position (the menu's jog): soft limits apply, the modal state is untouched.
-#[inline(never)]
-pub fn jog(m: &mut Machine, io: &mut impl Io, axis: usize, delta_mm: f32, feed: f32) -> Result<(), Error> {
-    if m.alarm.is_some() {
-        return Err(Error::Alarm);
-    }
-    let mut target = m.interp.pos_mm;
-    target[axis] += frame::axis_internal_from_user(axis, delta_mm);
-    check_soft_limits(m, &target)?;
-    move_to(m, io, target, feed, false)
-}
-
-/// Queue a move to `target` machine mm; updates the commanded position.
-#[inline(never)]
-pub fn move_to(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, rapid: bool) -> Result<(), Error> {
-    if m.alarm.is_some() {
-        return Err(Error::Alarm);
-    }
-    // The homing lock guards X/Y/Z; the carousel alone (G201) has its own
-    // homing (G205), and an interrupted tool change is locked separately.
-    let xyz_moves = (0..3).any(|a| !same_f32(target[a], m.interp.pos_mm[a]));
-    if xyz_moves && !m.motion_allowed() {
-        return Err(Error::NotHomed);
-    }
-    let steps = m.interp.steps_of(&m.settings, &target);
-    m.queue_line(io, steps, feed, rapid)?;
-    m.interp.pos_mm = target;
-    Ok(())
-}
-
 /// `a == b` for finite floats (+0.0 equals −0.0), on the bit patterns: a
 /// soft-float compare costs ~50 cycles on the AVR.
 #[inline]
-fn same_f32(a: f32, b: f32) -> bool {
+pub fn same_f32(a: f32, b: f32) -> bool {
     let (a, b) = (a.to_bits(), b.to_bits());
     a == b || (a | b) & 0x7FFF_FFFF == 0
 }
@@ -989,26 +1357,39 @@ fn add_cold(a: f32, b: f32) -> f32 {
     a + b
 }
 
-/// `round(mm · steps_per_mm)`.
+/// [`Interp::check_soft_limits`] over the interpreter's caches (fresh).
 #[inline(never)]
-fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
-    round_i32(mm * steps_per_mm)
-}
-
-/// Soft limits: the target, rounded to steps as it will be queued, must lie
-/// within 0..=travel (rounded to steps) on X, Y and Z. Integer compares on
-/// the steps [`Interp::steps_of`] caches for the move itself.
-fn check_soft_limits(m: &mut Machine, t: &[f32; N_AXES]) -> Result<(), Error> {
-    if !m.settings.soft_limits {
+fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32; 3], s: &Settings, t: &[f32; N_AXES]) -> Result<(), Error> {
+    if !s.soft_limits {
         return Ok(());
     }
-    let st = m.interp.steps_of(&m.settings, t);
+    let st = steps_cached(cache, s, t);
     for a in 0..3 {
-        if st[a] < 0 || st[a] > m.interp.travel_steps[a] {
+        if st[a] < 0 || st[a] > travel_steps[a] {
             return Err(Error::SoftLimit);
         }
     }
     Ok(())
+}
+
+/// [`Interp::steps_of`]'s conversion through `cache`.
+#[inline(always)]
+fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+    let mut st = [0i32; N_AXES];
+    for a in 0..N_AXES {
+        let c = &mut cache[a];
+        if c.0 != mm[a].to_bits() {
+            *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
+        }
+        st[a] = c.1;
+    }
+    st
+}
+
+/// `round(mm · steps_per_mm)`.
+#[inline(never)]
+fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
+    round_i32(mm * steps_per_mm)
 }
 
 fn spindle_duty(s: &Settings, rpm: f32) -> u8 {
@@ -1029,267 +1410,6 @@ fn tool_index(v: f32) -> Option<usize> {
         None
     } else {
         Some(t as usize)
-    }
-}
-
-/// G10 L1 / L2 / L20.
-#[inline(never)]
-fn set_offsets(m: &mut Machine, g: &ModalCopy, l: &Line, io: &mut impl Io) -> Result<(), Error> {
-    let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;
-    let p = l.word(Word::P).ok_or(Error::BadWord(F!("G10 needs P")))?;
-    let conv = |v: f32| to_mm(g.inches, v);
-    match round_i32(lv) {
-        1 if lv == 1.0 => {
-            let t = tool_index(p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool number 0-12")))?;
-            if t == 0 {
-                return Err(Error::BadWord(F!("G10 L1: P must be a tool number 1-12")));
-            }
-            let r = l.word(Word::R);
-            if r.is_some_and(|r| r < 0.0) {
-                return Err(Error::BadWord(F!("G10 L1: R must not be negative")));
-            }
-            crate::atc::run::set_tool(m, io, t as u8, l.word(Word::Z).map(conv), r.map(conv));
-            Ok(())
-        }
-        n @ (2 | 20) if lv == n as f32 => {
-            let idx = round_i32(p);
-            if idx as f32 != p || !(0..=N_WCS as i32).contains(&idx) {
-                return Err(Error::BadWord(F!("G10 L2/L20: P must be 0-6")));
-            }
-            let w = if idx == 0 { g.wcs as usize } else { (idx - 1) as usize };
-            let mut off = m.interp.wcs_mm[w];
-            for (a, &word) in AXIS_WORDS.iter().enumerate() {
-                if let Some(v) = l.word(word) {
-                    let v = word_mm(g.inches, a, v);
-                    off[a] = if n == 2 {
-                        v
-                    } else {
-                        let tlo = if a == 2 { g.tlo } else { 0.0 };
-                        m.interp.pos_mm[a] - g.g92[a] - tlo - v
-                    };
-                }
-            }
-            m.interp.wcs_mm[w] = off;
-            // Work offsets are persistent (SPEC §5): write them now; the
-            // EEPROM layer programs only the bytes that changed.
-            m.save_settings(io);
-            Ok(())
-        }
-        _ => Err(Error::BadWord(F!("G10: L must be 1, 2 or 20"))),
-    }
-}
-
-/// M codes of the "other" group.
-#[inline(never)]
-fn other_m(m: &mut Machine, l: &Line, code: u16, _text: &[u8], io: &mut impl Io) -> Result<(), Error> {
-    match code {
-        17 => {
-            io.drivers(true);
-        }
-        18 | 84 => {
-            // Wait for the moves, then spindle off (a mill with its drivers
-            // off cannot cut: OctoPrint's cancel script has M84 but no M5),
-            // drivers off; the position and the homing are kept (Marlin's
-            // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
-            m.wait_idle(io)?;
-            m.spindle_off(io);
-            io.drivers(false);
-            m.apply_watch(io, 0, false);
-            if m.homed != 0 {
-                uwriteln!(io, "{}", F!("echo:steppers off, position kept: home again (G28) if an axis was turned by hand")).ok();
-            }
-        }
-        92 | 201 | 203 => {
-            m.wait_idle(io)?;
-            let mut s = m.settings;
-            let words = [Word::X, Word::Y, Word::Z, Word::E];
-            for (a, &w) in words.iter().enumerate() {
-                if let Some(v) = l.word(w) {
-                    if !(v > 0.0) {
-                        return Err(Error::BadWord(F!("value must be positive")));
-                    }
-                    match code {
-                        92 => s.steps_per_mm[a] = v,
-                        201 => s.accel_mm_per_s2[a] = v,
-                        _ => s.max_feed_mm_per_min[a] = v * 60.0, // M203 is mm/s (Marlin)
-                    }
-                }
-            }
-            if !s.is_sane() {
-                return Err(Error::BadWord(F!("value out of range")));
-            }
-            m.replace_settings(s, io)?;
-        }
-        220 => {
-            let s = l.word(Word::S).ok_or(Error::BadWord(F!("M220 needs S<percent>")))?;
-            if !(10.0..=500.0).contains(&s) {
-                return Err(Error::BadWord(F!("M220 S must be 10-500")));
-            }
-            m.interp.feed_override_pct = round_i32(s) as u16;
-        }
-        400 => m.wait_idle(io)?,
-        500 => {
-            m.save_settings(io);
-            uwriteln!(io, "{}", F!("echo:settings stored")).ok();
-        }
-        501 => {
-            m.wait_idle(io)?;
-            if m.load_settings(io) {
-                uwriteln!(io, "{}", F!("echo:settings loaded")).ok();
-            } else {
-                return Err(Error::BadWord(F!("EEPROM settings invalid; kept the current ones")));
-            }
-        }
-        502 => {
-            m.wait_idle(io)?;
-            m.set_settings(Settings::defaults());
-            m.interp.load_settings(&m.settings);
-            uwriteln!(io, "{}", F!("echo:factory settings restored (M500 to store)")).ok();
-        }
-        108 => {}
-        _ => return Err(Error::NotAvailable(F!("M code not supported"))),
-    }
-    Ok(())
-}
-
-/// G38.2/G38.3: move toward `target` until the tool-setter input trips.
-#[inline(never)]
-fn probe(m: &mut Machine, io: &mut impl Io, target: [f32; N_AXES], feed: f32, must_trip: bool) -> Result<(), Error> {
-    if m.alarm.is_some() {
-        return Err(Error::Alarm);
-    }
-    if !m.motion_allowed() {
-        return Err(Error::NotHomed);
-    }
-    m.wait_idle(io)?;
-    if io.switches().tool_setter {
-        return Err(Error::ProbeAlreadyTriggered);
-    }
-    let prev = m.state;
-    m.state = State::Probe;
-    m.apply_watch(io, 0, true);
-    let steps = m.interp.steps_of(&m.settings, &target);
-    let r = m.queue_line(io, steps, feed, false).and_then(|_| m.wait_motion_or_trip(io));
-    m.apply_watch(io, 0, false);
-    m.state = prev;
-    let tripped = r?;
-    let pos = if tripped { io.stepper().trip_position } else { io.stepper().position };
-    m.resync_after_stop(io);
-    let mm = m.steps_to_mm(pos);
-    uwrite!(io, "[PRB:").ok();
-    m.write_xyz(io, m.interp.work_user(mm));
-    uwriteln!(io, ":{}]", if tripped { 1u8 } else { 0u8 }).ok();
-    if !tripped && must_trip {
-        return Err(Error::ProbeFailed);
-    }
-    Ok(())
-}
-
-#[inline(never)]
-fn report_position(m: &Machine, io: &mut impl Io) {
-    let internal = io.stepper().position;
-    let w = m.interp.work_user(m.steps_to_mm(internal));
-    // Count: the step counters in the user's sense (Z counts up), so that
-    // Count = position × steps/mm as in Marlin.
-    let st = frame::steps_user_from_internal(internal);
-    uwriteln!(
-        io,
-        "X:{} Y:{} Z:{} E:{}{}{} Y:{} Z:{} E:{}",
-        Micros::from_mm(w[0]),
-        Micros::from_mm(w[1]),
-        Micros::from_mm(w[2]),
-        Micros::from_mm(w[3]),
-        F!(" Count X:"),
-        st[0],
-        st[1],
-        st[2],
-        st[3]
-    )
-    .ok();
-}
-
-#[inline(never)]
-fn report_switches(_m: &Machine, io: &mut impl Io) {
-    let s = io.switches();
-    uwriteln!(io, "{}", F!("Reporting endstop status")).ok();
-    let lines = [
-        (F!("x_min: "), s.home & 1 != 0),
-        (F!("y_min: "), s.home & 2 != 0),
-        (F!("z_min: "), s.home & 4 != 0),
-        (F!("carousel: "), s.carousel_home),
-        (F!("tool_setter: "), s.tool_setter),
-    ];
-    for (name, on) in lines {
-        uwriteln!(io, "{}{}", name, if on { F!("TRIGGERED") } else { F!("open") }).ok();
-    }
-}
-
-#[inline(never)]
-fn report_settings(m: &Machine, io: &mut impl Io) {
-    let s = &m.settings;
-    let line = |io: &mut dyn DynOut, code: FStr, v: &[f32; N_AXES], scale: f32| {
-        io.out(code);
-        for (a, &n) in AXIS_NAMES.iter().enumerate() {
-            io.text(n);
-            io.num(v[a] * scale);
-        }
-        io.text("\n");
-    };
-    let mut d = Dyn(io);
-    d.out(F!("echo:Steps per unit:\n"));
-    line(&mut d, F!("M92"), &s.steps_per_mm, 1.0);
-    d.out(F!("echo:Max feedrates (units/s):\n"));
-    line(&mut d, F!("M203"), &s.max_feed_mm_per_min, 1.0 / 60.0);
-    d.out(F!("echo:Max acceleration (units/s2):\n"));
-    line(&mut d, F!("M201"), &s.accel_mm_per_s2, 1.0);
-    d.out(F!("echo:Work offsets:\n"));
-    for (i, o) in m.interp.wcs_mm.iter().enumerate() {
-        d.out(F!("G10 L2 P"));
-        d.int(i as i32 + 1);
-        for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
-            d.text(n);
-            d.num(frame::axis_user_from_internal(a, o[a]));
-        }
-        d.text("\n");
-    }
-    d.out(F!("echo:Travel (mm):"));
-    for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
-        d.text(n);
-        d.num(s.travel_mm[a]);
-    }
-    let on_off = |on: bool| if on { F!("on") } else { F!("off") };
-    d.out(F!(" soft limits "));
-    d.out(on_off(s.soft_limits));
-    d.out(F!(", hard limits "));
-    d.out(on_off(s.hard_limits));
-    d.text("\n");
-}
-
-/// ` X` … ` E`: short, so plain RAM strings.
-const AXIS_NAMES: [&str; N_AXES] = [" X", " Y", " Z", " E"];
-
-/// Small object-safe writer used by the settings report.
-trait DynOut {
-    fn out(&mut self, s: FStr);
-    fn text(&mut self, s: &str);
-    fn num(&mut self, v: f32);
-    fn int(&mut self, v: i32);
-}
-
-struct Dyn<'a, W: Io>(&'a mut W);
-
-impl<W: Io> DynOut for Dyn<'_, W> {
-    fn out(&mut self, s: FStr) {
-        s.write_to(self.0).ok();
-    }
-    fn text(&mut self, s: &str) {
-        self.0.write_str(s).ok();
-    }
-    fn num(&mut self, v: f32) {
-        uwrite!(self.0, "{}", Micros::from_mm(v)).ok();
-    }
-    fn int(&mut self, v: i32) {
-        uwrite!(self.0, "{}", v).ok();
     }
 }
 
@@ -1339,3 +1459,7 @@ impl ModalCopy {
 #[cfg(test)]
 #[path = "interp_tests.rs"]
 pub(crate) mod tests;
+
+#[cfg(test)]
+#[path = "command_tests.rs"]
+mod command_tests;

@@ -2,8 +2,8 @@
 //! diameter measurement, broken-tool check and reference calibration.
 //!
 //! ```text
-//!  gcode::interp ─ G37 ─► run::g37 ─► Measure (pure table) ─► actions ─► planner
-//!                                        ▲ events: trip steps latched by the stepper ISR
+//!  gcode::interp ─ Command::Measure ─► machine::setter::g37 ─► Measure (pure table) ─► actions ─► planner
+//!                                                             ▲ events: trip steps latched by the stepper ISR
 //! ```
 //!
 //! The beam input (PD2) is the probe input of the stepper ISR: while a seek
@@ -31,8 +31,6 @@
 //!   the alarm `broken tool`; `[TOOL:n L:… dL:…]`, the table is unchanged;
 //! - `G37 L<len> R<radius> [X<x> Y<y>]`: calibration with a reference tool
 //!   (optionally moving the setter position first), `[SETTER Z:… W:…]`.
-
-pub mod run;
 
 use crate::flash::InFlash;
 use crate::atc::tools::{seal, valid};

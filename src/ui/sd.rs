@@ -22,7 +22,7 @@
 //! - a G-code error on line n: nothing after line n is read; the moves
 //!   before it finish, then the spindle is turned off and line n is reported.
 
-use crate::machine::{CmdResult, Machine};
+use crate::machine::{CmdResult, Machine, SdJobFlags};
 use crate::protocol::MAX_LINE_LEN;
 use crate::ui::text::Text;
 use ufmt::{uWrite, uwriteln};
@@ -332,11 +332,16 @@ impl SdJob {
 
     /// Start the selected file, or resume a paused job (M24, the menu).
     pub fn start(&mut self, m: &mut Machine) -> Result<(), Text> {
+        self.start_with(SdJobFlags { sd_job: &mut m.sd_job, aborts: m.aborts })
+    }
+
+    /// [`SdJob::start`] over the machine's job flags only.
+    pub fn start_with(&mut self, f: SdJobFlags<'_>) -> Result<(), Text> {
         match self.phase {
             Phase::Selected => {
-                self.seen_aborts = m.aborts;
+                self.seen_aborts = f.aborts;
                 self.phase = Phase::Running;
-                m.sd_job = true;
+                *f.sd_job = true;
                 Ok(())
             }
             Phase::Paused => {
@@ -547,13 +552,26 @@ impl SdJob {
     }
 }
 
-#[inline(never)]
 /// Run one SD command (M20–M29, M524) from the serial line. `arg` is the
 /// text after the code (file name, or `S<pos>` for M26).
 pub fn command(
     job: &mut SdJob,
     card: &mut impl Card,
     m: &mut Machine,
+    out: &mut impl uWrite,
+    code: u16,
+    arg: &[u8],
+) -> Result<(), Text> {
+    command_with(job, card, SdJobFlags { sd_job: &mut m.sd_job, aborts: m.aborts }, out, code, arg)
+}
+
+/// [`command`] over the machine's job flags only (what `Io::sd_command`
+/// is given).
+#[inline(never)]
+pub fn command_with(
+    job: &mut SdJob,
+    card: &mut impl Card,
+    flags: SdJobFlags<'_>,
     out: &mut impl uWrite,
     code: u16,
     arg: &[u8],
@@ -614,7 +632,7 @@ pub fn command(
             uwriteln!(out, "{}{}{}{}", Text::FileOpened, name, Text::SizeWord, job.size).ok();
             uwriteln!(out, "{}", Text::FileSelected).ok();
         }
-        24 => job.start(m)?,
+        24 => job.start_with(flags)?,
         25 => job.pause(),
         26 => {
             let pos = parse_s(arg).ok_or(Text::ErrSeek)?;
@@ -676,73 +694,13 @@ fn parse_s(arg: &[u8]) -> Option<u32> {
     Some(v)
 }
 
-/// If `text` is an SD command (M20–M29 or M524), its code and argument
-/// (trimmed, without a `;` comment).
-///
-/// Inline, the first byte is looked at before anything else: a line that
-/// starts with neither a blank nor an `M` (a streamed `G1 …`) is answered
-/// with one compare instead of a call and a trim (~110 cycles a line).
-#[inline(always)]
-pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
-    if !matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t')) {
-        return None;
-    }
-    sd_code_of(text)
-}
-
-/// [`sd_code`] past its first-byte test.
-#[inline(never)]
-fn sd_code_of(text: &[u8]) -> Option<(u16, &[u8])> {
-    let t = trim(text);
-    let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;
-    let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
-    if digits == 0 || digits > 4 {
-        return None;
-    }
-    let mut code = 0u16;
-    for &b in &rest[..digits] {
-        code = code * 10 + (b - b'0') as u16;
-    }
-    if !(20..=29).contains(&code) && code != 524 {
-        return None;
-    }
-    let mut arg = &rest[digits..];
-    if let Some(i) = arg.iter().position(|&b| b == b';') {
-        arg = &arg[..i];
-    }
-    Some((code, trim(arg)))
-}
-
-fn trim(mut s: &[u8]) -> &[u8] {
-    while let [b' ' | b'\t', r @ ..] = s {
-        s = r;
-    }
-    while let [r @ .., b' ' | b'\t'] = s {
-        s = r;
-    }
-    s
-}
-
-/// Write `Error:<text>` (used by the machine for SD command errors).
-pub fn write_error(out: &mut impl uWrite, t: Text) {
-    uwriteln!(out, "{}{}", Text::Error, t).ok();
-}
+/// The SD command recogniser lives with the other codes taken before the
+/// parser (the machine, below this module, needs it).
+pub use crate::hostcodes::sd_code;
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-
-    #[test]
-    fn the_first_byte_test_only_skips_lines_without_an_sd_code() {
-        for t in [&b"G1 X1"[..], b"M23 a.gco", b" M24", b"\tm20", b"M524", b"", b"  ", b"(M24)", b"N5 M24"] {
-            assert_eq!(sd_code(t), sd_code_of(t), "{:?}", String::from_utf8_lossy(t));
-        }
-        for b in 0..=255u8 {
-            if sd_code_of(&[b, b'2', b'4']).is_some() || sd_code_of(&[b, b'M', b'2', b'4']).is_some() {
-                assert!(matches!(b, b'M' | b'm' | b' ' | b'\t'), "{b:#x}");
-            }
-        }
-    }
 
     /// A card in RAM: files as (name, bytes).
     pub struct FakeCard {

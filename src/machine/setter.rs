@@ -1,5 +1,5 @@
-//! G37's executor: performs the actions of [`super::Measure`] and
-//! [`super::Seek`] through the planner, with the stepper ISR's probe latch
+//! G37's executor: performs the actions of [`crate::toolsetter::Measure`] and
+//! [`crate::toolsetter::Seek`] through the planner, with the stepper ISR's probe latch
 //! watching the beam, and stores the results.
 //!
 //! Replies (one line each, SPEC §8):
@@ -7,12 +7,11 @@
 //! - with B: `[TOOL:<n> L:<mm> dL:<mm>]`, then `ALARM:broken tool` when off by more than tol;
 //! - calibration: `[SETTER Z:<beam tip height, machine mm, +Z up> W:<beam width mm>]`.
 
-use super::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent, Setter};
+use super::{Alarm, Io, Machine, State};
 use crate::atc::tools::EEPROM_SETTER_ADDR;
 use crate::fixed::Micros;
-use crate::gcode::interp::{self, Error};
-use crate::gcode::{Line, Word};
-use crate::machine::{Alarm, Io, Machine, State};
+use crate::gcode::interp::Error;
+use crate::toolsetter::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent, Setter};
 use crate::math::round_i32;
 use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
@@ -24,33 +23,9 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
     m.setter = Setter::from_bytes(&b).unwrap_or(Setter::DEFAULT);
 }
 
-/// Read G37's words into a mode (and the setter position for calibration).
-#[inline(never)]
-fn mode_of(m: &Machine, l: &Line) -> Result<(Mode, Option<f32>, Option<f32>), Error> {
-    let bad = Error::Setter(Fault::Words);
-    let k = if m.interp.inches { 25.4 } else { 1.0 };
-    let um = |v: f32| round_i32(v * k * 1000.0);
-    let (d, b, len, r) = (l.word(Word::D), l.word(Word::B), l.word(Word::L), l.word(Word::R));
-    let (x, y) = (l.word(Word::X).map(|v| v * k), l.word(Word::Y).map(|v| v * k));
-    let mode = match (d, b, len, r) {
-        (None, None, None, None) => Mode::Length,
-        (Some(d), None, None, None) if d == 1.0 => Mode::Diameter,
-        (None, Some(t), None, None) if t >= 0.0 => Mode::Check { tol_um: um(t) },
-        (None, None, Some(len), Some(r)) if len > 0.0 && r >= 0.0 => {
-            Mode::Calibrate { length_um: um(len), diameter_um: 2 * um(r) }
-        }
-        _ => return Err(bad),
-    };
-    if (x.is_some() || y.is_some()) && !matches!(mode, Mode::Calibrate { .. }) {
-        return Err(bad);
-    }
-    Ok((mode, x, y))
-}
-
 /// G37 [D1] [B<tol>] / G37 L<len> R<radius> [X Y].
 #[inline(never)]
-pub fn g37(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
-    let (mode, x, y) = mode_of(m, l)?;
+pub fn g37(m: &mut Machine, io: &mut impl Io, mode: Mode, x: Option<f32>, y: Option<f32>) -> Result<(), Error> {
     m.wait_idle(io)?;
     let mut setter = m.setter;
     if let Some(x) = x {
@@ -151,8 +126,8 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
             uwriteln!(io, "{}{}{}{}]", F!("[SETTER Z:"), Micros(crate::frame::z_user_from_internal_i32(s.beam_z_um)), F!(" W:"), Micros(s.beam_width_um)).ok();
         }
     }
-    crate::atc::run::store_table(m, io, &before);
-    crate::atc::run::apply_offset(m);
+    super::toolchange::store_table(m, io, &before);
+    super::toolchange::apply_offset(m);
     Ok(())
 }
 
@@ -165,7 +140,7 @@ fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(),
             t[i] = *v;
         }
     }
-    interp::move_to(m, io, t, 0.0, true)?;
+    m.move_mm(io, &t, 0.0, true)?;
     m.wait_motion_or_trip(io).map(|_| ())
 }
 
@@ -201,7 +176,7 @@ fn probe(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: Option<f
     target[axis] += round_i32(mm * m.settings.steps_per_mm[axis]);
     m.apply_watch(io, 0, watch);
     let r = m
-        .queue_line(io, target, feed.unwrap_or(super::SEEK_FAST_MM_PER_MIN), false)
+        .queue_line(io, target, feed.unwrap_or(crate::toolsetter::SEEK_FAST_MM_PER_MIN), false)
         .and_then(|_| m.wait_motion_or_trip(io));
     m.apply_watch(io, 0, false);
     let tripped = r?;

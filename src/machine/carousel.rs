@@ -15,15 +15,12 @@
 //! off, slow seek, and position 0 is the step where the switch closed on the
 //! slow approach. The carousel stays there (0°).
 
+use super::{Alarm, CmdResult, Io, Machine, State};
 use crate::fixed::Micros;
-use crate::gcode::interp::{self, Error};
-use crate::gcode::{Line, NonModal, Word};
-use crate::machine::{Alarm, CmdResult, Io, Machine, State};
+use crate::gcode::interp::Error;
 use crate::math::round_i32;
-use crate::{axis, N_AXES};
+use crate::axis;
 use ufmt::uwriteln;
-
-use super::Fault;
 
 /// Bit of the carousel in `Machine::homed`.
 pub const HOMED_BIT: u8 = 1 << axis::E;
@@ -37,68 +34,41 @@ const PULLOFF: f32 = 0.5;
 const SEEK_FEED: f32 = 300.0;
 /// Slow (locate) feed, pitches/min.
 const LOCATE_FEED: f32 = 30.0;
-/// Largest |X| accepted by G201/G202, pitches (20 revolutions).
-const MAX_X: f32 = 360.0;
+/// G202: the carousel is at `x` pitches (the step counter follows).
+pub fn set_position(m: &mut Machine, io: &mut impl Io, x: f32) -> CmdResult {
+    m.wait_idle(io)?;
+    let mut p = io.stepper().position;
+    p[axis::E] = round_i32(x * m.settings.steps_per_mm[axis::E]);
+    io.set_stepper_position(p);
+    m.planner.set_position(p);
+    m.interp.pos_mm[axis::E] = x;
+    Ok(())
+}
 
-/// Run G201–G205 (`nm` is one of the `Aux…` codes).
+/// G204: the carousel driver on or off.
+pub fn enable(m: &mut Machine, io: &mut impl Io, on: bool) -> CmdResult {
+    m.wait_idle(io)?;
+    io.carousel_driver(on);
+    if !on {
+        // A free carousel can be turned by hand: its position is lost.
+        m.homed &= !HOMED_BIT;
+    }
+    Ok(())
+}
+
+/// G205 `[S1] [E1]`: home the carousel; `back`: turn back to where it was;
+/// `only_if_unhomed`: nothing when it is homed.
 #[inline(never)]
-pub fn command(m: &mut Machine, io: &mut impl Io, l: &Line, nm: NonModal) -> Result<(), Error> {
-    if l.word(Word::P) != Some(0.0) {
-        return Err(Error::Atc(Fault::Motor));
+pub fn home_command(m: &mut Machine, io: &mut impl Io, back: bool, only_if_unhomed: bool) -> CmdResult {
+    if only_if_unhomed && m.homed & HOMED_BIT != 0 {
+        return Ok(());
     }
-    let bit = |w: Word| match l.word(w) {
-        None => Ok(None),
-        Some(v) if v == 0.0 || v == 1.0 => Ok(Some(v == 1.0)),
-        Some(_) => Err(Error::Atc(Fault::OnOff)),
-    };
-    let x = match l.word(Word::X) {
-        Some(x) if x.abs() <= MAX_X => Some(x),
-        Some(_) => return Err(Error::Atc(Fault::CarouselX)),
-        None => None,
-    };
-    match nm {
-        NonModal::AuxMove => {
-            let x = x.ok_or(Error::Atc(Fault::CarouselX))?;
-            turn_to(m, io, x)
-        }
-        NonModal::AuxSetPosition => {
-            let x = x.ok_or(Error::Atc(Fault::CarouselX))?;
-            m.wait_idle(io)?;
-            let mut p = io.stepper().position;
-            p[axis::E] = round_i32(x * m.settings.steps_per_mm[axis::E]);
-            io.set_stepper_position(p);
-            m.planner.set_position(p);
-            m.interp.pos_mm[axis::E] = x;
-            Ok(())
-        }
-        NonModal::AuxReport => {
-            report(m, io);
-            Ok(())
-        }
-        NonModal::AuxEnable => {
-            let on = bit(Word::S)?.ok_or(Error::Atc(Fault::OnOff))?;
-            m.wait_idle(io)?;
-            io.carousel_driver(on);
-            if !on {
-                // A free carousel can be turned by hand: its position is lost.
-                m.homed &= !HOMED_BIT;
-            }
-            Ok(())
-        }
-        _ => {
-            let back = bit(Word::S)?.unwrap_or(false);
-            let only_if_unhomed = bit(Word::E)?.unwrap_or(false);
-            if only_if_unhomed && m.homed & HOMED_BIT != 0 {
-                return Ok(());
-            }
-            let before = m.interp.pos_mm[axis::E];
-            home(m, io)?;
-            if back {
-                turn_to(m, io, before)?;
-            }
-            Ok(())
-        }
+    let before = m.interp.pos_mm[axis::E];
+    home(m, io)?;
+    if back {
+        turn_to(m, io, before)?;
     }
+    Ok(())
 }
 
 /// G203: `Motor0 Pos:<pitches> Endstop Hit:<0|1>`. The position is the
@@ -116,7 +86,7 @@ pub fn turn_to(m: &mut Machine, io: &mut impl Io, position: f32) -> CmdResult {
     let mut t = m.interp.pos_mm;
     t[axis::E] = position;
     let feed = m.settings.max_feed_mm_per_min[axis::E];
-    interp::move_to(m, io, t, feed, false)?;
+    m.move_mm(io, &t, feed, false)?;
     m.wait_motion_or_trip(io).map(|_| ())
 }
 
@@ -172,20 +142,9 @@ fn nudge(m: &mut Machine, io: &mut impl Io, pitches: f32, feed: f32) -> CmdResul
 }
 
 /// Turn forward by up to `pitches` until the ISR latches the switch; the
-/// carousel position is then 0 at the latched step.
+/// carousel position is then 0 at the latched step (the same seek as the
+/// linear axes', [`Machine::seek_switch`]).
 fn seek(m: &mut Machine, io: &mut impl Io, pitches: f32, feed: f32) -> Result<bool, Error> {
-    m.apply_watch(io, HOMED_BIT, false);
-    let mut target: [i32; N_AXES] = io.stepper().position;
-    target[axis::E] += round_i32(pitches * m.settings.steps_per_mm[axis::E]);
-    let r = m.queue_line(io, target, feed, false).and_then(|_| m.wait_motion_or_trip(io));
-    m.apply_watch(io, 0, false);
-    let tripped = r?;
-    if tripped {
-        let trip = io.stepper().trip_position;
-        let mut now = io.stepper().position;
-        now[axis::E] -= trip[axis::E];
-        io.set_stepper_position(now);
-    }
-    m.resync_after_stop(io);
-    Ok(tripped)
+    let steps = round_i32(pitches * m.settings.steps_per_mm[axis::E]);
+    m.seek_switch(io, axis::E, steps, feed)
 }

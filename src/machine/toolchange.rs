@@ -1,4 +1,4 @@
-//! The ATC's executor: performs the actions of [`super::change::Change`]
+//! The ATC's executor: performs the actions of [`crate::atc::change::Change`]
 //! through the planner, keeps the EEPROM records in step with where the
 //! tools are, loads them at boot, and serves M61 and G10 L1.
 //!
@@ -18,14 +18,13 @@
 //! - `M61 P<p> S1` / `S0`: pocket `p` holds its tool / is empty (the operator
 //!   loaded or took out a tool by hand).
 
-use super::change::{Action, Change, Event, Request};
-use super::tools::{
+use super::{carousel, Io, Machine, State};
+use crate::atc::change::{Action, Change, Event, Request};
+use crate::atc::tools::{
     pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR, EEPROM_TABLE_ADDR,
 };
-use super::{carousel, tool_length_offset_mm, Fault};
-use crate::gcode::interp::{self, Error};
-use crate::gcode::{Line, Word};
-use crate::machine::{Io, Machine, State};
+use crate::atc::{tool_length_offset_mm, Fault};
+use crate::gcode::interp::Error;
 use crate::math::round_i32;
 use ufmt::{uwrite, uwriteln};
 
@@ -49,7 +48,7 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
     let mut jb = [0u8; Journal::IMAGE_LEN];
     io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
     m.atc.interrupted = Journal::from_bytes(&jb);
-    crate::toolsetter::run::boot(m, io);
+    super::setter::boot(m, io);
     apply_offset(m);
     uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle()).ok();
     report_interrupted(m, io);
@@ -156,7 +155,7 @@ fn perform(m: &mut Machine, io: &mut impl Io, a: Action) -> Result<(), Error> {
                     t[i] = *v;
                 }
             }
-            interp::move_to(m, io, t, feed_mm_per_min.unwrap_or(0.0), feed_mm_per_min.is_none())?;
+            m.move_mm(io, &t, feed_mm_per_min.unwrap_or(0.0), feed_mm_per_min.is_none())?;
             m.wait_motion_or_trip(io)?;
         }
         Action::HomeCarousel => carousel::home(m, io)?,
@@ -190,41 +189,28 @@ pub fn store_table(m: &Machine, io: &mut impl Io, before: &ToolTable) {
     }
 }
 
-/// M61 Q<t> / M61 P<p> S<0|1>; see the module docs.
-#[inline(never)]
-pub fn m61(m: &mut Machine, io: &mut impl Io, l: &Line) -> Result<(), Error> {
-    let whole = |v: f32, lo: i32, hi: i32| {
-        let n = round_i32(v);
-        (n as f32 == v && (lo..=hi).contains(&n)).then_some(n as u8)
-    };
-    let bad = Error::Atc(Fault::M61Words);
-    match (l.word(Word::Q), l.word(Word::P), l.word(Word::S)) {
-        (Some(q), None, None) => {
-            let t = whole(q, 0, 12).ok_or(bad)?;
-            let s = m.atc.tools.confirmed(t, m.atc.interrupted);
-            store_state(m, io, s);
-            if m.atc.interrupted.take().is_some() {
-                clear_journal(io);
-            }
-            apply_offset(m);
-            uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), t).ok();
-            Ok(())
-        }
-        (None, Some(p), Some(s)) => {
-            let p = whole(p, 1, 12).ok_or(bad)?;
-            let full = whole(s, 0, 1).ok_or(bad)? == 1;
-            if full && p == m.atc.spindle() {
-                return Err(Error::Atc(Fault::PocketOfSpindleTool));
-            }
-            let mut st = m.atc.tools;
-            st.occupied = if full { st.occupied | pocket_bit(p) } else { st.occupied & !pocket_bit(p) };
-            if st != m.atc.tools {
-                store_state(m, io, st);
-            }
-            Ok(())
-        }
-        _ => Err(bad),
+/// M61 Q<t>: the spindle holds tool `t` (0 = empty); see the module docs.
+pub fn confirm_tool(m: &mut Machine, io: &mut impl Io, t: u8) {
+    let s = m.atc.tools.confirmed(t, m.atc.interrupted);
+    store_state(m, io, s);
+    if m.atc.interrupted.take().is_some() {
+        clear_journal(io);
     }
+    apply_offset(m);
+    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), t).ok();
+}
+
+/// M61 P<p> S<0|1>: pocket `p` holds its tool (`full`) or is empty.
+pub fn set_pocket(m: &mut Machine, io: &mut impl Io, p: u8, full: bool) -> Result<(), Error> {
+    if full && p == m.atc.spindle() {
+        return Err(Error::Atc(Fault::PocketOfSpindleTool));
+    }
+    let mut st = m.atc.tools;
+    st.occupied = if full { st.occupied | pocket_bit(p) } else { st.occupied & !pocket_bit(p) };
+    if st != m.atc.tools {
+        store_state(m, io, st);
+    }
+    Ok(())
 }
 
 /// G10 L1 P<t> [Z<length>] [R<radius>]: set a tool table entry by hand

@@ -1,0 +1,121 @@
+//! The reports a line can ask for (M114, M119, M503): the controller
+//! prints them, from the stepper's counters, the switches and the settings.
+
+use super::{Io, Machine};
+use crate::fixed::Micros;
+use crate::flash::FStr;
+use crate::frame;
+use crate::N_AXES;
+use ufmt::{uwrite, uwriteln};
+
+/// M114: work position (user frame) and the step counters.
+#[inline(never)]
+pub fn position(m: &Machine, io: &mut impl Io) {
+    let internal = io.stepper().position;
+    let w = m.interp.work_user(m.steps_to_mm(internal));
+    // Count: the step counters in the user's sense (Z counts up), so that
+    // Count = position × steps/mm as in Marlin.
+    let st = frame::steps_user_from_internal(internal);
+    uwriteln!(
+        io,
+        "X:{} Y:{} Z:{} E:{}{}{} Y:{} Z:{} E:{}",
+        Micros::from_mm(w[0]),
+        Micros::from_mm(w[1]),
+        Micros::from_mm(w[2]),
+        Micros::from_mm(w[3]),
+        F!(" Count X:"),
+        st[0],
+        st[1],
+        st[2],
+        st[3]
+    )
+    .ok();
+}
+
+/// M119: the switches.
+#[inline(never)]
+pub fn switches(_m: &Machine, io: &mut impl Io) {
+    let s = io.switches();
+    uwriteln!(io, "{}", F!("Reporting endstop status")).ok();
+    let lines = [
+        (F!("x_min: "), s.home & 1 != 0),
+        (F!("y_min: "), s.home & 2 != 0),
+        (F!("z_min: "), s.home & 4 != 0),
+        (F!("carousel: "), s.carousel_home),
+        (F!("tool_setter: "), s.tool_setter),
+    ];
+    for (name, on) in lines {
+        uwriteln!(io, "{}{}", name, if on { F!("TRIGGERED") } else { F!("open") }).ok();
+    }
+}
+
+/// M503: the settings as the codes that set them.
+#[inline(never)]
+pub fn settings(m: &Machine, io: &mut impl Io) {
+    let s = &m.settings;
+    let line = |io: &mut dyn DynOut, code: FStr, v: &[f32; N_AXES], scale: f32| {
+        io.out(code);
+        for (a, &n) in AXIS_NAMES.iter().enumerate() {
+            io.text(n);
+            io.num(v[a] * scale);
+        }
+        io.text("\n");
+    };
+    let mut d = Dyn(io);
+    d.out(F!("echo:Steps per unit:\n"));
+    line(&mut d, F!("M92"), &s.steps_per_mm, 1.0);
+    d.out(F!("echo:Max feedrates (units/s):\n"));
+    line(&mut d, F!("M203"), &s.max_feed_mm_per_min, 1.0 / 60.0);
+    d.out(F!("echo:Max acceleration (units/s2):\n"));
+    line(&mut d, F!("M201"), &s.accel_mm_per_s2, 1.0);
+    d.out(F!("echo:Work offsets:\n"));
+    for (i, o) in m.interp.wcs_mm.iter().enumerate() {
+        d.out(F!("G10 L2 P"));
+        d.int(i as i32 + 1);
+        for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
+            d.text(n);
+            d.num(frame::axis_user_from_internal(a, o[a]));
+        }
+        d.text("\n");
+    }
+    d.out(F!("echo:Travel (mm):"));
+    for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
+        d.text(n);
+        d.num(s.travel_mm[a]);
+    }
+    let on_off = |on: bool| if on { F!("on") } else { F!("off") };
+    d.out(F!(" soft limits "));
+    d.out(on_off(s.soft_limits));
+    d.out(F!(", hard limits "));
+    d.out(on_off(s.hard_limits));
+    d.text("\n");
+}
+
+/// ` X` … ` E`: short, so plain RAM strings.
+const AXIS_NAMES: [&str; N_AXES] = [" X", " Y", " Z", " E"];
+
+/// Small object-safe writer used by the settings report.
+trait DynOut {
+    fn out(&mut self, s: FStr);
+    fn text(&mut self, s: &str);
+    fn num(&mut self, v: f32);
+    fn int(&mut self, v: i32);
+}
+
+struct Dyn<'a, W: Io>(&'a mut W);
+
+impl<W: Io> DynOut for Dyn<'_, W> {
+    fn out(&mut self, s: FStr) {
+        s.write_to(self.0).ok();
+    }
+    fn text(&mut self, s: &str) {
+        self.0.write_str(s).ok();
+    }
+    fn num(&mut self, v: f32) {
+        uwrite!(self.0, "{}", Micros::from_mm(v)).ok();
+    }
+    fn int(&mut self, v: i32) {
+        uwrite!(self.0, "{}", v).ok();
+    }
+}
+
