@@ -56,8 +56,15 @@ const T_SEMI: u8 = 1 << 3;
 /// The RX ISR's assembly fast path skips [`RxText::classify`] for the usual
 /// bytes: while [`RxText::at_line_start`] is false, a byte from 0x20 to 0x7D
 /// other than `!`, `?`, `(`, `)`, `;` changes nothing
-/// (`the_fast_path_bytes_change_nothing` checks it for every state).
+/// (`the_fast_path_bytes_change_nothing` checks it for every state). It also
+/// does `classify`'s work for the two bytes every line has, writing the
+/// state byte itself (hence `repr(transparent)`): a line end (`\n`, `\r`)
+/// in any state gives [`RxText::LINE_START`], and at a line start (the
+/// state is then exactly `LINE_START`) one of those usual bytes other than
+/// a blank, `N` or `n` gives [`RxText::MID_LINE`]
+/// (`the_fast_path_line_ends_and_line_starts`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(transparent)]
 pub struct RxText {
     state: u8,
 }
@@ -69,6 +76,12 @@ impl Default for RxText {
 }
 
 impl RxText {
+    /// The state byte at the start of a line (the only state in which
+    /// [`RxText::at_line_start`] is true).
+    pub const LINE_START: u8 = T_START;
+    /// The state byte in the middle of a line, outside comments, not numbered.
+    pub const MID_LINE: u8 = 0;
+
     /// At the start of a line.
     pub const fn new() -> Self {
         RxText { state: T_START }
@@ -469,7 +482,9 @@ impl LineChecker {
     }
 }
 
-/// Strip leading and trailing spaces and tabs.
+/// Strip leading and trailing spaces and tabs. Inline: every line comes
+/// here, usually with nothing to strip (two compares).
+#[inline(always)]
 fn trim(mut s: &[u8]) -> &[u8] {
     while let [b' ' | b'\t', rest @ ..] = s {
         s = rest;
@@ -545,8 +560,19 @@ fn is_m110(cmd: &[u8]) -> bool {
     }
 }
 
-/// For an M110 command, its own `N<m>` parameter.
+/// For an M110 command, its own `N<m>` parameter. Inline, the first byte
+/// is tested before the call: every unnumbered line comes here.
+#[inline(always)]
 fn m110_param(cmd: &[u8]) -> Option<i32> {
+    if !matches!(cmd.first(), Some(b'M' | b'm')) {
+        return None;
+    }
+    m110_param_of(cmd)
+}
+
+/// [`m110_param`] past its first-byte test.
+#[inline(never)]
+fn m110_param_of(cmd: &[u8]) -> Option<i32> {
     if !is_m110(cmd) {
         return None;
     }
@@ -644,6 +670,30 @@ impl MCodeScanner {
             next
         };
         found
+    }
+}
+
+/// What the RX ISR's assembly fast path may do with the next byte (the
+/// `RX_SLOW` byte of `board::serial`, set by the slow path from
+/// [`rx_fast_mode`]): store the usual bytes itself, ...
+pub const RX_FAST: u8 = 0;
+/// ... hand every byte to the slow path (an M-code match in progress, or a
+/// gap marker pending), ...
+pub const RX_ALL_SLOW: u8 = 1;
+/// ... or, at the start of a line, also mark the line as begun for a first
+/// byte that cannot make it a numbered one (see [`RxText`]). In this mode
+/// and in [`RX_FAST`] it also takes line ends itself.
+pub const RX_LINE_START: u8 = 2;
+
+/// The fast-path mode after the slow path has handled a byte.
+#[inline(always)]
+pub fn rx_fast_mode(scan: &MCodeScanner, store: &RxStore, text: &RxText) -> u8 {
+    if !scan.is_idle() || store.gap_pending() {
+        RX_ALL_SLOW
+    } else if text.at_line_start() {
+        RX_LINE_START
+    } else {
+        RX_FAST
     }
 }
 
@@ -782,6 +832,148 @@ mod tests {
     /// path: 0x20..=0x7D except `!` `?` `(` `)` `;` `M` `m`.
     fn fast_path_byte(b: u8) -> bool {
         (0x20..0x7e).contains(&b) && !matches!(b, b'!' | b'?' | b'(' | b')' | b';' | b'M' | b'm')
+    }
+
+    /// Every `RxText` state reachable from a line start, over any bytes and
+    /// losses.
+    fn reachable_text_states() -> Vec<u8> {
+        let mut seen = vec![RxText::new().state];
+        let mut i = 0;
+        while i < seen.len() {
+            let t0 = RxText { state: seen[i] };
+            let mut next = vec![RxText::MID_LINE];
+            for b in 0..=255u8 {
+                let mut t = t0;
+                t.classify(b);
+                next.push(t.state);
+            }
+            for s in next {
+                if !seen.contains(&s) {
+                    seen.push(s);
+                }
+            }
+            i += 1;
+        }
+        seen
+    }
+
+    /// The RX ISR's assembly fast path (`__vector_25` in `board/serial.rs`),
+    /// step for step: stores `b` and updates `mode` and `text` when it
+    /// takes the byte (true), or leaves everything to the slow path (false).
+    fn asm_fast_path(mode: &mut u8, text: &mut RxText, prev: &mut u8, ring: &mut Vec<u8>, b: u8) -> bool {
+        if b >= 0x7e {
+            return false;
+        }
+        if b < 0x20 {
+            if !(b == b'\n' || b == b'\r') || *mode == RX_ALL_SLOW {
+                return false;
+            }
+            ring.push(b);
+            *prev = b;
+            text.state = RxText::LINE_START;
+            *mode = RX_LINE_START;
+            return true;
+        }
+        if matches!(b, b'!' | b'?' | b';' | b'(' | b')' | b'M' | b'm') {
+            return false;
+        }
+        match *mode {
+            RX_FAST => {}
+            RX_LINE_START if b | 0x20 == b'n' => return false,
+            RX_LINE_START if b == b' ' => {}
+            RX_LINE_START => {
+                text.state = RxText::MID_LINE;
+                *mode = RX_FAST;
+            }
+            _ => return false,
+        }
+        ring.push(b);
+        *prev = b;
+        true
+    }
+
+    /// The RX ISR's slow path (`usart0_rx_slow`) on an unbounded ring,
+    /// without losses; true when `b` was a realtime byte.
+    fn slow_path(scan: &mut MCodeScanner, store: &mut RxStore, text: &mut RxText, prev: &mut u8, ring: &mut Vec<u8>, b: u8) -> (bool, Urgent) {
+        let mut urgent = Urgent::Nothing;
+        let realtime = text.classify(b);
+        if !realtime {
+            urgent = scan.feed(*prev, b);
+            *prev = b;
+            store.store(b, |x| {
+                ring.push(x);
+                true
+            });
+        }
+        (realtime, urgent)
+    }
+
+    #[test]
+    fn the_fast_path_line_ends_and_line_starts() {
+        let states = reachable_text_states();
+        assert!(states.len() >= 4, "{states:?}");
+        for &state in &states {
+            let t0 = RxText { state };
+            if t0.at_line_start() {
+                assert_eq!(state, RxText::LINE_START);
+            }
+            for b in [b'\n', b'\r'] {
+                let mut t = t0;
+                assert!(!t.classify(b));
+                assert_eq!(t.state, RxText::LINE_START, "state {state:#x}");
+            }
+        }
+        assert!(MCodeScanner::new().ignores(b'\n') && MCodeScanner::new().ignores(b'\r'));
+        let mut n = 0;
+        for b in 0..=255u8 {
+            if fast_path_byte(b) && !matches!(b, b' ' | b'N' | b'n') {
+                let mut t = RxText::new();
+                assert!(!t.classify(b));
+                assert_eq!(t.state, RxText::MID_LINE, "byte {b:#x}");
+                n += 1;
+            }
+        }
+        assert_eq!(n, 0x7e - 0x20 - 7 - 3);
+        let mut t = RxText::new();
+        assert!(!t.classify(b' '));
+        assert_eq!(t.state, RxText::LINE_START);
+    }
+
+    /// The slow path alone and the fast path with the slow path behind it
+    /// store the same bytes and end in the same states, byte for byte, over
+    /// random streams of G-code-ish bytes (line ends, `N`, `M112`, comments,
+    /// realtime bytes, Ctrl-X).
+    #[test]
+    fn the_fast_path_twin_matches_the_slow_path() {
+        const ALPHABET: &[u8] = b"G1 X2.5Y-3\n\r\n\nNnMm1128(;)?!~\x18\tZ*0 \n";
+        let mut seed = 0x2545_F491_u32;
+        let mut fast_bytes = 0;
+        for _ in 0..400 {
+            let (mut scan_a, mut store_a, mut text_a, mut prev_a, mut ring_a) =
+                (MCodeScanner::new(), RxStore::new(), RxText::new(), 0u8, Vec::new());
+            let (mut scan_b, mut store_b, mut text_b, mut prev_b, mut ring_b) =
+                (MCodeScanner::new(), RxStore::new(), RxText::new(), 0u8, Vec::new());
+            let mut mode = rx_fast_mode(&scan_b, &store_b, &text_b);
+            for _ in 0..200 {
+                seed ^= seed << 13;
+                seed ^= seed >> 17;
+                seed ^= seed << 5;
+                let b = ALPHABET[seed as usize % ALPHABET.len()];
+                let (rt_a, urgent_a) = slow_path(&mut scan_a, &mut store_a, &mut text_a, &mut prev_a, &mut ring_a, b);
+                if asm_fast_path(&mut mode, &mut text_b, &mut prev_b, &mut ring_b, b) {
+                    fast_bytes += 1;
+                    assert!(!rt_a && urgent_a == Urgent::Nothing, "byte {b:#x}");
+                } else {
+                    let (rt_b, urgent_b) = slow_path(&mut scan_b, &mut store_b, &mut text_b, &mut prev_b, &mut ring_b, b);
+                    assert_eq!((rt_a, urgent_a), (rt_b, urgent_b));
+                    mode = rx_fast_mode(&scan_b, &store_b, &text_b);
+                }
+                assert_eq!((text_a, scan_a, prev_a), (text_b, scan_b, prev_b));
+                assert_eq!(mode, rx_fast_mode(&scan_a, &store_a, &text_a));
+            }
+            assert_eq!(ring_a, ring_b);
+        }
+        assert!(fast_bytes > 20_000, "{fast_bytes}");
     }
 
     #[test]

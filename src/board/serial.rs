@@ -26,13 +26,14 @@ use super::{raise_in_isr, realtime};
 use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicU8, Ordering};
-use heapless::spsc::{Consumer, Producer, Queue};
-use mill::protocol::{MCodeScanner, RxStore, RxText, Urgent, SOFT_RESET};
+use mill::protocol::{
+    rx_fast_mode, MCodeScanner, RxStore, RxText, Urgent, RX_ALL_SLOW, RX_FAST, RX_LINE_START, SOFT_RESET,
+};
 
 /// RX ring slots; one stays free, so 255 bytes are usable. A
 /// character-counting host may keep this many bytes in flight. RAM: 256 + 2 B.
 pub const RX_LEN: usize = 256;
-/// TX ring capacity + 1.
+/// TX ring slots (capacity + 1). RAM: 128 + 3 B.
 pub const TX_LEN: usize = 128;
 
 /// The RX ring. Indexed by a `u8`, so 256 slots wrap for free; the ISR
@@ -71,11 +72,25 @@ fn rx_store(b: u8) -> bool {
     true
 }
 
-static mut TX: Queue<u8, TX_LEN> = Queue::new();
-// Ends of the TX ring: the producer is the main loop's, the consumer the
-// UDRE ISR's.
-static mut TX_PROD: Option<Producer<'static, u8, TX_LEN>> = None;
-static mut TX_CONS: Option<Consumer<'static, u8, TX_LEN>> = None;
+/// The TX ring, like the RX one but indexed modulo [`TX_LEN`]: the main
+/// loop writes slot `TX_HEAD` and then advances it, the UDRE ISR sends slot
+/// `TX_TAIL` and then advances that; one slot stays free (127 bytes usable,
+/// as with the `heapless` queue it replaces, whose atomics took a critical
+/// section per index access: ~66 cycles a byte queued and ~90 a byte sent,
+/// now about a third of that).
+static mut TX_BUF: [u8; TX_LEN] = [0; TX_LEN];
+/// Next TX slot to write (main loop only).
+static TX_HEAD: AtomicU8 = AtomicU8::new(0);
+/// Next TX slot to send (UDRE ISR only).
+static TX_TAIL: AtomicU8 = AtomicU8::new(0);
+/// Non-zero once [`init`] ran: bytes written before are dropped.
+static TX_READY: AtomicU8 = AtomicU8::new(0);
+const _: () = assert!(TX_LEN.is_power_of_two() && TX_LEN <= 128);
+/// `i + 1` modulo [`TX_LEN`].
+#[inline(always)]
+fn tx_next(i: u8) -> u8 {
+    i.wrapping_add(1) & (TX_LEN as u8 - 1)
+}
 /// The RX ISR's watch for M112 and M108 (one byte).
 static mut MCODE_SCAN: MCodeScanner = MCodeScanner::new();
 /// The last byte fed to `MCODE_SCAN` (written by both RX paths).
@@ -85,11 +100,11 @@ static mut RX_STORE: RxStore = RxStore::new();
 /// The RX ISR's view of the line (comment, numbered line), which decides
 /// whether `?` `!` `~` are realtime commands or text (one byte).
 static mut RX_TEXT: RxText = RxText::new();
-/// Non-zero while the next byte must take the slow path: a match in
-/// progress in `MCODE_SCAN`, a gap marker pending in `RX_STORE`, or the
-/// start of a line in `RX_TEXT` (written by the slow path, read by the fast
-/// one).
-static mut RX_SLOW: u8 = 1; // `RX_TEXT` starts at a line start
+/// What the fast path may do with the next byte (`protocol::rx_fast_mode`):
+/// `RX_ALL_SLOW` while a match is in progress in `MCODE_SCAN` or a gap
+/// marker is pending in `RX_STORE`, else `RX_LINE_START` at the start of a
+/// line in `RX_TEXT`, else `RX_FAST` (written by both paths).
+static mut RX_SLOW: u8 = RX_LINE_START; // `RX_TEXT` starts at a line start
 /// The byte the fast path hands to the slow path.
 static mut RX_IN: u8 = 0;
 /// Non-zero when bytes were lost before `RX_IN` (UCSR0A, with DOR0 set).
@@ -106,13 +121,8 @@ pub enum Baud {
 
 /// Set up USART0 (8N1, U2X) and the rings. Call once, interrupts off.
 pub fn init(usart: &USART0, baud: Baud) {
-    // SAFETY: called once at boot with interrupts disabled; nothing else
-    // holds references into the queues yet.
-    unsafe {
-        let (p, c) = (*addr_of_mut!(TX)).split();
-        *addr_of_mut!(TX_PROD) = Some(p);
-        *addr_of_mut!(TX_CONS) = Some(c);
-    }
+    // SAFETY: a `u8` store; the TX ring is empty at boot.
+    unsafe { TX_READY.as_ptr().write_volatile(1) };
     // U2X: baud = 16 MHz / (8 (UBRR + 1)). 7 -> 250000 exactly; 16 -> 117647 (+2.1 %).
     let ubrr = match baud {
         Baud::B250000 => 7,
@@ -154,16 +164,28 @@ pub fn rx_len() -> usize {
 
 /// Queue bytes for sending; waits (running the wait hook) while the ring is full.
 pub fn write(bytes: &[u8]) {
-    for &b in bytes {
-        loop {
-            // SAFETY: the TX producer is only used from the main loop.
-            let ok = unsafe { (*addr_of_mut!(TX_PROD)).as_mut().map_or(true, |p| p.enqueue(b).is_ok()) };
-            if ok {
-                break;
+    let (head, tail) = (TX_HEAD.as_ptr(), TX_TAIL.as_ptr());
+    // SAFETY: `u8` volatile accesses (single instructions, kept in program
+    // order). The main loop is the only writer of TX_HEAD and of the slot
+    // it points at, which is outside the range `TX_TAIL..TX_HEAD` the ISR
+    // sends from until the head store below publishes it; TX_TAIL is only
+    // read here.
+    unsafe {
+        if TX_READY.as_ptr().read_volatile() == 0 {
+            return;
+        }
+        for &b in bytes {
+            loop {
+                let h = head.read_volatile();
+                let next = tx_next(h);
+                if next != tail.read_volatile() {
+                    addr_of_mut!(TX_BUF).cast::<u8>().add(h as usize).write_volatile(b);
+                    head.write_volatile(next);
+                    break;
+                }
+                kick_tx();
+                (*addr_of_mut!(TX_WAIT_HOOK))();
             }
-            kick_tx();
-            // SAFETY: the hook is a plain fn set by the main loop.
-            unsafe { (*addr_of_mut!(TX_WAIT_HOOK))() };
         }
     }
     kick_tx();
@@ -171,8 +193,8 @@ pub fn write(bytes: &[u8]) {
 
 /// True when every queued byte has left the TX ring.
 pub fn tx_empty() -> bool {
-    // SAFETY: main loop only.
-    unsafe { (*addr_of_mut!(TX_PROD)).as_ref().map_or(true, |p| p.len() == 0) }
+    // SAFETY: `u8` volatile loads.
+    unsafe { TX_HEAD.as_ptr().read_volatile() == TX_TAIL.as_ptr().read_volatile() }
 }
 
 /// Enable the data-register-empty interrupt so the ISR drains the ring.
@@ -210,60 +232,36 @@ const DOR0: u8 = 3;
 // `protocol::tests::the_fast_path_bytes_change_nothing`, and
 // `RxStore::store` with no gap pending is a plain enqueue), written out
 // with 4 registers saved instead of the 9 the Rust handler saves (a Rust
-// ISR saves every register any of its paths uses). Any other byte, and a
+// ISR saves every register any of its paths uses). The two bytes of every
+// line that change `RX_TEXT` are also taken here when nothing else is
+// pending (`RX_SLOW` is `RX_FAST` or `RX_LINE_START`): a line end (`\n`,
+// `\r`) is stored and sets `RX_TEXT` to a line start, and at a line start
+// the first byte (one of the usual bytes, not a blank, `N` or `n`) is
+// stored and sets it to mid-line, as `classify` would
+// (`protocol::tests::the_fast_path_line_ends_and_line_starts`; the twin
+// `the_fast_path_twin_matches_the_slow_path` runs this code's steps, in
+// Rust, against the slow path over random streams). Any other byte, and a
 // full ring, goes to `usart0_rx_slow`: the registers and SREG are
 // restored, the byte and the loss are left in `RX_IN` / `RX_IN_LOST`, and
 // a jump enters the slow path as if the hardware had, so that its `reti`
 // ends the interrupt.
 //
 // Budget: 72 cycles per ordinary byte, entry to `reti` (64 before the
-// comment/numbered-line tracking of `RxText`; 164 in Rust alone). Per
+// comment/numbered-line tracking of `RxText`; 164 in Rust alone), 60 for a
+// digit, `.` or `-` (tested first: most of a G-code line), ~80 for a line
+// end or a line's first byte (~200 through the slow path). Per
 // streamed G1 line (`cargo run -p sim --release --bin profile -- --trace
-// 500:300`, `__vector_25` inclusive): 1550 cycles, of which 331 in
-// `usart0_rx_slow` for the line's two slow bytes (its `\n`, which starts
-// a line, and the first character, which may make it a numbered one);
-// 1144 before `RxText`. A byte for the slow path costs ~38 cycles here
-// plus ~165 in `usart0_rx_slow`.
+// 500:300`, `__vector_25` inclusive): see the README's "Benchmark". A byte
+// for the slow path costs ~38 cycles here plus ~165 in `usart0_rx_slow`.
 //
 // SAFETY: the fast path writes only what the RX interrupt owns (the ring
-// slot at RX_HEAD, then RX_HEAD, and RX_PREV / RX_IN / RX_IN_LOST), keeps
-// interrupts off, and leaves every register and SREG as it found them.
+// slot at RX_HEAD, then RX_HEAD, and RX_PREV / RX_TEXT / RX_SLOW / RX_IN /
+// RX_IN_LOST), keeps interrupts off, and leaves every register and SREG as
+// it found them. `RxText` is `repr(transparent)` over its state byte.
 core::arch::global_asm!(
-    ".pushsection .text.__vector_25,\"ax\",@progbits",
-    ".global __vector_25",
-    ".type __vector_25, @function",
-    "__vector_25:",
-    "    push r24",
-    "    in   r24, 0x3f",          // SREG
-    "    push r24",
-    "    push r25",
-    "    lds  r25, {ucsr0a}",
-    "    lds  r24, {udr0}",
-    "    sbrc r25, {dor0}",        // bytes lost before this one
-    "    rjmp .Lrx_lost",
-    "    lds  r25, {slow}",
-    "    tst  r25",
-    "    brne .Lrx_slow",
-    "    cpi  r24, 0x7e",          // '~', DEL, non-ASCII (0xFF is stored as 0xFE)
-    "    brsh .Lrx_slow",
-    "    cpi  r24, 0x21",          // '!'
-    "    breq .Lrx_slow",
-    "    cpi  r24, 0x3f",          // '?'
-    "    breq .Lrx_slow",
-    "    cpi  r24, 0x3b",          // ';' starts a comment
-    "    breq .Lrx_slow",
-    "    cpi  r24, 0x20",          // control bytes: line ends, tab, Ctrl-X
-    "    brlo .Lrx_slow",
-    "    mov  r25, r24",
-    "    andi r25, 0xfe",
-    "    cpi  r25, 0x28",          // '(' or ')'
-    "    breq .Lrx_slow",
-    "    mov  r25, r24",
-    "    ori  r25, 0x20",
-    "    cpi  r25, 0x6d",          // 'M' or 'm'
-    "    breq .Lrx_slow",
-    "    push r30",
-    "    push r31",
+    // Store r24 in the ring and RX_PREV (r25, r30, r31 free; r30 and r31
+    // pushed); a full ring jumps to .Lrx_full.
+    ".macro rx_put",
     "    lds  r30, {head}",
     "    mov  r25, r30",
     "    inc  r25",
@@ -276,8 +274,52 @@ core::arch::global_asm!(
     "    st   Z, r24",             // the slot, then the head that publishes it
     "    sts  {head}, r25",
     "    sts  {prev}, r24",
+    ".endm",
+    ".pushsection .text.__vector_25,\"ax\",@progbits",
+    ".global __vector_25",
+    ".type __vector_25, @function",
+    "__vector_25:",
+    "    push r24",
+    "    in   r24, 0x3f",          // SREG
+    "    push r24",
+    "    push r25",
+    "    lds  r25, {ucsr0a}",
+    "    lds  r24, {udr0}",
+    "    sbrc r25, {dor0}",        // bytes lost before this one
+    "    rjmp .Lrx_lost",
+    "    mov  r25, r24",           // '*' to ':' (digits, '.', '-'): usual,
+    "    subi r25, 0x2a",          // most of a G-code line, one test
+    "    cpi  r25, 0x11",
+    "    brlo .Lrx_usual",
+    "    cpi  r24, 0x7e",          // '~', DEL, non-ASCII (0xFF is stored as 0xFE)
+    "    brsh .Lrx_slow",
+    "    cpi  r24, 0x20",          // control bytes: line ends, tab, Ctrl-X
+    "    brlo .Lrx_ctl",
+    "    cpi  r24, 0x21",          // '!'
+    "    breq .Lrx_slow",
+    "    cpi  r24, 0x3f",          // '?'
+    "    breq .Lrx_slow",
+    "    cpi  r24, 0x3b",          // ';' starts a comment
+    "    breq .Lrx_slow",
+    "    mov  r25, r24",
+    "    andi r25, 0xfe",
+    "    cpi  r25, 0x28",          // '(' or ')'
+    "    breq .Lrx_slow",
+    "    mov  r25, r24",
+    "    ori  r25, 0x20",
+    "    cpi  r25, 0x6d",          // 'M' or 'm'
+    "    breq .Lrx_slow",
+    ".Lrx_usual:",
+    "    lds  r25, {slow}",
+    "    tst  r25",                // RX_FAST
+    "    brne .Lrx_start",
+    ".Lrx_plain:",
+    "    push r30",
+    "    push r31",
+    "    rx_put",
     "    pop  r31",
     "    pop  r30",
+    ".Lrx_done:",
     "    pop  r25",
     "    pop  r24",
     "    out  0x3f, r24",
@@ -296,8 +338,54 @@ core::arch::global_asm!(
     "    out  0x3f, r24",
     "    pop  r24",
     "    jmp  {slow_path}",
+    // A control byte: a line end is taken here unless all goes slow. (The
+    // blocks sit here, after the usual byte's path, within the branches'
+    // reach of ±64 words.)
+    ".Lrx_ctl:",
+    "    cpi  r24, 0x0a",          // '\n'
+    "    breq .Lrx_eol",
+    "    cpi  r24, 0x0d",          // '\r'
+    "    brne .Lrx_slow",
+    ".Lrx_eol:",
+    "    lds  r25, {slow}",
+    "    cpi  r25, {all_slow}",
+    "    brne .Lrx_mark",
+    "    rjmp .Lrx_slow",
+    // A usual byte while RX_SLOW is not RX_FAST.
+    ".Lrx_start:",
+    "    cpi  r25, {line_start}",
+    "    brne .Lrx_slow",          // RX_ALL_SLOW
+    "    cpi  r24, 0x20",          // a blank keeps the line start
+    "    breq .Lrx_plain",
+    "    mov  r25, r24",
+    "    ori  r25, 0x20",
+    "    cpi  r25, 0x6e",          // 'N' or 'n' may number the line
+    "    breq .Lrx_slow",
+    // Store, then a line end starts a line and another byte begins one.
+    ".Lrx_mark:",
+    "    push r30",
+    "    push r31",
+    "    rx_put",
+    "    cpi  r24, 0x20",
+    "    brlo .Lrx_marked_end",
+    "    ldi  r25, {mid_line}",
+    "    sts  {text}, r25",
+    "    ldi  r25, {fast}",
+    "    sts  {slow}, r25",
+    "    pop  r31",
+    "    pop  r30",
+    "    rjmp .Lrx_done",
+    ".Lrx_marked_end:",
+    "    ldi  r25, {start_state}",
+    "    sts  {text}, r25",
+    "    ldi  r25, {line_start}",
+    "    sts  {slow}, r25",
+    "    pop  r31",
+    "    pop  r30",
+    "    rjmp .Lrx_done",
     ".size __vector_25, . - __vector_25",
     ".popsection",
+    ".purgem rx_put",
     ucsr0a = const UCSR0A,
     udr0 = const UDR0,
     dor0 = const DOR0,
@@ -306,9 +394,15 @@ core::arch::global_asm!(
     tail = sym RX_TAIL,
     buf = sym RX_BUF,
     prev = sym RX_PREV,
+    text = sym RX_TEXT,
     lost = sym RX_IN_LOST,
     byte = sym RX_IN,
     slow_path = sym usart0_rx_slow,
+    fast = const RX_FAST,
+    all_slow = const RX_ALL_SLOW,
+    line_start = const RX_LINE_START,
+    start_state = const RxText::LINE_START,
+    mid_line = const RxText::MID_LINE,
 );
 
 /// RX complete, slow path: realtime bytes, the M-code scanner, losses and
@@ -360,25 +454,28 @@ extern "avr-interrupt" fn usart0_rx_slow() {
         unsafe { addr_of_mut!(RX_PREV).write_volatile(b) };
         store.store(b, rx_store);
     }
-    let slow = !scan.is_idle() || store.gap_pending() || text.at_line_start();
+    let mode = rx_fast_mode(scan, store, text);
     // SAFETY: as above; volatile since only the assembly reads it.
-    unsafe { addr_of_mut!(RX_SLOW).write_volatile(slow as u8) };
+    unsafe { addr_of_mut!(RX_SLOW).write_volatile(mode) };
 }
 
 // TX data register empty: send the next byte or switch the interrupt off.
 #[avr_device::interrupt(atmega2560)]
 fn USART0_UDRE() {
-    // SAFETY: the TX consumer is only used by this ISR; UCSR0B is modified
+    // SAFETY: this ISR is the only writer of TX_TAIL; the slot at TX_TAIL
+    // was published by the main loop's head store (it is before TX_HEAD) and
+    // is not written again until TX_TAIL moves past it. UCSR0B is modified
     // here with interrupts already disabled (ISRs do not nest).
     unsafe {
         let u = &*USART0::ptr();
-        match (*addr_of_mut!(TX_CONS)).as_mut().and_then(|c| c.dequeue()) {
-            Some(b) => {
-                u.udr0().write(|w| w.bits(b));
-            }
-            None => {
-                u.ucsr0b().modify(|_, w| w.udrie0().clear_bit());
-            }
+        let (head, tail) = (TX_HEAD.as_ptr(), TX_TAIL.as_ptr());
+        let t = tail.read_volatile();
+        if t == head.read_volatile() {
+            u.ucsr0b().modify(|_, w| w.udrie0().clear_bit());
+        } else {
+            let b = addr_of_mut!(TX_BUF).cast::<u8>().add(t as usize).read_volatile();
+            u.udr0().write(|w| w.bits(b));
+            tail.write_volatile(tx_next(t));
         }
     }
 }

@@ -79,22 +79,21 @@ impl Line {
     /// Put `um` micrometres as `-12.345` right-aligned, ending before `end`.
     pub fn micros_right(&mut self, end: usize, um: i32) {
         let neg = um < 0;
-        let a = um.unsigned_abs();
+        let mut a = um.unsigned_abs();
         let mut buf = [b' '; 14];
         let mut i = buf.len();
-        let mut frac = a % 1000;
-        for _ in 0..3 {
+        // Three decimals, the point, then at least one digit.
+        for k in 0.. {
+            let (q, r) = crate::math::div10(a);
             i -= 1;
-            buf[i] = b'0' + (frac % 10) as u8;
-            frac /= 10;
-        }
-        i -= 1;
-        buf[i] = b'.';
-        let mut d = [0u8; 10];
-        let n = digits(a / 1000, &mut d);
-        for k in (0..n).rev() {
-            i -= 1;
-            buf[i] = d[10 - n + k];
+            buf[i] = b'0' + r;
+            a = q;
+            if k == 2 {
+                i -= 1;
+                buf[i] = b'.';
+            } else if k > 2 && a == 0 {
+                break;
+            }
         }
         if neg {
             i -= 1;
@@ -134,13 +133,15 @@ impl Line {
     }
 }
 
-/// Decimal digits of `v` at the end of `d`; returns how many.
+/// Decimal digits of `v` at the end of `d`; returns how many. (No `u32`
+/// `%`/`/` by 10: on the AVR each digit was a ~600-cycle `__udivmodsi4`.)
 fn digits(mut v: u32, d: &mut [u8; 10]) -> usize {
     let mut n = 0;
     loop {
-        d[9 - n] = b'0' + (v % 10) as u8;
+        let (q, r) = crate::math::div10(v);
+        d[9 - n] = b'0' + r;
         n += 1;
-        v /= 10;
+        v = q;
         if v == 0 {
             return n;
         }
@@ -169,6 +170,28 @@ mod tests {
         let c = l.text(0, Text::Yes);
         l.uint(c + 1, 0);
         assert_eq!(&s(&l)[..5], "Yes 0");
+    }
+
+    #[test]
+    fn micrometres_and_integers_print_as_with_format() {
+        let mut vals = vec![0, 1, -1, 5, 999, 1000, -1000, 1001, 12345, -12345, 99_999, i32::MAX, i32::MIN, i32::MIN + 1];
+        let mut x = 0x2468_ACE1_u32;
+        for _ in 0..5000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            vals.push(x as i32 >> (x % 28));
+        }
+        for um in vals {
+            let mut l = Line::blank();
+            l.micros_right(COLS, um);
+            let a = um.unsigned_abs();
+            let want = format!("{}{}.{:03}", if um < 0 { "-" } else { "" }, a / 1000, a % 1000);
+            assert_eq!(s(&l).trim_start(), want);
+            let mut l = Line::blank();
+            l.uint_right(COLS, a);
+            assert_eq!(s(&l).trim_start(), format!("{a}"));
+        }
     }
 
     #[test]
