@@ -47,9 +47,10 @@
 //! the board's bookkeeping.
 
 use crate::machine::{Io, Realtime, StepperStatus, Switches};
-use crate::stepper::queue::{Chunk, Seg, StepMap};
+use crate::stepper::queue::{Seg, StepMap};
 pub use crate::stepper::rings::Watch;
-use crate::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_LEN, SEG_MASK, SEG_RING_LEN};
+use crate::stepper::rings::host::Statics;
+use crate::stepper::rings::Rings;
 use crate::stepper::StepperCmd;
 use crate::N_AXES;
 use core::cell::RefCell;
@@ -141,58 +142,6 @@ impl Beam {
         let tip = phys[2] as f64 + len * k;
         let side = (phys[1] as f64 - self.y_mm * k).abs() <= (d + self.width_mm) / 2.0 * k;
         x >= self.x_mm.0 && x <= self.x_mm.1 && tip >= self.z_mm * k && side
-    }
-}
-
-/// The board's statics (`board::stepper`'s `SEGS`, `SEG_HEAD`, `CHUNKS`
-/// and the ISR's state `ST`), as the rings' memory.
-struct Statics {
-    segs: [Seg; SEG_RING_LEN],
-    /// Next free segment slot (main writes it).
-    seg_head: u8,
-    chunks: [Chunk; CHUNK_RING_LEN],
-    /// Next segment slot the ISR reads.
-    seg_tail: u8,
-    /// Ring index of the running chunk.
-    cur: u8,
-    /// Events left in the running segment, and its `k_end`.
-    ticks_left: u16,
-    k_end: u16,
-    /// Step bits computed, not yet output.
-    pending: u8,
-}
-
-impl Statics {
-    fn cur(&self) -> &Chunk {
-        &self.chunks[self.cur as usize]
-    }
-}
-
-impl RingMem for Statics {
-    fn seg_tail(&self) -> u8 {
-        self.seg_tail
-    }
-    fn seg_head(&self) -> u8 {
-        self.seg_head
-    }
-    fn chunk_cur(&self) -> u8 {
-        self.cur
-    }
-    fn chunk(&self, i: u8) -> &Chunk {
-        &self.chunks[i as usize]
-    }
-    fn set_chunk(&mut self, i: u8, c: &Chunk) {
-        self.chunks[i as usize] = *c;
-    }
-    fn set_seg(&mut self, i: u8, s: &Seg) {
-        assert_ne!((i + 1) & SEG_MASK, self.seg_tail, "segment ring overrun");
-        self.segs[i as usize] = *s;
-    }
-    fn publish_seg_head(&mut self, head: u8) {
-        self.seg_head = head;
-    }
-    fn snapshot(&self) -> IsrSnapshot {
-        IsrSnapshot { cur: self.cur, k: self.k_end.wrapping_sub(self.ticks_left), pending: self.pending, chunk: *self.cur() }
     }
 }
 
@@ -313,16 +262,7 @@ impl FakeBoard {
             poll_limit: 2_000_000,
             next_isr: IDLE_PERIOD,
             period: IDLE_PERIOD,
-            st: Statics {
-                segs: [Seg { ticks: 0, period: 0, tccr: 0, new_chunk: 0, k_end: 0 }; SEG_RING_LEN],
-                seg_head: 0,
-                chunks: [Chunk::EMPTY; CHUNK_RING_LEN],
-                seg_tail: 0,
-                cur: 0,
-                ticks_left: 0,
-                k_end: 0,
-                pending: 0,
-            },
+            st: Statics::new(),
             rings: RefCell::new(Rings::new()),
             running: false,
             limit: 0,
@@ -506,8 +446,7 @@ impl FakeBoard {
 
     /// `board::stepper::busy`.
     fn busy(&self) -> bool {
-        let st = &self.st;
-        !self.stopped && (st.ticks_left != 0 || st.pending != 0 || st.seg_tail != st.seg_head)
+        !self.stopped && self.st.busy()
     }
 
     /// `board::stepper::space`.
@@ -540,14 +479,8 @@ impl FakeBoard {
         if self.st.ticks_left == 0 {
             self.load_segment();
         }
-        let mut next = 0;
-        if self.st.ticks_left != 0 {
-            self.st.ticks_left -= 1;
-            let cur = self.st.cur as usize;
-            next = self.st.chunks[cur].tick_out(&MAP.step);
-        }
-        self.st.pending = next;
-        if p != 0 || next != 0 {
+        self.st.next_event(&MAP);
+        if p != 0 || self.st.pending != 0 {
             // Between any two interrupts the main loop may ask for the position.
             assert_eq!(self.reconstructed_position(), self.pos, "board position reconstruction");
         }
@@ -627,28 +560,26 @@ impl FakeBoard {
         self.trip = self.pos;
     }
 
-    /// `load_segment`.
+    /// `load_segment`: the next segment's period and hard-limit axes, or
+    /// the idle timer (an underrun if steps were running).
     fn load_segment(&mut self) {
-        let st = &mut self.st;
-        if st.seg_tail == st.seg_head {
-            if self.running {
-                self.running = false;
-                self.underruns += 1;
-                self.limit = 0;
+        match self.st.load_segment() {
+            Some(s) => {
+                self.running = true;
+                self.period = seg_period(&s);
+                if s.new_chunk != 0 {
+                    self.limit = self.st.cur().limit;
+                }
             }
-            self.period = IDLE_PERIOD;
-            return;
+            None => {
+                if self.running {
+                    self.running = false;
+                    self.underruns += 1;
+                    self.limit = 0;
+                }
+                self.period = IDLE_PERIOD;
+            }
         }
-        let s = st.segs[st.seg_tail as usize];
-        self.running = true;
-        st.ticks_left = s.ticks;
-        st.k_end = s.k_end;
-        self.period = seg_period(&s);
-        if s.new_chunk != 0 {
-            st.cur = (st.cur + 1) & CHUNK_MASK;
-            self.limit = st.cur().limit;
-        }
-        st.seg_tail = (st.seg_tail + 1) & SEG_MASK;
     }
 }
 
@@ -711,14 +642,10 @@ impl Io for FakeBoard {
         // then the ISR's state, then the rings.
         let q = self.reconstructed_position();
         assert_eq!(q, self.pos, "board position reconstruction");
-        let st = &mut self.st;
-        st.ticks_left = 0;
-        st.k_end = 0;
-        st.pending = 0;
-        st.seg_tail = st.seg_head;
+        self.st.clear_isr();
         self.running = false;
-        let cur = st.cur;
-        self.rings.get_mut().clear(cur, q, st);
+        let cur = self.st.cur;
+        self.rings.get_mut().clear(cur, q, &mut self.st);
         self.stopped = false;
     }
 

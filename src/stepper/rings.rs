@@ -370,4 +370,6 @@ impl Default for Rings {
 }
 
 #[cfg(test)]
+pub mod host;
+#[cfg(test)]
 mod tests;

@@ -5,23 +5,17 @@
 //! the position it puts on the pins.
 
 use super::*;
+use super::host;
 use crate::stepper::queue::tccr1b;
 use crate::stepper::{Prescale, Segment, StBlock};
 use crate::test_util::XorShift;
 
 const MAP: StepMap = StepMap { step: [0x01, 0x40, 0x08, 0x10], dir: [(0, 0x02), (0, 0x80), (1, 0x02), (2, 0x40)] };
 
-/// The board's statics and its ISR, on the host.
+/// The board's statics and its ISR, on the host: the shared ring side
+/// ([`host::Statics`]) and the step pins.
 struct Board {
-    segs: [Seg; SEG_RING_LEN],
-    seg_head: u8,
-    chunks: [Chunk; CHUNK_RING_LEN],
-    // The ISR's state.
-    seg_tail: u8,
-    cur: u8,
-    ticks_left: u16,
-    k_end: u16,
-    pending: u8,
+    mem: host::Statics,
     running: bool,
     stopped: bool,
     /// Position output on the pins, take-up steps not counted.
@@ -32,23 +26,16 @@ struct Board {
     events: u64,
 }
 
+impl core::ops::Deref for Board {
+    type Target = host::Statics;
+    fn deref(&self) -> &host::Statics {
+        &self.mem
+    }
+}
+
 impl Board {
     fn new() -> Self {
-        Board {
-            segs: [Seg { ticks: 0, period: 0, tccr: 0, new_chunk: 0, k_end: 0 }; SEG_RING_LEN],
-            seg_head: 0,
-            chunks: [Chunk::EMPTY; CHUNK_RING_LEN],
-            seg_tail: 0,
-            cur: 0,
-            ticks_left: 0,
-            k_end: 0,
-            pending: 0,
-            running: false,
-            stopped: false,
-            out: [0; N_AXES],
-            motor: [0; N_AXES],
-            events: 0,
-        }
+        Board { mem: host::Statics::new(), running: false, stopped: false, out: [0; N_AXES], motor: [0; N_AXES], events: 0 }
     }
 
     /// One timer interrupt.
@@ -56,8 +43,8 @@ impl Board {
         if self.stopped {
             return;
         }
-        let c = self.chunks[self.cur as usize];
-        let step = out_to_axes(&MAP, self.pending);
+        let c = *self.mem.cur();
+        let step = out_to_axes(&MAP, self.mem.pending);
         for i in 0..N_AXES {
             if step & (1 << i) != 0 {
                 let d = if c.axis_dir & (1 << i) != 0 { -1 } else { 1 };
@@ -67,76 +54,20 @@ impl Board {
                 }
             }
         }
-        if self.ticks_left == 0 {
-            if self.seg_tail == self.seg_head {
-                self.running = false;
-            } else {
-                self.running = true;
-                let s = self.segs[self.seg_tail as usize];
-                self.ticks_left = s.ticks;
-                self.k_end = s.k_end;
-                if s.new_chunk != 0 {
-                    self.cur = (self.cur + 1) & CHUNK_MASK;
-                }
-                self.seg_tail = (self.seg_tail + 1) & SEG_MASK;
-            }
+        if self.mem.ticks_left == 0 {
+            self.running = self.mem.load_segment().is_some();
         }
-        let mut next = 0;
-        if self.ticks_left != 0 {
-            self.ticks_left -= 1;
-            next = self.chunks[self.cur as usize].tick_out(&MAP.step);
+        if self.mem.ticks_left != 0 {
             self.events += 1;
         }
-        self.pending = next;
+        self.mem.next_event(&MAP);
     }
 
     /// The ISR's reset after a stop (`board::stepper::clear_stop`).
     fn clear_isr(&mut self) {
-        self.ticks_left = 0;
-        self.k_end = 0;
-        self.pending = 0;
+        self.mem.clear_isr();
         self.running = false;
-        self.seg_tail = self.seg_head;
         self.stopped = false;
-    }
-
-    fn queued_segs(&self) -> u8 {
-        self.seg_head.wrapping_sub(self.seg_tail) & SEG_MASK
-    }
-}
-
-impl RingMem for Board {
-    fn seg_tail(&self) -> u8 {
-        self.seg_tail
-    }
-    fn seg_head(&self) -> u8 {
-        self.seg_head
-    }
-    fn chunk_cur(&self) -> u8 {
-        self.cur
-    }
-    fn chunk(&self, i: u8) -> &Chunk {
-        &self.chunks[i as usize]
-    }
-    fn set_chunk(&mut self, i: u8, c: &Chunk) {
-        assert!(i != self.cur || self.ticks_left == 0 && self.pending == 0, "writing the running chunk");
-        self.chunks[i as usize] = *c;
-    }
-    fn set_seg(&mut self, i: u8, s: &Seg) {
-        assert_eq!(i, self.seg_head);
-        assert!(self.queued_segs() < SEG_MASK, "segment ring overrun");
-        self.segs[i as usize] = *s;
-    }
-    fn publish_seg_head(&mut self, head: u8) {
-        self.seg_head = head;
-    }
-    fn snapshot(&self) -> IsrSnapshot {
-        IsrSnapshot {
-            cur: self.cur,
-            k: self.k_end.wrapping_sub(self.ticks_left),
-            pending: self.pending,
-            chunk: self.chunks[self.cur as usize],
-        }
     }
 }
 
@@ -175,13 +106,13 @@ fn moved(b: &StBlock) -> [i32; N_AXES] {
 fn stream(r: &mut Rings, bd: &mut Board, cmds: &[StepperCmd]) {
     let mut next = 0;
     while next < cmds.len() || bd.queued_segs() != 0 || bd.ticks_left != 0 || bd.pending != 0 {
-        if next < cmds.len() && r.space(bd) > 0 {
-            assert!(r.push(&cmds[next], &MAP, bd));
+        if next < cmds.len() && r.space(&bd.mem) > 0 {
+            assert!(r.push(&cmds[next], &MAP, &mut bd.mem));
             next += 1;
             continue;
         }
         bd.interrupt();
-        assert_eq!(r.position(&MAP, bd), bd.out, "event {}", bd.events);
+        assert_eq!(r.position(&MAP, &mut bd.mem), bd.out, "event {}", bd.events);
     }
 }
 
@@ -190,46 +121,46 @@ fn an_empty_ring_takes_a_block_and_fourteen_runs_then_refuses() {
     let mut r = Rings::new();
     let mut bd = Board::new();
     // 15 free segment slots → 7 commands that surely fit; 14 free chunk slots.
-    assert_eq!(r.space(&bd), 7);
-    assert!(r.push(&StepperCmd::Block(block([1000, 0, 0, 0], 0, false)), &MAP, &mut bd));
+    assert_eq!(r.space(&bd.mem), 7);
+    assert!(r.push(&StepperCmd::Block(block([1000, 0, 0, 0], 0, false)), &MAP, &mut bd.mem));
     let mut runs = 0;
-    while r.push(&run(10, 400), &MAP, &mut bd) {
+    while r.push(&run(10, 400), &MAP, &mut bd.mem) {
         runs += 1;
     }
     assert_eq!(runs, 14);
     assert_eq!(bd.queued_segs(), 14);
-    assert_eq!(r.space(&bd), 0);
+    assert_eq!(r.space(&bd.mem), 0);
     // The ISR takes two segments: room for one more command.
     for _ in 0..11 {
         bd.interrupt();
     }
     assert_eq!(bd.queued_segs(), 12);
-    assert_eq!(r.space(&bd), 1);
-    assert!(r.push(&run(10, 400), &MAP, &mut bd));
-    assert_eq!(r.position(&MAP, &bd), [10, 0, 0, 0]);
+    assert_eq!(r.space(&bd.mem), 1);
+    assert!(r.push(&run(10, 400), &MAP, &mut bd.mem));
+    assert_eq!(r.position(&MAP, &bd.mem), [10, 0, 0, 0]);
 }
 
 #[test]
 fn queued_motion_is_capped_at_40_ms_and_drains_with_the_isr() {
     let mut r = Rings::new();
     let mut bd = Board::new();
-    assert!(r.push(&StepperCmd::Block(block([400, 0, 0, 0], 0, false)), &MAP, &mut bd));
+    assert!(r.push(&StepperCmd::Block(block([400, 0, 0, 0], 0, false)), &MAP, &mut bd.mem));
     // 100 events of 2000 counts: 200 000 cycles each at clk/1; 1.6 M at clk/8.
-    assert!(r.push(&run(100, 2000), &MAP, &mut bd));
-    assert_eq!(r.queued_cycles(&bd), 200_000);
-    assert!(r.push(&StepperCmd::Run(Segment { ticks: 100, period: 2000, prescale: Prescale::Div8 }), &MAP, &mut bd));
-    assert_eq!(r.queued_cycles(&bd), 1_800_000);
-    assert!(r.queued_cycles(&bd) >= MAX_QUEUED_CYCLES);
-    assert_eq!(r.space(&bd), 0);
-    assert!(!r.push(&run(100, 2000), &MAP, &mut bd), "over the cap: refused");
+    assert!(r.push(&run(100, 2000), &MAP, &mut bd.mem));
+    assert_eq!(r.queued_cycles(&bd.mem), 200_000);
+    assert!(r.push(&StepperCmd::Run(Segment { ticks: 100, period: 2000, prescale: Prescale::Div8 }), &MAP, &mut bd.mem));
+    assert_eq!(r.queued_cycles(&bd.mem), 1_800_000);
+    assert!(r.queued_cycles(&bd.mem) >= MAX_QUEUED_CYCLES);
+    assert_eq!(r.space(&bd.mem), 0);
+    assert!(!r.push(&run(100, 2000), &MAP, &mut bd.mem), "over the cap: refused");
     // The ISR takes the first segment (no longer waiting), then the second.
     bd.interrupt();
-    assert_eq!(r.queued_cycles(&bd), 1_600_000);
+    assert_eq!(r.queued_cycles(&bd.mem), 1_600_000);
     for _ in 0..100 {
         bd.interrupt();
     }
-    assert_eq!(r.queued_cycles(&bd), 0);
-    assert_eq!(r.space(&bd), 7);
+    assert_eq!(r.queued_cycles(&bd.mem), 0);
+    assert_eq!(r.space(&bd.mem), 7);
 }
 
 #[test]
@@ -245,8 +176,8 @@ fn finished_chunks_are_retired_only_when_the_chunk_ring_runs_short() {
     let mut r = Rings::new();
     let mut bd = Board::new();
     let one = |r: &mut Rings, bd: &mut Board| {
-        r.push(&StepperCmd::Block(block([3, 1, 0, 0], 0, false)), &MAP, bd)
-            && r.push(&run(3, 400), &MAP, bd)
+        r.push(&StepperCmd::Block(block([3, 1, 0, 0], 0, false)), &MAP, &mut bd.mem)
+            && r.push(&run(3, 400), &MAP, &mut bd.mem)
     };
     for _ in 0..3 {
         assert!(one(&mut r, &mut bd));
@@ -255,10 +186,10 @@ fn finished_chunks_are_retired_only_when_the_chunk_ring_runs_short() {
     run_to(&mut bd, 7);
     assert_eq!(bd.cur, 3);
     // Plenty of room: asking for it retires nothing.
-    assert!(r.space(&bd) > 0);
+    assert!(r.space(&bd.mem) > 0);
     assert_eq!(r.retire, 0);
     // Asking for the position retires up to the ISR's chunk.
-    assert_eq!(r.position(&MAP, &bd), [6, 2, 0, 0], "6 events output, the 7th pending");
+    assert_eq!(r.position(&MAP, &bd.mem), [6, 2, 0, 0], "6 events output, the 7th pending");
     assert_eq!(bd.out, [6, 2, 0, 0]);
     assert_eq!(r.retire, 3);
     // 40 more blocks through the 16 slots, the position never asked for:
@@ -266,7 +197,7 @@ fn finished_chunks_are_retired_only_when_the_chunk_ring_runs_short() {
     for n in 0..40 {
         for c in [StepperCmd::Block(block([3, 1, 0, 0], 0, false)), run(3, 400)] {
             let mut spins = 0;
-            while !r.push(&c, &MAP, &mut bd) {
+            while !r.push(&c, &MAP, &mut bd.mem) {
                 bd.interrupt();
                 spins += 1;
                 assert!(spins < 100, "block {n}: no room ever");
@@ -274,7 +205,7 @@ fn finished_chunks_are_retired_only_when_the_chunk_ring_runs_short() {
         }
     }
     stream(&mut r, &mut bd, &[]);
-    assert_eq!(r.position(&MAP, &bd), [129, 43, 0, 0]);
+    assert_eq!(r.position(&MAP, &bd.mem), [129, 43, 0, 0]);
 }
 
 #[test]
@@ -304,7 +235,7 @@ fn the_position_follows_every_step_output_through_long_blocks_and_ring_wraps() {
         cmds.extend(commands(b, if big { 3000 } else { 150 }, &mut rng));
     }
     stream(&mut r, &mut bd, &cmds);
-    assert_eq!(r.position(&MAP, &bd), want);
+    assert_eq!(r.position(&MAP, &bd.mem), want);
     assert_eq!(bd.out, want);
     assert_ne!(bd.motor, want, "take-up blocks moved the motors only");
     assert!(bd.seg_head as usize + 16 < cmds.len(), "the rings wrapped");
@@ -319,7 +250,7 @@ fn a_take_up_block_moves_the_motors_but_not_the_position() {
     cmds.extend(commands(block([5, 0, 0, 0], 0b0001, true), 2, &mut rng));
     cmds.extend(commands(block([0, 10, 0, 0], 0b0010, false), 3, &mut rng));
     stream(&mut r, &mut bd, &cmds);
-    assert_eq!(r.position(&MAP, &bd), [30, 0, 0, 0]);
+    assert_eq!(r.position(&MAP, &bd.mem), [30, 0, 0, 0]);
     assert_eq!(bd.motor, [25, 0, 0, 0]);
     // The splitter's plan does not count take-up either.
     assert_eq!(r.split.plan_position(), [30, 0, 0, 0]);
@@ -331,13 +262,13 @@ fn set_position_moves_the_count_and_the_plan_by_the_same_offset() {
     let mut bd = Board::new();
     let mut rng = XorShift(11);
     stream(&mut r, &mut bd, &commands(block([100, 50, 25, 0], 0b0100, false), 20, &mut rng));
-    assert_eq!(r.position(&MAP, &bd), [100, 50, -25, 0]);
-    r.set_position([0, 0, 0, 7], false, &MAP, &bd);
+    assert_eq!(r.position(&MAP, &bd.mem), [100, 50, -25, 0]);
+    r.set_position([0, 0, 0, 7], false, &MAP, &bd.mem);
     bd.out = [0, 0, 0, 7];
-    assert_eq!(r.position(&MAP, &bd), [0, 0, 0, 7]);
+    assert_eq!(r.position(&MAP, &bd.mem), [0, 0, 0, 7]);
     assert_eq!(r.split.plan_position(), [0, 0, 0, 7]);
     stream(&mut r, &mut bd, &commands(block([10, 0, 0, 3], 0b0001, false), 4, &mut rng));
-    assert_eq!(r.position(&MAP, &bd), [-10, 0, 0, 10]);
+    assert_eq!(r.position(&MAP, &bd.mem), [-10, 0, 0, 10]);
     assert_eq!(r.split.plan_position(), [-10, 0, 0, 10]);
 }
 
@@ -357,32 +288,32 @@ fn a_trip_is_latched_where_it_stopped_and_forgotten_by_clear() {
     let mut r = Rings::new();
     let mut bd = Board::new();
     let mut rng = XorShift(13);
-    assert!(r.push(&StepperCmd::Block(block([0, 0, 1000, 0], 0b0100, false)), &MAP, &mut bd));
+    assert!(r.push(&StepperCmd::Block(block([0, 0, 1000, 0], 0b0100, false)), &MAP, &mut bd.mem));
     for _ in 0..4 {
-        assert!(r.push(&run(50, 400), &MAP, &mut bd));
+        assert!(r.push(&run(50, 400), &MAP, &mut bd.mem));
     }
     run_to(&mut bd, 137);
     // The switch trips: the ISR stops with one step computed, not output.
     bd.stopped = true;
     assert_ne!(bd.pending, 0);
     assert_eq!(bd.out, [0, 0, -136, 0]);
-    assert_eq!(r.trip_position(true, &MAP, &bd), [0, 0, -136, 0]);
+    assert_eq!(r.trip_position(true, &MAP, &bd.mem), [0, 0, -136, 0]);
     // Homing sets the position at the trip; the latched trip stays.
-    r.set_position([0, 0, 0, 0], true, &MAP, &bd);
-    assert_eq!(r.position(&MAP, &bd), [0, 0, 0, 0]);
-    assert_eq!(r.trip_position(true, &MAP, &bd), [0, 0, -136, 0]);
+    r.set_position([0, 0, 0, 0], true, &MAP, &bd.mem);
+    assert_eq!(r.position(&MAP, &bd.mem), [0, 0, 0, 0]);
+    assert_eq!(r.trip_position(true, &MAP, &bd.mem), [0, 0, -136, 0]);
     // Clear: the queue is dropped, the position stays; a new trip latches anew.
-    let q = r.position(&MAP, &bd);
+    let q = r.position(&MAP, &bd.mem);
     let cur = bd.cur;
     bd.clear_isr();
-    r.clear(cur, q, &mut bd);
-    assert_eq!(r.position(&MAP, &bd), [0, 0, 0, 0]);
+    r.clear(cur, q, &mut bd.mem);
+    assert_eq!(r.position(&MAP, &bd.mem), [0, 0, 0, 0]);
     for c in commands(block([0, 0, 40, 0], 0, false), 100, &mut rng) {
-        assert!(r.push(&c, &MAP, &mut bd));
+        assert!(r.push(&c, &MAP, &mut bd.mem));
     }
     run_to(&mut bd, 137 + 21);
     bd.stopped = true;
-    assert_eq!(r.trip_position(true, &MAP, &bd), [0, 0, 20, 0]);
+    assert_eq!(r.trip_position(true, &MAP, &bd.mem), [0, 0, 20, 0]);
 }
 
 #[test]
@@ -390,26 +321,26 @@ fn clear_drops_the_queue_keeps_what_was_output_and_the_stopped_chunk_adds_nothin
     let mut r = Rings::new();
     let mut bd = Board::new();
     let mut rng = XorShift(17);
-    assert!(r.push(&StepperCmd::Block(block([500, 300, 0, 0], 0, false)), &MAP, &mut bd));
+    assert!(r.push(&StepperCmd::Block(block([500, 300, 0, 0], 0, false)), &MAP, &mut bd.mem));
     for _ in 0..6 {
-        assert!(r.push(&run(20, 400), &MAP, &mut bd));
+        assert!(r.push(&run(20, 400), &MAP, &mut bd.mem));
     }
     run_to(&mut bd, 77);
     bd.stopped = true;
-    let q = r.position(&MAP, &bd);
+    let q = r.position(&MAP, &bd.mem);
     assert_eq!(q, bd.out);
     assert_eq!(q[0], 76);
     let cur = bd.cur;
     bd.clear_isr();
-    r.clear(cur, q, &mut bd);
-    assert_eq!(r.space(&bd), 7);
+    r.clear(cur, q, &mut bd.mem);
+    assert_eq!(r.space(&bd.mem), 7);
     // A new move from there; retiring the stopped chunk later adds nothing.
     let mut more = Vec::new();
     for _ in 0..20 {
         more.extend(commands(block([10, 0, 0, 0], 0b0001, false), 5, &mut rng));
     }
     stream(&mut r, &mut bd, &more);
-    assert_eq!(r.position(&MAP, &bd), [q[0] - 200, q[1], 0, 0]);
+    assert_eq!(r.position(&MAP, &bd.mem), [q[0] - 200, q[1], 0, 0]);
 }
 
 #[test]
@@ -427,7 +358,7 @@ fn the_watch_gives_the_splitter_its_limit_masks() {
     r.set_watch(w);
     assert_eq!(r.watch(), w);
     // X homed at 0: its chunk starting there is not armed; Y inverted: pin high when negative.
-    assert!(r.push(&StepperCmd::Block(block([3, 2, 0, 0], 0b0010, false)), &MAP, &mut bd));
+    assert!(r.push(&StepperCmd::Block(block([3, 2, 0, 0], 0b0010, false)), &MAP, &mut bd.mem));
     let c = bd.chunks[1];
     assert_eq!(c.limit, 0b110);
     assert_eq!(c.dir_out[0], 0x02 | 0x80);
