@@ -445,6 +445,19 @@ fn y_span(t: Tool) -> i64 {
     hi - lo + 1
 }
 
+/// Homed, with T1 in the spindle and the setter calibrated on it
+/// (`G37 L19.5 R1.5`); the calibration's reply.
+fn setter_calibrated_on_t1() -> (Rig, String) {
+    let mut io = FakeBoard::new();
+    io.beam = Some(BEAM);
+    let mut r = Rig::boot(io);
+    r.ok("G28");
+    r.ok("M61 Q1");
+    r.io.tool = Some(T1);
+    let cal = r.ok("G37 L19.5 R1.5");
+    (r, cal)
+}
+
 /// Calibrate on T1 (L19.5 R1.5), then measure T2: G37 gives its length
 /// and G37 D1 its diameter, exactly what the beam model implies (one
 /// step resolution: the trip steps of T1 and T2 differ by 184 steps; the Y
@@ -458,13 +471,7 @@ fn y_span(t: Tool) -> i64 {
 /// calibration, and the ISR stops on the trip step at either speed.)
 #[test]
 fn g37_measures_length_and_diameter_from_the_beam() {
-    let mut io = FakeBoard::new();
-    io.beam = Some(BEAM);
-    let mut r = Rig::boot(io);
-    r.ok("G28");
-    r.ok("M61 Q1");
-    r.io.tool = Some(T1);
-    let cal = r.ok("G37 L19.5 R1.5");
+    let (mut r, cal) = setter_calibrated_on_t1();
     assert!(cal.contains("[SETTER Z:-48.010 W:0.520]"), "{cal}");
 
     r.ok("M61 Q2");
@@ -491,13 +498,7 @@ fn g37_measures_length_and_diameter_from_the_beam() {
 /// `toolsetter::run::g37` (it seeks, with the beam "broken" all the way).
 #[test]
 fn g37_with_the_beam_blocked_is_refused_with_no_motion() {
-    let mut io = FakeBoard::new();
-    io.beam = Some(BEAM);
-    let mut r = Rig::boot(io);
-    r.ok("G28");
-    r.ok("M61 Q1");
-    r.io.tool = Some(T1);
-    r.ok("G37 L19.5 R1.5");
+    let (mut r, _) = setter_calibrated_on_t1();
     r.io.now(Event::Force(Input::ToolSetter, Some(true)));
     let n = r.io.step_count();
     assert!(r.refused("G37").contains("blocked at start"));
@@ -865,13 +866,7 @@ fn g205_homes_the_carousel_and_g201_turns_it() {
 /// `toolsetter::run::store` (T2 cuts with the offset M61 gave it: none).
 #[test]
 fn the_measured_length_becomes_the_tool_offset() {
-    let mut io = FakeBoard::new();
-    io.beam = Some(BEAM);
-    let mut r = Rig::boot(io);
-    r.ok("G28");
-    r.ok("M61 Q1");
-    r.io.tool = Some(T1);
-    r.ok("G37 L19.5 R1.5");
+    let (mut r, _) = setter_calibrated_on_t1();
     r.ok("G0 X30 Y20");
     r.ok("G1 Z-40 F300");
     assert_eq!(r.io.phys[2], 4000 - 1950, "T1's tip at 40 mm");
