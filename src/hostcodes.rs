@@ -92,7 +92,7 @@ fn is_host_code(c: u16) -> bool {
 /// with one compare instead of a call and a trim (~110 cycles a line).
 #[inline(always)]
 pub fn code(text: &[u8]) -> Option<(u16, &[u8])> {
-    if !may_be_m(text) {
+    if !matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t')) {
         return None;
     }
     code_of(text)
@@ -101,31 +101,14 @@ pub fn code(text: &[u8]) -> Option<(u16, &[u8])> {
 /// [`code`] past its first-byte test.
 #[inline(never)]
 fn code_of(text: &[u8]) -> Option<(u16, &[u8])> {
-    let (code, rest) = m_number(text, 3)?;
-    if rest.first() == Some(&b'.') {
-        return None;
-    }
-    is_host_code(code).then(|| (code, trim(rest)))
-}
-
-/// The first-byte test of [`code`] and [`sd_code`]: a line that starts with
-/// neither a blank nor an `M` holds none of their codes.
-#[inline(always)]
-fn may_be_m(text: &[u8]) -> bool {
-    matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t'))
-}
-
-/// `M<n>` at the start of `text` (after blanks, any case) with 1 to
-/// `max_digits` digits: `n` and the text right after the digits.
-fn m_number(text: &[u8], max_digits: usize) -> Option<(u16, &[u8])> {
     let t = trim(text);
     let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;
     let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
-    if digits == 0 || digits > max_digits {
+    if digits == 0 || digits > 3 || rest.get(digits) == Some(&b'.') {
         return None;
     }
     let code = rest.iter().take(digits).fold(0u16, |a, &b| a * 10 + (b - b'0') as u16);
-    Some((code, rest.get(digits..).unwrap_or(&[])))
+    is_host_code(code).then(|| (code, trim(rest.get(digits..).unwrap_or(&[]))))
 }
 
 /// Run one of this module's codes on the host state; `arg` is the rest of
@@ -172,7 +155,7 @@ pub fn run(host: &mut HostState, io: &mut impl ufmt::uWrite<Error = Infallible>,
 /// [`code`] (~110 cycles a streamed line).
 #[inline(always)]
 pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
-    if !may_be_m(text) {
+    if !matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t')) {
         return None;
     }
     sd_code_of(text)
@@ -181,10 +164,20 @@ pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
 /// [`sd_code`] past its first-byte test.
 #[inline(never)]
 fn sd_code_of(text: &[u8]) -> Option<(u16, &[u8])> {
-    let (code, mut arg) = m_number(text, 4)?;
+    let t = trim(text);
+    let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;
+    let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
+    if digits == 0 || digits > 4 {
+        return None;
+    }
+    let mut code = 0u16;
+    for &b in &rest[..digits] {
+        code = code * 10 + (b - b'0') as u16;
+    }
     if !(20..=29).contains(&code) && code != 524 {
         return None;
     }
+    let mut arg = &rest[digits..];
     if let Some(i) = arg.iter().position(|&b| b == b';') {
         arg = &arg[..i];
     }
