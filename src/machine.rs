@@ -208,6 +208,11 @@ crate::flash_messages! {
 /// Interpreter-level error shown to the host as `Error:<text>`.
 pub type CmdResult = Result<(), interp::Error>;
 
+/// How long a held home switch must read open before its hard limit is
+/// armed again (see `Machine::limits_held`), ms: longer than any contact
+/// bounce.
+pub const LIMIT_REARM_MS: u16 = 20;
+
 /// EEPROM address of the settings image.
 pub const EEPROM_SETTINGS_ADDR: u16 = 0;
 
@@ -229,6 +234,14 @@ pub struct Machine {
     pub homed: u8,
     /// M999 / `$X` since the last power-on or alarm: motion allowed unhomed.
     pub unlocked: bool,
+    /// Home switches found closed when an alarm was cleared (bit i = axis
+    /// i): their hard limit waits until the switch has read open for
+    /// [`LIMIT_REARM_MS`], so the axis can be jogged off it (grbl's limits
+    /// are edge-triggered to the same effect).
+    limits_held: u8,
+    /// Low 16 bits of the milliseconds when every held switch last read
+    /// closed.
+    held_since_ms: u16,
     /// Feed-hold requested and not yet resumed.
     holding: bool,
     /// Milliseconds of the last `busy:processing` (or of the start of the
@@ -289,6 +302,8 @@ impl Machine {
             alarm: None,
             homed: 0,
             unlocked: false,
+            limits_held: 0,
+            held_since_ms: 0,
             holding: false,
             last_busy_ms: 0,
             host: crate::hostcodes::HostState::new(),
@@ -641,6 +656,16 @@ impl Machine {
                 Ok(())
             }
             Command::ClearAlarm => {
+                if self.alarm.is_none() {
+                    // grbl: `$X` outside an alarm has no effect. Only the
+                    // homing lock after power-on is lifted; the queue and
+                    // the position are not touched (a move may be running).
+                    if !self.motion_allowed() {
+                        self.unlocked = true;
+                        uwriteln!(io, "{}", F!("echo:unlocked; position unknown until homed (G28)")).ok();
+                    }
+                    return Ok(());
+                }
                 self.clear_alarm(io);
                 uwriteln!(io, "{}", F!("echo:alarm cleared; position unknown until homed (G28)")).ok();
                 Ok(())
@@ -718,6 +743,9 @@ impl Machine {
         self.write_xyz(io, self.interp.work_user(mm));
         uwriteln!(io, ":{}]", if tripped { 1u8 } else { 0u8 }).ok();
         if !tripped && must_trip {
+            // grbl's ALARM:5: the lines after a probe (G92, G10 L20) must
+            // not set a zero where nothing was touched. G38.3 may miss.
+            self.raise(io, Alarm::ProbeFailed);
             return Err(interp::Error::ProbeFailed);
         }
         Ok(())
@@ -758,7 +786,10 @@ impl Machine {
                 // off cannot cut: OctoPrint's cancel script has M84 but no M5),
                 // drivers off; the position and the homing are kept (Marlin's
                 // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
-                self.wait_idle(io)?;
+                // In an alarm nothing moves: at once.
+                if self.alarm.is_none() {
+                    self.wait_idle(io)?;
+                }
                 self.spindle_off(io);
                 io.drivers(false);
                 self.apply_watch(io, 0, false);
@@ -818,7 +849,11 @@ impl Machine {
     /// the physical position, and the ISR's watch list follows the limits and
     /// direction settings.
     pub fn replace_settings(&mut self, s: Settings, io: &mut impl Io) -> CmdResult {
-        self.wait_idle(io)?;
+        // In an alarm nothing moves (it stopped the steps and dropped the
+        // queue): settings such as `$21=0` may change at once.
+        if self.alarm.is_none() {
+            self.wait_idle(io)?;
+        }
         let mm = self.steps_to_mm(io.stepper().position);
         self.set_settings(s);
         let new = self.interp.steps_of(&self.settings, &mm);
@@ -1034,6 +1069,9 @@ impl Machine {
         if self.aborting && (self.prep.is_held() || self.motion_done(io)) && !io.stepper().busy {
             self.finish_abort(io);
         }
+        if self.limits_held != 0 {
+            self.rearm_limits(io);
+        }
         if rt.status {
             self.status_report(io);
         }
@@ -1137,7 +1175,12 @@ impl Machine {
         }
         self.alarm = Some(alarm);
         self.state = State::Alarm;
-        self.homed = 0;
+        // A probe that ended its move untouched stopped cleanly: the
+        // position is still exact. Every other alarm may have lost steps.
+        if alarm != Alarm::ProbeFailed {
+            self.homed = 0;
+        }
+        self.limits_held = 0;
         self.unlocked = false;
         self.holding = false;
         self.aborting = false;
@@ -1152,6 +1195,10 @@ impl Machine {
 
     /// M999: leave the alarm state. Position stays unknown until homed.
     pub fn clear_alarm(&mut self, io: &mut impl Io) {
+        // A switch still closed (the axis stopped on it) is not armed until
+        // it opens, or the alarm would come back at once.
+        self.limits_held = io.switches().home & 0b111;
+        self.held_since_ms = io.millis() as u16;
         io.clear_stop();
         let p = io.stepper().position;
         self.planner.set_position(p);
@@ -1162,13 +1209,27 @@ impl Machine {
         self.apply_watch(io, 0, false);
     }
 
+    /// Arm the hard limit of each held axis (see [`Machine::limits_held`])
+    /// whose switch has read open for [`LIMIT_REARM_MS`]: longer than a
+    /// switch's bounce, so it is not re-armed on a bounce.
+    fn rearm_limits(&mut self, io: &mut impl Io) {
+        let now = io.millis() as u16;
+        let open = self.limits_held & !io.switches().home;
+        if open == 0 {
+            self.held_since_ms = now;
+        } else if now.wrapping_sub(self.held_since_ms) >= LIMIT_REARM_MS {
+            self.limits_held &= !open;
+            self.apply_watch(io, 0, false);
+        }
+    }
+
     /// Tell the ISR what to watch. Hard limits stay off through a whole
     /// homing cycle (`State::Home`), pull-offs included, as in grbl: an axis
     /// not yet homed may rest on its closed switch, and a real switch stays
     /// closed for its hysteresis and bounces after it opens.
     pub fn apply_watch(&mut self, io: &mut impl Io, homing: u8, probe: bool) {
         let arm = self.settings.hard_limits && homing == 0 && self.state != State::Home;
-        let limits = if arm { 0b111 } else { 0 };
+        let limits = if arm { 0b111 & !self.limits_held } else { 0 };
         // A real switch that closed at machine 0 may stay closed for its
         // hysteresis; homing checked that the pull-off clears it.
         let mut release = [0u16; 3];
@@ -1184,7 +1245,9 @@ impl Machine {
     #[inline(never)]
     pub fn status_report(&mut self, io: &mut impl Io) {
         let st = io.stepper();
-        uwrite!(io, "<{}|MPos:", self.state.name()).ok();
+        // Steps are being produced: never `Idle`, whatever else is going on.
+        let state = if self.state == State::Idle && st.busy { State::Run } else { self.state };
+        uwrite!(io, "<{}|MPos:", state.name()).ok();
         let mpos = self.steps_to_mm(st.position);
         self.write_xyz(io, crate::frame::user_from_internal(mpos));
         uwrite!(io, "|WPos:").ok();
@@ -1378,6 +1441,7 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     }
     // Re-armed only now, with every homed axis pulled off its switch (or
     // after a failure, with the alarm raised).
+    m.limits_held &= !m.homed;
     m.apply_watch(io, 0, false);
     r?;
     let p = io.stepper().position;

@@ -112,6 +112,13 @@ impl RxText {
         if matches!(b, b'?' | b'!' | b'~') && s & (T_NUMBERED | T_PAREN | T_SEMI) == 0 {
             return true;
         }
+        // grbl takes every byte from 0x80 up out of the stream (its realtime
+        // overrides; the rest dropped), wherever it falls, so that none can
+        // spoil the line it lands in. A numbered line keeps its bytes: its
+        // checksum counts them.
+        if b >= 0x80 && s & T_NUMBERED == 0 {
+            return true;
+        }
         self.state = match b {
             b'\n' | b'\r' => T_START,
             _ if s & T_PAREN != 0 => {
@@ -775,11 +782,14 @@ mod tests {
         if b == 0x18 {
             return true;
         }
-        if !matches!(b, b'?' | b'!' | b'~') {
-            return false;
-        }
         let trimmed: Vec<u8> = line.iter().copied().skip_while(|c| *c == b' ' || *c == b'\t').collect();
-        if matches!(trimmed.first(), Some(b'N' | b'n')) {
+        let numbered = matches!(trimmed.first(), Some(b'N' | b'n'));
+        // Bytes from 0x80 up leave every line but a numbered one, comments
+        // included.
+        if b >= 0x80 {
+            return !numbered;
+        }
+        if !matches!(b, b'?' | b'!' | b'~') || numbered {
             return false;
         }
         let mut in_paren = false;
@@ -798,7 +808,7 @@ mod tests {
     fn rx_text_matches_the_rule_on_random_streams() {
         const PIECES: &[&[u8]] = &[
             b"N", b"n", b" ", b"\t", b"(", b")", b";", b"?", b"!", b"~", b"\n", b"\r", b"G1", b"X5", b"*", b"\x18",
-            b"M112", b"\xfe", b"\x00",
+            b"M112", b"\xfe", b"\x00", b"\xc2\x91", b"\x85",
         ];
         let mut rng = XorShift(0x5EED);
         let mut t = RxText::new();

@@ -432,6 +432,9 @@ extern "avr-interrupt" fn usart0_rx_slow() {
             b'?' => realtime::STATUS,
             b'!' => realtime::HOLD,
             b'~' => realtime::RESUME,
+            // grbl's override commands and any other byte from 0x80 up:
+            // out of the stream, acted on by nothing yet.
+            0x80..=0xFF => 0,
             _ => {
                 // Ctrl-X: stop stepping now (grbl's mc_reset); the main loop
                 // flushes the queues and reports. Whether steps were still

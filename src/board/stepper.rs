@@ -316,6 +316,10 @@ pub fn clear_stop() {
             st.k_end = 0;
             st.pending = 0;
             st.running = 0;
+            // The stopped chunk's hard limits go with it: an axis left
+            // resting on its switch must not trip again (see `load_segment`).
+            st.limit = 0;
+            st.armed = st.homing | st.probe;
             st.seg_tail = *addr_of!(SEG_HEAD);
             rings().clear(st.cur, q, &mut Mem);
         }
