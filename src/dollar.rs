@@ -74,6 +74,8 @@ pub enum Command {
     Set(u8, f32),
     Home,
     Unlock,
+    /// `$J=<words>`: a jog (the words are read by the caller).
+    Jog,
 }
 
 /// Why a `$` line was refused.
@@ -104,6 +106,7 @@ pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
         b"X" | b"x" => return Ok(Command::Unlock),
         b"G" | b"g" => return Ok(Command::Modes),
         b"#" => return Ok(Command::Params),
+        [b'J' | b'j', b'=', ..] => return Ok(Command::Jog),
         b"I" | b"i" => return Ok(Command::Info),
         _ => {}
     }

@@ -270,6 +270,7 @@ impl Io for Hw {
             probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
             abort: ui & req::ABORT != 0,
             reset: rt & board::realtime::RESET != 0,
+            jog_cancel: rt & board::realtime::JOG_CANCEL != 0,
             reset_moving: rt & board::realtime::RESET_MOVING != 0,
         }
     }

@@ -17,6 +17,7 @@
 //! |---|---|
 //! | M104, M109, M140, M190 | `echo:` note (a mill has no heaters); M109/M190 do not wait |
 //! | M106, M107 | `echo:` note (no part-cooling fan) |
+//! | M221 | `echo:` note (no extruder: OctoPrint's flow-rate slider) |
 //! | M82, M83 | `echo:` note (E is the tool carousel and follows G90/G91) |
 //! | M105 | `T:0.0 /0.0` (no temperatures), even during an SD job |
 //! | M73 P<pct> | job progress shown on the status screen; P-1 clears it |
@@ -81,7 +82,7 @@ impl Default for HostState {
 /// One of the codes of this module (a `match`: a table would be copied to
 /// RAM on AVR).
 fn is_host_code(c: u16) -> bool {
-    matches!(c, 73 | 82 | 83 | 104 | 105 | 106 | 107 | 109 | 113 | 117 | 140 | 155 | 190 | 300)
+    matches!(c, 73 | 82 | 83 | 104 | 105 | 106 | 107 | 109 | 113 | 117 | 140 | 155 | 190 | 221 | 300)
 }
 
 /// If `text` starts with one of this module's codes (`M<n>`, any case, not
@@ -121,6 +122,9 @@ pub fn run(host: &mut HostState, io: &mut impl ufmt::uWrite<Error = Infallible>,
         }
         106 | 107 => {
             uwriteln!(io, "{}{}{}", F!("echo:M"), code, F!(" ignored: no part-cooling fan")).ok();
+        }
+        221 => {
+            uwriteln!(io, "{}", F!("echo:M221 ignored: no extruder (the feed override is M220)")).ok();
         }
         82 | 83 => {
             uwriteln!(io, "{}{}{}", F!("echo:M"), code, F!(" ignored: E (the tool carousel) follows G90/G91")).ok();

@@ -55,6 +55,8 @@ pub struct Realtime {
     pub abort: bool,
     /// 0x18 (Ctrl-X, grbl's soft reset) received; the stepper is halted.
     pub reset: bool,
+    /// 0x85 (grbl's jog cancel) received.
+    pub jog_cancel: bool,
     /// With `reset`: steps were still being produced when it arrived.
     pub reset_moving: bool,
 }
@@ -163,6 +165,8 @@ pub enum State {
     Home,
     Tool,
     Probe,
+    /// A `$J=` jog is running (grbl 1.1).
+    Jog,
 }
 
 impl State {
@@ -176,6 +180,7 @@ impl State {
             State::Home => "Home",
             State::Tool => "Tool",
             State::Probe => "Probe",
+            State::Jog => "Jog",
         }
     }
 }
@@ -320,6 +325,7 @@ impl Machine {
                 abort: false,
                 reset: false,
                 reset_moving: false,
+                jog_cancel: false,
             },
             numbered: false,
             sd_job: false,
@@ -831,6 +837,7 @@ impl Machine {
             dollar::Command::Info => dollar::info(io),
             dollar::Command::Home => return self.execute(b"G28", io),
             dollar::Command::Unlock => return self.execute(b"M999", io),
+            dollar::Command::Jog => return self.jog_line(text, io),
             dollar::Command::Set(n, v) => {
                 let mut s = self.settings;
                 dollar::set(&mut s, n, v).map_err(bad)?;
@@ -951,6 +958,31 @@ impl Machine {
         self.move_mm(io, &target, feed, false)
     }
 
+    /// `$J=<words>`: a grbl 1.1 jog (see [`Interp::jog_target`]), only
+    /// from Idle or Jog; the soft limits refuse a target beyond the travel
+    /// before anything moves. Queued like any move, so a stream of short
+    /// jogs runs without stopping between them; 0x85 or `!` ends it.
+    #[inline(never)]
+    fn jog_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        if self.alarm.is_some() {
+            return Err(interp::Error::Alarm);
+        }
+        if !matches!(self.state, State::Idle | State::Jog) || self.holding {
+            return Err(interp::Error::BadWord(F!("$J= only while idle or jogging")));
+        }
+        let words = text.iter().position(|&b| b == b'=').map_or(&[][..], |i| &text[i + 1..]);
+        let mut line = crate::gcode::Line::default();
+        crate::gcode::parse_into(words, &mut line).map_err(interp::Error::Parse)?;
+        let (target, feed) = self.interp.jog_target(&line)?;
+        if !self.motion_allowed() {
+            return Err(interp::Error::NotHomed);
+        }
+        self.interp.check_soft_limits(&self.settings, &target)?;
+        self.move_mm(io, &target, feed, false)?;
+        self.state = State::Jog;
+        Ok(())
+    }
+
     /// One turn of every wait loop: top up segments, serve realtime.
     /// Fails when an alarm stops the machine meanwhile.
     pub fn wait_step(&mut self, io: &mut impl Io) -> CmdResult {
@@ -1059,6 +1091,15 @@ impl Machine {
             }
             self.fill_segments(io);
         }
+        // grbl: a jog ends on 0x85 or on a feed hold, decelerating, with
+        // every queued jog move dropped.
+        if (rt.jog_cancel || rt.hold) && self.state == State::Jog && !self.aborting {
+            self.aborting = true;
+            if !self.holding {
+                self.holding = true;
+                self.prep.hold();
+            }
+        }
         if rt.abort && self.alarm.is_none() && !self.aborting {
             self.aborting = true;
             if !self.holding {
@@ -1075,7 +1116,7 @@ impl Machine {
         if rt.status {
             self.status_report(io);
         }
-        if self.state == State::Run && self.motion_done(io) {
+        if matches!(self.state, State::Run | State::Jog) && self.motion_done(io) {
             self.state = State::Idle;
         }
         io.background(self);
@@ -1094,8 +1135,11 @@ impl Machine {
         let p = io.stepper().position;
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
-        self.spindle_off(io);
-        if matches!(self.state, State::Hold | State::Run) {
+        // A cancelled jog leaves the spindle as it was (grbl).
+        if self.state != State::Jog {
+            self.spindle_off(io);
+        }
+        if matches!(self.state, State::Hold | State::Run | State::Jog) {
             self.state = State::Idle;
         }
         self.aborts = self.aborts.wrapping_add(1);

@@ -45,6 +45,8 @@ pub mod realtime {
     pub const RESET: u8 = 1 << 4;
     /// With [`RESET`]: steps were still being produced when it arrived.
     pub const RESET_MOVING: u8 = 1 << 5;
+    /// 0x85 (grbl's jog cancel).
+    pub const JOG_CANCEL: u8 = 1 << 6;
 }
 
 /// Pending realtime requests (bits of [`realtime`]).

@@ -432,6 +432,7 @@ extern "avr-interrupt" fn usart0_rx_slow() {
             b'?' => realtime::STATUS,
             b'!' => realtime::HOLD,
             b'~' => realtime::RESUME,
+            0x85 => realtime::JOG_CANCEL,
             // grbl's override commands and any other byte from 0x80 up:
             // out of the stream, acted on by nothing yet.
             0x80..=0xFF => 0,

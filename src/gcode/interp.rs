@@ -318,6 +318,54 @@ impl Interp {
         frame::user_from_internal(self.machine_to_work(m))
     }
 
+    /// `$J=<words>` (grbl 1.1 jogging): the target (internal machine mm)
+    /// and the feed (mm/min) of a jog line. As grbl: X, Y, Z and a required
+    /// F, with G20/G21, G90/G91 and G53 for this line alone (the modal
+    /// state does not change); any other word or code is refused. The
+    /// caller checks the soft limits.
+    pub fn jog_target(&self, l: &Line) -> Result<([f32; N_AXES], f32), Error> {
+        let codes = l.motion.is_some()
+            || l.plane.is_some()
+            || l.feed_mode.is_some()
+            || l.wcs.is_some()
+            || l.tool_length.is_some()
+            || l.retract.is_some()
+            || !matches!(l.non_modal, None | Some(NonModal::MachineCoords))
+            || l.stopping.is_some()
+            || l.tool_change
+            || l.spindle.is_some()
+            || l.coolant.is_some()
+            || l.path_mode.is_some()
+            || l.arc_absolute.is_some()
+            || l.cutter_comp_off
+            || l.other_m.is_some();
+        let words = Word::ALL.iter().any(|&w| !matches!(w, Word::X | Word::Y | Word::Z | Word::F | Word::N) && l.words.contains(w));
+        if codes || words {
+            return Err(Error::BadWord(F!("$J= takes X Y Z F and G20 G21 G90 G91 G53 only")));
+        }
+        let inches = l.units.map_or(self.inches, |u| u == Units::Inch);
+        let incremental = l.distance.map_or(self.incremental, |d| d == Distance::Incremental);
+        let machine = l.non_modal == Some(NonModal::MachineCoords);
+        let feed = match l.word(Word::F) {
+            Some(f) if f > 0.0 => to_mm(inches, f),
+            _ => return Err(Error::BadFeed),
+        };
+        let mut t = self.pos_mm;
+        for (a, w) in [Word::X, Word::Y, Word::Z].into_iter().enumerate() {
+            if let Some(v) = l.word(w) {
+                let v = word_mm(inches, a, v);
+                t[a] = if incremental {
+                    self.pos_mm[a] + v
+                } else if machine {
+                    v
+                } else {
+                    v + self.offset(a)
+                };
+            }
+        }
+        Ok((t, feed))
+    }
+
     /// Programmed feed with override, and spindle rpm (0 when off).
     pub fn feed_and_speed(&self) -> (f32, f32) {
         let rpm = if self.spindle_on { self.spindle_rpm } else { 0.0 };
@@ -679,7 +727,8 @@ impl Interp {
 
     /// S, M3, M5: the spindle command, if any.
     fn spindle(&mut self, cx: &Ctx, l: &Line) -> Option<Command> {
-        let s = l.word(Word::S);
+        // M220's S is its percentage, not a speed.
+        let s = if l.other_m == Some(220) { None } else { l.word(Word::S) };
         if let Some(s) = s {
             self.spindle_rpm = s;
         }

@@ -805,7 +805,7 @@ fn paused(v: &View) -> bool {
 pub fn state_text(s: State) -> Text {
     match s {
         State::Idle => Text::StIdle,
-        State::Run => Text::StRun,
+        State::Run | State::Jog => Text::StRun,
         State::Hold => Text::StHold,
         State::Alarm => Text::StAlarm,
         State::Home => Text::StHoming,

@@ -1,0 +1,151 @@
+//! The grbl 1.1 interface a grbl sender uses, on the real firmware and
+//! checked against the recorded steps: `$J=` jogging and its cancel byte
+//! 0x85, and the Marlin codes a host's sliders send (M220, M221).
+
+mod common;
+#[path = "common/motion.rs"]
+mod motion_util;
+
+use common::*;
+use motion_util::*;
+use sim::{Axis, Flow, StreamOptions, Vm};
+
+/// Sends `?` and returns the next status line.
+fn status(vm: &mut Vm) -> String {
+    vm.send(b"?");
+    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
+}
+
+/// The `$G` line.
+fn modes(vm: &mut Vm) -> String {
+    ok(vm, "$G").into_iter().find(|l| l.starts_with("[GC:")).expect("[GC:...]")
+}
+
+/// Runs until no step has been recorded for 50 ms.
+fn settle(vm: &mut Vm) {
+    loop {
+        let n = vm.recorder().trace().len();
+        vm.run_for(0.05).unwrap();
+        if vm.recorder().trace().len() == n {
+            return;
+        }
+    }
+}
+
+#[test]
+fn a_jog_moves_in_its_own_modes_and_leaves_the_modal_state_alone() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G90 G0 X10 Y10 Z-5");
+    let g = modes(&mut vm);
+    assert!(g.contains("G90") && g.contains("G21"), "{g}");
+    ok(&mut vm, "$J=G91 X5 Y-2 F600");
+    vm.run_for(0.2).unwrap();
+    assert!(status(&mut vm).starts_with("<Jog|"));
+    ok(&mut vm, "M400");
+    assert_eq!(xyz_now(&vm), [1500, 800, 500]);
+    assert!(status(&mut vm).starts_with("<Idle|"));
+    assert_eq!(modes(&mut vm), g, "a jog changes no modal state");
+    // Absolute in inches and in machine coordinates, with a work offset.
+    ok(&mut vm, "G10 L20 P1 X0 Y0");
+    run(&mut vm, "$J=G20 G90 X0.5 F20");
+    assert_eq!(xyz_now(&vm), [1500 + 1270, 800, 500]);
+    run(&mut vm, "$J=G53 X3 Y4 F600");
+    assert_eq!(xyz_now(&vm), [300, 400, 500]);
+    // A jog that ended and a plain move after it: the commanded position
+    // followed the jog.
+    run(&mut vm, "G91 G1 X1 F600");
+    assert_eq!(xyz_now(&vm), [400, 400, 500]);
+    assert_no_violations(&vm);
+}
+
+#[test]
+fn a_jog_beyond_the_travel_or_without_a_feed_is_refused_and_nothing_moves() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G0 X10 Y10");
+    let n = total_steps(&vm);
+    for bad in ["$J=X50 F600", "$J=G91 Y-20 F600", "$J=X5", "$J=G1 X5 F600", "$J=X5 S100 F600", "$J=X5 M3 F600"] {
+        let e = refused(&mut vm, bad);
+        assert!(e.starts_with("Error:"), "{bad}: {e}");
+    }
+    vm.run_for(0.2).unwrap();
+    assert_eq!(total_steps(&vm), n, "a refused jog moved");
+    // A feed above the maximum rate is clamped (bCNC's jog buttons send
+    // F100000), as grbl does.
+    run(&mut vm, "$J=G91 X10 F100000");
+    assert_eq!(xyz_now(&vm)[0], 2000);
+    // Not while a program's moves run.
+    ok(&mut vm, "G1 X30 F300");
+    assert!(refused(&mut vm, "$J=G91 X1 F600").contains("idle"));
+    ok(&mut vm, "M400");
+    assert_eq!(xyz_now(&vm)[0], 3000);
+}
+
+#[test]
+fn jog_cancel_stops_with_the_position_exact_and_the_next_jog_runs_at_once() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G0 X5 Y5");
+    ok(&mut vm, "M3 S5000");
+    ok(&mut vm, "$J=G91 X30 F600");
+    vm.run_for(0.5).unwrap();
+    let at = xyz_now(&vm);
+    assert!(at[0] > 500 && at[0] < 3500, "{at:?}");
+    vm.send([0x85]);
+    settle(&mut vm);
+    let stopped = xyz_now(&vm);
+    // 10 mm/s at 1000 mm/s²: 0.05 mm of deceleration, plus what the
+    // stepper had queued (tens of ms at 10 mm/s).
+    assert!(stopped[0] - at[0] < 100, "{at:?} -> {stopped:?}");
+    let st = status(&mut vm);
+    assert!(st.starts_with("<Idle|"), "{st}");
+    let mpos = format!("MPos:{:.3},{:.3},", stopped[0] as f64 / 100.0, stopped[1] as f64 / 100.0);
+    assert!(st.contains(&mpos), "{st} vs {stopped:?}");
+    assert!(vm.spindle_on(), "a jog cancel leaves the spindle as it was");
+    run(&mut vm, "$J=G91 X1 F600");
+    assert_eq!(xyz_now(&vm)[0], stopped[0] + 100);
+    // 0x85 outside a jog changes nothing.
+    ok(&mut vm, "G1 X20 F600");
+    vm.run_for(0.2).unwrap();
+    vm.send([0x85]);
+    ok(&mut vm, "M400");
+    assert_eq!(xyz_now(&vm)[0], 2000);
+    assert_no_violations(&vm);
+}
+
+#[test]
+fn continuous_jogging_runs_without_stops_and_cancel_drops_the_queued_jogs() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G0 X2 Y2");
+    mark(&mut vm);
+    // A key held in a sender: short jogs, several in flight.
+    let jogs: Vec<String> = (0..30).map(|_| "$J=G91 X1 F1200".to_string()).collect();
+    let r = vm.stream(&jogs, StreamOptions::new(Flow::CharCount(120))).unwrap();
+    assert!(!r.timed_out);
+    // The key released: cancel while several jogs still wait.
+    vm.run_for(0.3).unwrap();
+    let at = xyz_now(&vm)[0];
+    vm.send([0x85]);
+    settle(&mut vm);
+    let end = xyz_now(&vm)[0];
+    assert!(end < 3200, "queued jogs were dropped: X ended at {end}");
+    assert!(end - at < 150, "stopped within about a block: {at} -> {end}");
+    // No stop between the jogs: the X steps never pause for 20 ms.
+    let xs: Vec<u64> = vm.recorder().trace().iter().filter(|t| t.axis == Axis::X).map(|t| t.cycle).collect();
+    let longest = xs.windows(2).map(|w| w[1] - w[0]).max().unwrap();
+    assert!(longest < 20 * 16_000, "a pause of {} ms between jogs", longest / 16_000);
+    assert!(status(&mut vm).starts_with("<Idle|"));
+    run(&mut vm, "$J=G90 X10 F1200");
+    assert_eq!(xyz_now(&vm)[0], 1000);
+}
+
+#[test]
+fn m220_keeps_the_spindle_speed_and_m221_is_a_note() {
+    let mut vm = boot_homed();
+    ok(&mut vm, "M3 S8000");
+    ok(&mut vm, "M220 S120");
+    let g = modes(&mut vm);
+    assert!(g.contains("S8000"), "M220's S became the spindle speed: {g}");
+    // OctoPrint's flow-rate slider: a note, never an error (OctoPrint
+    // disconnects on an unknown error).
+    let r = ok(&mut vm, "M221 S95");
+    assert!(r.iter().any(|l| l.starts_with("echo:M221")), "{r:?}");
+}
