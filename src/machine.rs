@@ -210,6 +210,20 @@ crate::flash_messages! {
     }
 }
 
+impl Alarm {
+    /// grbl 1.1's alarm number (grblHAL's 10 for the emergency stop), for
+    /// grbl senders (`ALARM:<n>`).
+    pub fn grbl_code(self) -> u8 {
+        match self {
+            Alarm::HardLimit => 1,
+            Alarm::ResetWhileMoving | Alarm::WatchdogReset => 3,
+            Alarm::ProbeFailed | Alarm::BrokenTool => 5,
+            Alarm::HomingFailed | Alarm::CarouselHome => 9,
+            Alarm::EmergencyStop => 10,
+        }
+    }
+}
+
 /// Interpreter-level error shown to the host as `Error:<text>`.
 pub type CmdResult = Result<(), interp::Error>;
 
@@ -239,6 +253,12 @@ pub struct Machine {
     pub homed: u8,
     /// M999 / `$X` since the last power-on or alarm: motion allowed unhomed.
     pub unlocked: bool,
+    /// Reply the grbl way (`error:<n>` instead of `ok`, `ALARM:<n>`): set
+    /// by a serial `$$`, `$I`, `$G` or `$#` (every grbl sender sends one of
+    /// them on connecting; a terminal's `$<n>=<v>` does not), cleared by a
+    /// numbered line, `M110` or `M115` (a Marlin host's first words) and
+    /// at power-on.
+    pub grbl_replies: bool,
     /// Home switches found closed when an alarm was cleared (bit i = axis
     /// i): their hard limit waits until the switch has read open for
     /// [`LIMIT_REARM_MS`], so the axis can be jogged off it (grbl's limits
@@ -308,6 +328,7 @@ impl Machine {
             homed: 0,
             unlocked: false,
             limits_held: 0,
+            grbl_replies: false,
             held_since_ms: 0,
             holding: false,
             last_busy_ms: 0,
@@ -428,6 +449,12 @@ impl Machine {
                 // Numbered if it began with N; after an overrun (its start may
                 // be lost) as the line before it was.
                 self.numbered |= self.asm.dropped_numbered();
+                if self.grbl_replies && !self.numbered {
+                    // grbl: error 11 (line overflow), or 1 for the rest.
+                    let code = if other == Assembled::TooLong { 11u8 } else { 1 };
+                    uwriteln!(io, "{}{}{}{}", F!("[MSG:"), msg, F!("]\nerror:"), code).ok();
+                    return;
+                }
                 self.reject_line(io, msg);
                 uwriteln!(io, "ok").ok();
             }
@@ -477,6 +504,7 @@ impl Machine {
                 self.reject_line(io, e.message());
             }
             Ok(cmd) => {
+                self.note_host(cmd);
                 self.serial_line = true;
                 self.last_busy_ms = io.millis();
                 self.line_aborts = self.aborts;
@@ -495,29 +523,67 @@ impl Machine {
                     return;
                 }
                 if let Err(e) = r {
-                    self.report_error(io, e);
+                    if self.grbl_replies {
+                        // grbl: the error instead of the `ok`, its text first.
+                        uwrite!(io, "{}", F!("[MSG:")).ok();
+                        self.write_error(io, e);
+                        uwriteln!(io, "{}{}", F!("]\nerror:"), e.grbl_code()).ok();
+                        return;
+                    }
+                    uwrite!(io, "Error:").ok();
+                    self.write_error(io, e);
+                    uwriteln!(io, "").ok();
                 }
             }
         }
         uwriteln!(io, "ok").ok();
     }
 
+    /// Which host is talking, from what it sends (see
+    /// [`Machine::grbl_replies`]): a first-byte test for the usual line.
+    #[inline(always)]
+    fn note_host(&mut self, cmd: &[u8]) {
+        match cmd.first() {
+            Some(b'$') => {
+                if matches!(cmd.get(1), Some(b'$' | b'I' | b'i' | b'G' | b'g' | b'#')) {
+                    self.grbl_replies = true;
+                }
+            }
+            Some(b'M' | b'm') if self.grbl_replies => {
+                if matches!(cmd.get(1..4), Some(b"110" | b"115")) {
+                    self.grbl_replies = false;
+                }
+            }
+            _ => {}
+        }
+        if self.numbered {
+            self.grbl_replies = false;
+        }
+    }
+
     /// Print `Error:<what>` for a failed line.
     pub fn report_error(&self, io: &mut impl ufmt::uWrite, e: interp::Error) {
+        uwrite!(io, "Error:").ok();
+        self.write_error(io, e);
+        uwriteln!(io, "").ok();
+    }
+
+    /// The text of an error, without a line end.
+    fn write_error(&self, io: &mut impl ufmt::uWrite, e: interp::Error) {
         match e {
             interp::Error::Alarm => {
                 let why = self.alarm.map_or(F!("unknown"), |a| a.message());
-                uwriteln!(io, "Error:alarm {}{}", why, F!("; home or M999")).ok();
+                uwrite!(io, "alarm {}{}", why, F!("; home or M999")).ok();
             }
             interp::Error::Parse(p) => {
-                uwriteln!(io, "Error:{} at col {}", p.kind.message(), p.col).ok();
+                uwrite!(io, "{} at col {}", p.kind.message(), p.col).ok();
             }
             interp::Error::Sd(t) => {
                 // SD card errors print their own text.
-                uwriteln!(io, "Error:{}", t).ok();
+                uwrite!(io, "{}", t).ok();
             }
             other => {
-                uwriteln!(io, "Error:{}", other.message()).ok();
+                uwrite!(io, "{}", other.message()).ok();
             }
         }
     }
@@ -1233,8 +1299,13 @@ impl Machine {
         let p = io.stepper().position;
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
-        uwriteln!(io, "ALARM:{}", alarm.message()).ok();
-        uwriteln!(io, "{}", F!("echo:home (G28) or M999 to continue")).ok();
+        if self.grbl_replies {
+            let (code, why) = (alarm.grbl_code(), alarm.message());
+            uwriteln!(io, "{}{}{}{}{}", F!("ALARM:"), code, F!("\n[MSG:"), why, F!("; $H or $X to continue]")).ok();
+        } else {
+            uwriteln!(io, "ALARM:{}", alarm.message()).ok();
+            uwriteln!(io, "{}", F!("echo:home (G28) or M999 to continue")).ok();
+        }
     }
 
     /// M999: leave the alarm state. Position stays unknown until homed.

@@ -149,3 +149,49 @@ fn m220_keeps_the_spindle_speed_and_m221_is_a_note() {
     let r = ok(&mut vm, "M221 S95");
     assert!(r.iter().any(|l| l.starts_with("echo:M221")), "{r:?}");
 }
+
+/// A grbl sender matches `error:<n>`, sent instead of the `ok`, and
+/// `ALARM:<n>`, with grbl's numbers; a Marlin host keeps `Error:` + `ok`.
+#[test]
+fn a_grbl_sender_gets_grbl_errors_and_a_marlin_host_marlin_ones() {
+    let mut vm = boot_homed();
+    // Marlin's replies until the host speaks grbl.
+    let r = vm.command("G5 X1").unwrap();
+    assert!(r[0].starts_with("Error:unsupported code") && r.last().unwrap() == "ok", "{r:?}");
+    // cncjs's first line on connecting.
+    ok(&mut vm, "$$");
+    let r = vm.command("G5 X1").unwrap();
+    assert_eq!(r.last().map(String::as_str), Some("error:20"), "{r:?}");
+    assert!(r.iter().any(|l| l.starts_with("[MSG:unsupported code")), "{r:?}");
+    assert!(!r.iter().any(|l| l == "ok"), "grbl sends the error instead of the ok: {r:?}");
+    assert_eq!(vm.command("G1 X10").unwrap().last().map(String::as_str), Some("error:22"));
+    assert_eq!(vm.command("G0 X99").unwrap().last().map(String::as_str), Some("error:15"));
+    let long = format!("G0 X1 ({})", "x".repeat(300));
+    let r = vm.command(&long).unwrap();
+    assert_eq!(r.last().map(String::as_str), Some("error:11"), "{r:?}");
+    // A probe that touches nothing: ALARM:5, and the lines after it error:9.
+    run(&mut vm, "G0 X30 Y30 Z-2");
+    vm.send_line("G38.2 Z-8 F300");
+    vm.send_line("G92 Z0");
+    assert_eq!(vm.wait_line(|l| l.starts_with("ALARM:"), 10.0).unwrap(), "ALARM:5");
+    let mut ends = Vec::new();
+    while ends.len() < 2 {
+        let l = vm.wait_line(|_| true, 2.0).unwrap();
+        assert_ne!(l, "ok", "{ends:?}");
+        if l.starts_with("error:") {
+            ends.push(l);
+        }
+    }
+    assert_eq!(ends, ["error:9", "error:9"]);
+    ok(&mut vm, "$X");
+    // A job streamed the grbl way (characters counted): the error line is
+    // acknowledged by its error, the others by ok, nothing waits.
+    let job = ["G1 X20 F600", "G5 X1", "G1 Y20"];
+    let rep = vm.stream(&job, StreamOptions::new(Flow::CharCount(120))).unwrap();
+    assert!(!rep.timed_out);
+    assert_eq!(rep.errors, ["error:20"]);
+    // A Marlin host's first words (M110, a numbered line) bring Marlin's back.
+    ok(&mut vm, "M110 N0");
+    let r = vm.command("G5 X1").unwrap();
+    assert!(r[0].starts_with("Error:unsupported code") && r.last().unwrap() == "ok", "{r:?}");
+}

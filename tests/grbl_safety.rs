@@ -96,7 +96,8 @@ fn unlock_then_jog_off_a_closed_switch_with_the_other_limits_armed() {
     assert_eq!(vm.position(Axis::X), x0 + 300);
     assert!(!vm.input_active(Input::HomeX));
     assert!(!vm.output().rsplit("ALARM:hard limit").next().unwrap().contains("ALARM"));
-    // X is watched again once its switch opened: back into it is an alarm.
+    // X is watched again once its switch opened: back into it is an alarm
+    // (a Marlin host's text; a grbl sender would read ALARM:1).
     ok(&mut vm, "G1 X-5 F300");
     assert_eq!(vm.wait_line(|l| l.starts_with("ALARM:"), 3.0).unwrap(), "ALARM:hard limit");
     vm.run_for(0.2).unwrap();

@@ -121,6 +121,12 @@ pub fn is_ok_line(line: &str) -> bool {
     line == "ok" || line.starts_with("ok ")
 }
 
+/// The end of the reply to one line: `ok`, or grbl's `error:<n>`, which
+/// grbl sends instead of the `ok`.
+pub fn is_reply_end(line: &str) -> bool {
+    is_ok_line(line) || line.starts_with("error:")
+}
+
 /// An error report (`Error:...` Marlin/Repetier, `error:...` grbl).
 pub fn is_error_line(line: &str) -> bool {
     line.starts_with("Error") || line.starts_with("error:") || line.starts_with("!!")
@@ -230,6 +236,11 @@ impl Streamer {
         }
         if is_error_line(line) {
             self.report.errors.push(line.to_string());
+        }
+        if line.starts_with("error:") {
+            // grbl's error replaces the line's `ok`: it acknowledges it.
+            self.in_flight.pop_front();
+            return true;
         }
         false
     }

@@ -62,7 +62,7 @@
 //!   flag even while that interrupt is disabled (clear EIFR before enabling).
 
 use crate::elf::ElfSymbols;
-use crate::host::{is_ok_line, StreamOptions, StreamReport, Streamer};
+use crate::host::{is_reply_end, StreamOptions, StreamReport, Streamer};
 use crate::isr::{IsrStats, IsrTracker, STEPPER_VECTOR};
 use crate::oled::Sh1106;
 use crate::physics::{MachineConfig, Physics, ToolSetter};
@@ -1502,7 +1502,7 @@ impl Vm {
                 VmError::Timeout { .. } => VmError::Timeout { what: format!("ok for '{line}'"), waited_s: timeout_s },
                 e => e,
             })?;
-            let ok = is_ok_line(&l);
+            let ok = is_reply_end(&l);
             got.push(l);
             if ok {
                 return Ok(got);

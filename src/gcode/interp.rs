@@ -140,6 +140,29 @@ impl Error {
             Error::Sd(_) => F!("SD card error"),
         }
     }
+
+    /// The nearest grbl 1.1 error code, for grbl senders (`error:<n>`).
+    pub fn grbl_code(&self) -> u8 {
+        use super::ParseErrorKind as K;
+        match self {
+            Error::Parse(p) => match p.kind {
+                K::BadNumber | K::Exponent | K::NumberOutOfRange => 2,
+                K::Unexpected => 1,
+                K::RepeatedWord => 25,
+                K::ModalGroupConflict => 21,
+                K::BadToolNumber => 23,
+                K::LineTooLong => 11,
+                _ => 20,
+            },
+            Error::Alarm | Error::NotHomed | Error::JobRunning => 9,
+            Error::BadFeed => 22,
+            Error::SoftLimit => 15,
+            Error::Arc(_) => 33,
+            Error::Atc(crate::atc::Fault::ToolRange) => 38,
+            Error::ProbeAlreadyTriggered | Error::ProbeFailed => 9,
+            _ => 20,
+        }
+    }
 }
 
 /// Modal state and commanded position.

@@ -27,10 +27,17 @@ pub fn ok(vm: &mut Vm, line: &str) -> Vec<String> {
     r
 }
 
-/// Send a command that must be refused: returns the error line.
+/// Send a command that must be refused: returns the error line. A grbl
+/// reply (`[MSG:<text>]` and `error:<n>` instead of `ok`) is returned as
+/// `Error:<text> (error:<n>)`.
 pub fn refused(vm: &mut Vm, line: &str) -> String {
     let r = vm.command(line).unwrap_or_else(|e| panic!("{line}: {e}"));
-    assert_eq!(r.last().map(String::as_str), Some("ok"), "{line}: {r:?}");
+    let last = r.last().map(String::as_str).unwrap_or("");
+    if last.starts_with("error:") {
+        let msg = r.iter().rev().find_map(|l| l.strip_prefix("[MSG:")).unwrap_or_else(|| panic!("{line}: no text in {r:?}"));
+        return format!("Error:{} ({last})", msg.trim_end_matches(']'));
+    }
+    assert_eq!(last, "ok", "{line}: {r:?}");
     r.iter().find(|l| l.starts_with("Error")).cloned().unwrap_or_else(|| panic!("{line}: no error in {r:?}"))
 }
 
