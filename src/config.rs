@@ -71,6 +71,12 @@ pub struct Settings {
 /// ring filled through 300 mm/s² ramps; at 70 kHz four axes fell to 67 kHz.
 pub const MAX_STEP_RATE_HZ: f32 = 60_000.0;
 
+/// Slowest step event rate the step timer can produce (clk/8, OCR1A = 65535),
+/// Hz. The planner raises slower nominal rates to this (`Push::rate_floored`),
+/// and prep clamps slower segments (only the first/last few steps of a ramp at
+/// very low accelerations) to it.
+pub const MIN_STEP_RATE_HZ: f32 = crate::F_CPU_HZ as f32 / (8.0 * 65535.0);
+
 impl Settings {
     /// Factory defaults (SPEC §3; thesis §5.2.2 for acceleration).
     pub const DEFAULT: Settings = Settings {

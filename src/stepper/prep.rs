@@ -24,7 +24,7 @@
 //!   it covers at least 1.25 steps (grbl's REQ_MM_INCREMENT_SCALAR), so a ramp
 //!   from zero speed gives a first period of one segment or so, never an
 //!   absurdly long one. The timer's slowest rate is clk/8 with OCR1A = 65535
-//!   ([`super::MIN_STEP_RATE_HZ`], 30.5 Hz); slower segments (only possible at
+//!   ([`crate::config::MIN_STEP_RATE_HZ`], 30.5 Hz); slower segments (only possible at
 //!   the very start or end of a ramp with tiny accelerations) are clamped to it:
 //!   their steps still come out, a little early.
 //! - **Fastest rate.** Periods never go below [`MIN_PERIOD_CYCLES`].
@@ -48,8 +48,8 @@
 //! profile when [`Planner::take_exec_replanned`] says a new block changed the
 //! exit speed (grbl's `st_update_plan_block_parameters`).
 
-use super::{Prescale, Segment, StBlock, StepperCmd, MIN_STEP_RATE_HZ};
-use crate::config::Settings;
+use super::{Prescale, Segment, StBlock, StepperCmd};
+use crate::config::{Settings, MIN_STEP_RATE_HZ};
 use crate::flash::InFlash;
 use crate::math::sqrtf;
 use crate::planner::Planner;
