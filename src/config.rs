@@ -7,7 +7,6 @@
 //! so a blank or corrupt EEPROM falls back to the defaults instead of running
 //! on garbage.
 
-use crate::flash::InFlash;
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
@@ -227,11 +226,11 @@ impl Settings {
     }
 }
 
-/// The factory settings, kept in flash: a `Settings::DEFAULT` used at run
-/// time would be a 172-byte constant copied into RAM at boot on AVR.
-#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-// SAFETY: in program memory on the AVR (the attribute above).
-static DEFAULTS_IN_FLASH: InFlash<Settings> = unsafe { InFlash::new(Settings::DEFAULT) };
+in_flash! {
+    /// The factory settings, kept in flash: a `Settings::DEFAULT` used at run
+    /// time would be a 172-byte constant copied into RAM at boot on AVR.
+    static DEFAULTS_IN_FLASH: Settings = Settings::DEFAULT;
+}
 
 impl Settings {
     /// The factory settings (M502), read from flash.

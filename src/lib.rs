@@ -35,6 +35,9 @@
 //! Unit tests may reach up (`gcode`'s tests drive `Machine::execute`).
 #![cfg_attr(not(test), no_std)]
 #![cfg_attr(target_arch = "avr", feature(asm_experimental_arch))]
+// Every unsafe operation sits in an `unsafe {}` block with its `// SAFETY:`
+// line, also inside an `unsafe fn`.
+#![deny(unsafe_op_in_unsafe_fn)]
 
 #[macro_use]
 pub mod flash;

@@ -50,7 +50,6 @@
 
 use super::{Prescale, Segment, StBlock, StepperCmd};
 use crate::config::{Settings, MIN_STEP_RATE_HZ};
-use crate::flash::InFlash;
 use crate::math::sqrtf;
 use crate::planner::Planner;
 use crate::F_CPU_HZ;
@@ -165,20 +164,20 @@ fn ceil_u32(x: f32) -> u32 {
     }
 }
 
-/// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
-/// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
-/// of flash).
-#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-// SAFETY: in program memory on the AVR (the attribute above).
-static RECIPROCALS: InFlash<[f32; 13]> = unsafe {
-    let mut t = [0.0f32; 13];
-    let mut i = 1;
-    while i < 13 {
-        t[i] = 1.0 / i as f32;
-        i += 1;
-    }
-    InFlash::new(t)
-};
+in_flash! {
+    /// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
+    /// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
+    /// of flash).
+    static RECIPROCALS: [f32; 13] = {
+        let mut t = [0.0f32; 13];
+        let mut i = 1;
+        while i < 13 {
+            t[i] = 1.0 / i as f32;
+            i += 1;
+        }
+        t
+    };
+}
 
 /// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
 /// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12
