@@ -46,13 +46,12 @@
 
 use super::pins;
 use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
-use core::sync::atomic::{compiler_fence, Ordering as FenceOrdering};
 use mill::stepper::queue::{tccr1b, Chunk, Seg};
 use mill::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_LEN, SEG_MASK, SEG_RING_LEN};
 pub use mill::stepper::rings::Watch;
 use mill::stepper::{Prescale, StepperCmd};
 use mill::N_AXES;
-use portable_atomic::{AtomicU8, Ordering};
+use portable_atomic::{compiler_fence, AtomicU8, Ordering};
 
 /// Timer period while idle: 1 kHz at clk/1.
 const IDLE_PERIOD: u16 = 16_000;
@@ -204,7 +203,7 @@ impl RingMem for Mem {
         // SAFETY: main is the only writer; the fence keeps the slot writes
         // before the head that publishes them.
         unsafe {
-            compiler_fence(FenceOrdering::SeqCst);
+            compiler_fence(Ordering::SeqCst);
             write_volatile(addr_of_mut!(SEG_HEAD), head);
         }
     }
@@ -425,7 +424,7 @@ unsafe fn load_segment(st: &mut Isr) {
             st.limit = c.limit;
             st.armed = st.homing | st.probe | c.limit;
         }
-        compiler_fence(FenceOrdering::SeqCst);
+        compiler_fence(Ordering::SeqCst);
         write_volatile(addr_of_mut!(st.seg_tail), (tail + 1) & SEG_MASK);
     }
 }
@@ -566,7 +565,7 @@ fn TIMER1_COMPA() {
         }
         // The work above keeps the step high ≥ 31 cycles (DRV8825; measured
         // minimum: 39 cycles, `tools/bench`); keep it before the falling edge.
-        compiler_fence(FenceOrdering::SeqCst);
+        compiler_fence(Ordering::SeqCst);
         toggle_steps(p);
         st.pending = next;
     }
