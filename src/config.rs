@@ -7,7 +7,6 @@
 //! so a blank or corrupt EEPROM falls back to the defaults instead of running
 //! on garbage.
 
-use crate::flash::InFlash;
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
@@ -70,6 +69,12 @@ pub struct Settings {
 /// cycles) the four-axis ISR takes ~90 % of the CPU and prep still keeps the
 /// ring filled through 300 mm/s² ramps; at 70 kHz four axes fell to 67 kHz.
 pub const MAX_STEP_RATE_HZ: f32 = 60_000.0;
+
+/// Slowest step event rate the step timer can produce (clk/8, OCR1A = 65535),
+/// Hz. The planner raises slower nominal rates to this (`Push::rate_floored`),
+/// and prep clamps slower segments (only the first/last few steps of a ramp at
+/// very low accelerations) to it.
+pub const MIN_STEP_RATE_HZ: f32 = crate::F_CPU_HZ as f32 / (8.0 * 65535.0);
 
 impl Settings {
     /// Factory defaults (SPEC §3; thesis §5.2.2 for acceleration).
@@ -221,11 +226,11 @@ impl Settings {
     }
 }
 
-/// The factory settings, kept in flash: a `Settings::DEFAULT` used at run
-/// time would be a 172-byte constant copied into RAM at boot on AVR.
-#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-// SAFETY: in program memory on the AVR (the attribute above).
-static DEFAULTS_IN_FLASH: InFlash<Settings> = unsafe { InFlash::new(Settings::DEFAULT) };
+in_flash! {
+    /// The factory settings, kept in flash: a `Settings::DEFAULT` used at run
+    /// time would be a 172-byte constant copied into RAM at boot on AVR.
+    static DEFAULTS_IN_FLASH: Settings = Settings::DEFAULT;
+}
 
 impl Settings {
     /// The factory settings (M502), read from flash.

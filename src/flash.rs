@@ -19,25 +19,17 @@ use core::fmt;
 /// factory settings. Read a copy with [`InFlash::get`] (an array's rows with
 /// [`InFlash::row`]).
 ///
-/// Declare it as a `static` in `.progmem.data` on the AVR:
-///
-/// ```
-/// use mill::flash::InFlash;
-/// #[derive(Clone, Copy)]
-/// struct Row(u8);
-/// const TABLE: [Row; 2] = [Row(1), Row(2)];
-/// #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-/// // SAFETY: in program memory on the AVR (the attribute above).
-/// static ROWS: InFlash<[Row; 2]> = unsafe { InFlash::new(TABLE) };
-/// assert_eq!(ROWS.get()[1].0, 2);
-/// ```
+/// Declare it with [`in_flash!`](crate::in_flash), which places the
+/// `static` in `.progmem.data` on the AVR.
 pub struct InFlash<T: Copy>(T);
 
 impl<T: Copy> InFlash<T> {
     /// # Safety
     /// The value must be a `static` placed in `.progmem.data` on the AVR
     /// (`#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]`):
-    /// it is read with `lpm`, which reads program memory.
+    /// it is read with `lpm`, which reads program memory. [`in_flash!`](crate::in_flash)
+    /// does both.
+    #[doc(hidden)]
     pub const unsafe fn new(value: T) -> Self {
         InFlash(value)
     }
@@ -203,6 +195,35 @@ macro_rules! F {
     }};
 }
 
+/// Declare a `static` kept in program memory:
+/// `in_flash! { static NAME: T = value; }` gives `static NAME: InFlash<T>`,
+/// in `.progmem.data` on the AVR, read with [`InFlash::get`] and
+/// [`InFlash::row`]. The one place where the link section and the promise
+/// of [`InFlash::new`] are written.
+///
+/// ```
+/// #[derive(Clone, Copy)]
+/// struct Row(u8);
+/// mill::in_flash! {
+///     /// Two rows.
+///     static ROWS: [Row; 2] = [Row(1), Row(2)];
+/// }
+/// assert_eq!(ROWS.get()[1].0, 2);
+/// ```
+#[macro_export]
+macro_rules! in_flash {
+    ($(#[$meta:meta])* $vis:vis static $name:ident: $ty:ty = $value:expr;) => {
+        $(#[$meta])*
+        #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+        $vis static $name: $crate::flash::InFlash<$ty> = {
+            let value: $ty = $value;
+            // SAFETY: this static is in program memory on the AVR (the
+            // attribute above).
+            unsafe { $crate::flash::InFlash::new(value) }
+        };
+    };
+}
+
 /// A fieldless enum whose variants each carry a message: the messages are
 /// one table of [`F!`] strings in flash, so `message()` is one indexed read
 /// instead of a compare chain of some 16 bytes per variant (jump tables are
@@ -237,12 +258,9 @@ macro_rules! flash_messages {
         impl $name {
             /// The message of this variant, in flash.
             pub fn message(self) -> $crate::flash::FStr {
-                #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-                static TABLE: $crate::flash::InFlash<[$crate::flash::FStr; [$($text),+].len()]> = {
-                    let rows = [$( $crate::F!($text) ),+];
-                    // SAFETY: in program memory on the AVR (the attribute above).
-                    unsafe { $crate::flash::InFlash::new(rows) }
-                };
+                $crate::in_flash! {
+                    static TABLE: [$crate::flash::FStr; [$($text),+].len()] = [$( $crate::F!($text) ),+];
+                }
                 // Every variant has its row.
                 TABLE.row(self as usize).unwrap_or($crate::F!(""))
             }

@@ -16,23 +16,28 @@
 //! # Layers
 //!
 //! A module may name (`use crate::…`, `crate::…::`) only modules of its own
-//! layer or of a lower one, and a layer has no cycle. `tools/layers` checks
-//! it (run by `tools/test`; the same table is in that script):
+//! layer or of a lower one, and a layer has no cycle; below the top level,
+//! the children of a module have no cycle either. `tools/layers` checks it,
+//! and the sim crate's modules too (run by `tools/test`; the same table is in
+//! that script):
 //!
 //! | layer | modules | what |
 //! |---|---|---|
-//! | 0 | `math`, `fixed`, `flash`, `config`, `protocol` | arithmetic, settings, wire protocol |
+//! | 0 | `math`, `fixed`, `flash`, `config`, `protocol`, `axis` | arithmetic, settings, wire protocol |
 //! | 1 | `planner`, `stepper`, `frame` | motion pipeline, the Z flip |
 //! | 2 | `atc`, `toolsetter` | the tool changer's and the setter's pure logic |
 //! | 3 | `gcode` | parser, interpreter (pure: returns `Command`s), canned cycles |
 //! | 4 | `hostcodes`, `dollar` | codes taken before the parser |
 //! | 5 | `machine` | the controller, and the runners that move the machine (homing, `machine::toolchange`, `machine::carousel`, `machine::setter`) |
 //! | 6 | `ui` | menu, display, SD jobs (uses the machine) |
-//! | 7 | `board`, `firmware`, `main` | the AVR binary (not in this library) |
+//! | 7 | `board`, `firmware` | the AVR binary (not in this library) |
 //!
 //! Unit tests may reach up (`gcode`'s tests drive `Machine::execute`).
 #![cfg_attr(not(test), no_std)]
 #![cfg_attr(target_arch = "avr", feature(asm_experimental_arch))]
+// Every unsafe operation sits in an `unsafe {}` block with its `// SAFETY:`
+// line, also inside an `unsafe fn`.
+#![deny(unsafe_op_in_unsafe_fn)]
 
 #[macro_use]
 pub mod flash;

@@ -13,6 +13,9 @@
 #![cfg_attr(target_arch = "avr", no_std, no_main, feature(abi_avr_interrupt, asm_experimental_arch))]
 // tests/panic.rs's M9998 calls the abort intrinsic (src/firmware.rs).
 #![cfg_attr(all(target_arch = "avr", feature = "panic-test"), allow(internal_features), feature(core_intrinsics))]
+// Every unsafe operation sits in an `unsafe {}` block with its `// SAFETY:`
+// line, also inside an `unsafe fn`.
+#![deny(unsafe_op_in_unsafe_fn)]
 
 #[cfg(not(target_arch = "avr"))]
 fn main() {

@@ -1,5 +1,5 @@
 //! A real CNC host on the simulated board: cncjs (installed from npm by
-//! `tools/setup` into `target/cncjs`, pinned) runs on 127.0.0.1 with a fresh
+//! `tools/setup-hosts` into `target/cncjs`, pinned) runs on 127.0.0.1 with a fresh
 //! config and HOME, and `tests/hosts/cncjs_drive.js` drives it over its
 //! Socket.IO API as its web page does, once with its Marlin controller and
 //! once with its Grbl controller, both at 250000 baud through the pty bridge
@@ -41,11 +41,11 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// `target/cncjs` (or `$MILL_CNCJS_DIR`), where `tools/setup` installs cncjs.
+/// `target/cncjs` (or `$MILL_CNCJS_DIR`), where `tools/setup-hosts` installs cncjs.
 fn cncjs_dir() -> PathBuf {
     let dir = std::env::var_os("MILL_CNCJS_DIR").map(PathBuf::from).unwrap_or_else(|| root().join("target/cncjs"));
     let bin = dir.join("node_modules/cncjs/bin/cncjs");
-    assert!(bin.exists(), "{} missing: run tools/setup (tools/test does)", bin.display());
+    assert!(bin.exists(), "{} missing: run tools/setup-hosts (tools/test does)", bin.display());
     dir
 }
 

@@ -1,4 +1,4 @@
-//! The real OctoPrint (1.11, from PyPI, installed by `tools/setup` into
+//! The real OctoPrint (1.11, from PyPI, installed by `tools/setup-hosts` into
 //! `target/octoprint-venv`) drives the simulated board through the pty bridge
 //! (`sim::pty`), in real time, as a user does from its web page.
 //!
@@ -34,7 +34,7 @@ fn octoprint_python() -> PathBuf {
         .unwrap_or_else(|| root().join("target/octoprint-venv/bin/python"));
     assert!(
         py.exists(),
-        "{} missing: OctoPrint is not installed; run tools/setup (tools/test does)",
+        "{} missing: OctoPrint is not installed; run tools/setup-hosts (tools/test does)",
         py.display()
     );
     py

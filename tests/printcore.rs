@@ -1,5 +1,5 @@
 //! A real G-code sender on the simulated board: Printrun's `printcore` (the
-//! engine of Pronterface, installed by `tools/setup` into `target/pyenv`)
+//! engine of Pronterface, installed by `tools/setup-hosts` into `target/pyenv`)
 //! streams a job through the pty bridge (`sim::pty`) with line numbers and
 //! checksums. The bridge corrupts one line's checksum in transit; the firmware
 //! must ask for it again and printcore must recover. The recorded steps must
@@ -18,7 +18,7 @@ fn printcore_python() -> PathBuf {
     let py = std::env::var_os("MILL_PRINTCORE_PYTHON")
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join("target/pyenv/bin/python"));
-    assert!(py.exists(), "{} missing: run tools/setup (tools/test does)", py.display());
+    assert!(py.exists(), "{} missing: run tools/setup-hosts (tools/test does)", py.display());
     py
 }
 

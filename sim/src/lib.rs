@@ -65,7 +65,7 @@ pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, SwitchCon
 pub use pins::{Axis, Input, Pin, SignalKind};
 pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
 pub use oled::Sh1106;
-pub use report::Report;
+pub use report::{Report, ResetKind, ResetRecord};
 pub use sdcard::{CardKind, SdCard};
 pub use sdimage::{FatKind, SdImage};
-pub use vm::{ResetKind, ResetRecord, Vm, VmConfig, VmError};
+pub use vm::{Vm, VmConfig, VmError};

@@ -4,10 +4,24 @@ use crate::host::StreamReport;
 use crate::isr::IsrStats;
 use crate::pins::Axis;
 use crate::recorder::{TracePoint, Violation};
-use crate::vm::ResetRecord;
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
+
+/// How the chip was last reset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ResetKind {
+    PowerOn,
+    External,
+    Watchdog,
+}
+
+/// One reset and when it happened (VM cycle).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct ResetRecord {
+    pub cycle: u64,
+    pub kind: ResetKind,
+}
 
 /// One axis in the report.
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -69,7 +69,7 @@ use crate::physics::{MachineConfig, Physics, ToolSetter};
 use crate::sdcard::SdCard;
 use crate::pins::{Axis, Input, Pin, SignalKind, COOLANT, SPINDLE_PWM};
 use crate::recorder::{Recorder, RecorderConfig, Violation};
-use crate::report::{AxisReport, Report, UartReport};
+use crate::report::{AxisReport, Report, ResetKind, ResetRecord, UartReport};
 use crate::spindle;
 use serde::Serialize;
 use simavr_ffi as ffi;
@@ -155,21 +155,6 @@ impl std::fmt::Display for VmError {
 }
 
 impl std::error::Error for VmError {}
-
-/// How the chip was last reset.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum ResetKind {
-    PowerOn,
-    External,
-    Watchdog,
-}
-
-/// One reset and when it happened (VM cycle).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub struct ResetRecord {
-    pub cycle: u64,
-    pub kind: ResetKind,
-}
 
 /// Everything a [`Vm`] needs to start.
 #[derive(Clone, Debug)]

@@ -18,7 +18,6 @@
 //! "Common" is the spindle off, the journal, the way to the station and
 //! (if needed) carousel homing at the start, and the way back at the end.
 
-use crate::flash::InFlash;
 use super::tools::{Journal, ToolState};
 use super::{pocket_position, Fault, STATION};
 
@@ -165,11 +164,11 @@ pub const TABLE: [Row; 20] = [
     row(State::EndJournal, When::Always, Do::EndJournal),
 ];
 
-/// [`TABLE`] kept in flash: used at run time, a `const` table would be
-/// copied into RAM at boot on AVR (80 bytes).
-#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-// SAFETY: in program memory on the AVR (the attribute above).
-static TABLE_IN_FLASH: InFlash<[Row; TABLE.len()]> = unsafe { InFlash::new(TABLE) };
+in_flash! {
+    /// [`TABLE`] kept in flash: used at run time, a `const` table would be
+    /// copied into RAM at boot on AVR (80 bytes).
+    static TABLE_IN_FLASH: [Row; TABLE.len()] = TABLE;
+}
 
 /// Row `i` of [`TABLE`], read from flash.
 fn row_at(i: usize) -> Option<Row> {

@@ -25,10 +25,10 @@
 use super::{raise_in_isr, realtime};
 use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicU8, Ordering};
 use mill::protocol::{
     rx_fast_mode, MCodeScanner, RxStore, RxText, Urgent, RX_ALL_SLOW, RX_FAST, RX_LINE_START, SOFT_RESET,
 };
+use portable_atomic::{AtomicU8, Ordering};
 
 /// RX ring slots; one stays free, so 255 bytes are usable. A
 /// character-counting host may keep this many bytes in flight. RAM: 256 + 2 B.

@@ -46,13 +46,12 @@
 
 use super::pins;
 use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
-use core::sync::atomic::{compiler_fence, Ordering as FenceOrdering};
 use mill::stepper::queue::{tccr1b, Chunk, Seg};
 use mill::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_LEN, SEG_MASK, SEG_RING_LEN};
 pub use mill::stepper::rings::Watch;
 use mill::stepper::{Prescale, StepperCmd};
 use mill::N_AXES;
-use portable_atomic::{AtomicU8, Ordering};
+use portable_atomic::{compiler_fence, AtomicU8, Ordering};
 
 /// Timer period while idle: 1 kHz at clk/1.
 const IDLE_PERIOD: u16 = 16_000;
@@ -204,7 +203,7 @@ impl RingMem for Mem {
         // SAFETY: main is the only writer; the fence keeps the slot writes
         // before the head that publishes them.
         unsafe {
-            compiler_fence(FenceOrdering::SeqCst);
+            compiler_fence(Ordering::SeqCst);
             write_volatile(addr_of_mut!(SEG_HEAD), head);
         }
     }
@@ -331,11 +330,15 @@ pub fn clear_stop() {
 
 #[inline(always)]
 unsafe fn set_idle_timer(st: &mut Isr) {
-    write_volatile(OCR1AH, (IDLE_PERIOD >> 8) as u8);
-    write_volatile(OCR1AL, IDLE_PERIOD as u8);
-    if st.tccr != TCCR_DIV1 {
-        st.tccr = TCCR_DIV1;
-        write_volatile(TCCR1B, TCCR_DIV1);
+    // SAFETY: called from the stepper ISR only, which owns timer 1's compare
+    // and clock-select registers while the stepper runs.
+    unsafe {
+        write_volatile(OCR1AH, (IDLE_PERIOD >> 8) as u8);
+        write_volatile(OCR1AL, IDLE_PERIOD as u8);
+        if st.tccr != TCCR_DIV1 {
+            st.tccr = TCCR_DIV1;
+            write_volatile(TCCR1B, TCCR_DIV1);
+        }
     }
 }
 
@@ -344,80 +347,90 @@ unsafe fn set_idle_timer(st: &mut Isr) {
 /// else, a few cycles after the switch pins are read.
 #[inline(always)]
 unsafe fn switches_trip(st: &mut Isr) -> bool {
-    let closed = pins::home_closed();
-    let m = MOTION.as_ptr();
-    if closed & st.limit != 0 {
-        super::spindle_off_raw();
-        write_volatile(m, read_volatile(m) | motion::LIMIT | motion::STOP);
-        return true;
-    }
-    if st.homing != 0 {
-        // Bit 3 (E0): the carousel switch, closed at 0° (pulls low).
-        let mut c = closed;
-        if st.homing & (1 << 3) != 0 && !pins::CAROUSEL_HOME.is_high() {
-            c |= 1 << 3;
-        }
-        if c & st.homing != 0 {
-            write_volatile(m, read_volatile(m) | motion::HOME_TRIPPED | motion::STOP);
+    // SAFETY: called from the stepper ISR only: MOTION is read and written
+    // with plain volatile accesses, as main changes it only with interrupts
+    // off; reading the switch pins has no side effects.
+    unsafe {
+        let closed = pins::home_closed();
+        let m = MOTION.as_ptr();
+        if closed & st.limit != 0 {
+            super::spindle_off_raw();
+            write_volatile(m, read_volatile(m) | motion::LIMIT | motion::STOP);
             return true;
         }
+        if st.homing != 0 {
+            // Bit 3 (E0): the carousel switch, closed at 0° (pulls low).
+            let mut c = closed;
+            if st.homing & (1 << 3) != 0 && !pins::CAROUSEL_HOME.is_high() {
+                c |= 1 << 3;
+            }
+            if c & st.homing != 0 {
+                write_volatile(m, read_volatile(m) | motion::HOME_TRIPPED | motion::STOP);
+                return true;
+            }
+        }
+        if st.probe != 0 && pins::TOOL_SETTER.is_high() {
+            write_volatile(m, read_volatile(m) | motion::PROBE_TRIPPED | motion::STOP);
+            return true;
+        }
+        false
     }
-    if st.probe != 0 && pins::TOOL_SETTER.is_high() {
-        write_volatile(m, read_volatile(m) | motion::PROBE_TRIPPED | motion::STOP);
-        return true;
-    }
-    false
 }
 
 /// The next segment, if any; on a new chunk also its pointer, the direction
 /// pins and the limit mask.
 #[inline(always)]
 unsafe fn load_segment(st: &mut Isr) {
-    let tail = st.seg_tail;
-    if tail == read_volatile(addr_of!(SEG_HEAD)) {
-        if st.running != 0 {
-            st.running = 0;
-            let u = addr_of_mut!(MILL_STEP_UNDERRUNS);
-            *u = (*u).wrapping_add(1);
-            // Nothing moves now: hard limits are for axes moving toward
-            // their switch (an axis may rest on its switch).
-            st.limit = 0;
-            st.armed = st.homing | st.probe;
+    // SAFETY: called from the stepper ISR only, which owns `st`, timer 1 and
+    // the direction pins; main writes the segment and chunk slots before it
+    // publishes them (SEG_HEAD), and `st.chunk` stays inside CHUNKS.
+    unsafe {
+        let tail = st.seg_tail;
+        if tail == read_volatile(addr_of!(SEG_HEAD)) {
+            if st.running != 0 {
+                st.running = 0;
+                let u = addr_of_mut!(MILL_STEP_UNDERRUNS);
+                *u = (*u).wrapping_add(1);
+                // Nothing moves now: hard limits are for axes moving toward
+                // their switch (an axis may rest on its switch).
+                st.limit = 0;
+                st.armed = st.homing | st.probe;
+            }
+            set_idle_timer(st);
+            return;
         }
-        set_idle_timer(st);
-        return;
-    }
-    st.running = 1;
-    let s = &*addr_of!(SEGS[(tail & SEG_MASK) as usize]);
-    st.ticks_left = s.ticks;
-    st.k_end = s.k_end;
-    write_volatile(OCR1AH, (s.period >> 8) as u8);
-    write_volatile(OCR1AL, s.period as u8);
-    let tccr = s.tccr;
-    if tccr != st.tccr {
-        st.tccr = tccr;
-        write_volatile(TCCR1B, tccr);
-    }
-    if s.new_chunk != 0 {
-        st.cur = (st.cur + 1) & CHUNK_MASK;
-        // The next slot (a pointer step, not an index multiply).
-        let mut c = st.chunk.add(1);
-        if c == addr_of_mut!(CHUNKS).cast::<Chunk>().add(CHUNK_RING_LEN) {
-            c = addr_of_mut!(CHUNKS).cast::<Chunk>();
+        st.running = 1;
+        let s = &*addr_of!(SEGS[(tail & SEG_MASK) as usize]);
+        st.ticks_left = s.ticks;
+        st.k_end = s.k_end;
+        write_volatile(OCR1AH, (s.period >> 8) as u8);
+        write_volatile(OCR1AL, s.period as u8);
+        let tccr = s.tccr;
+        if tccr != st.tccr {
+            st.tccr = tccr;
+            write_volatile(TCCR1B, tccr);
         }
-        st.chunk = c;
-        let c = &*c;
-        let pf = pins::PF.port;
-        write_volatile(pf, (read_volatile(pf) & !pins::DIR_PF) | c.dir_out[0]);
-        let pl = pins::PL.port;
-        write_volatile(pl, (read_volatile(pl) & !pins::DIR_PL) | c.dir_out[1]);
-        let pa = pins::PA.port;
-        write_volatile(pa, (read_volatile(pa) & !pins::DIR_PA) | c.dir_out[2]);
-        st.limit = c.limit;
-        st.armed = st.homing | st.probe | c.limit;
+        if s.new_chunk != 0 {
+            st.cur = (st.cur + 1) & CHUNK_MASK;
+            // The next slot (a pointer step, not an index multiply).
+            let mut c = st.chunk.add(1);
+            if c == addr_of_mut!(CHUNKS).cast::<Chunk>().add(CHUNK_RING_LEN) {
+                c = addr_of_mut!(CHUNKS).cast::<Chunk>();
+            }
+            st.chunk = c;
+            let c = &*c;
+            let pf = pins::PF.port;
+            write_volatile(pf, (read_volatile(pf) & !pins::DIR_PF) | c.dir_out[0]);
+            let pl = pins::PL.port;
+            write_volatile(pl, (read_volatile(pl) & !pins::DIR_PL) | c.dir_out[1]);
+            let pa = pins::PA.port;
+            write_volatile(pa, (read_volatile(pa) & !pins::DIR_PA) | c.dir_out[2]);
+            st.limit = c.limit;
+            st.armed = st.homing | st.probe | c.limit;
+        }
+        compiler_fence(Ordering::SeqCst);
+        write_volatile(addr_of_mut!(st.seg_tail), (tail + 1) & SEG_MASK);
     }
-    compiler_fence(FenceOrdering::SeqCst);
-    write_volatile(addr_of_mut!(st.seg_tail), (tail + 1) & SEG_MASK);
 }
 
 /// One Bresenham event of the chunk: step-output bits. Hand-written
@@ -437,68 +450,70 @@ unsafe fn tick(c: *mut Chunk) -> u8 {
     let bits: u8;
     // SAFETY: `c` points to the running chunk slot, which only the ISR uses
     // while it runs; the offsets are checked against the layout below.
-    core::arch::asm!(
-        "ldd {bits}, Z+{every}",
-        "ldd {p}, Z+{partial}",
-        "tst {p}",
-        "breq 9f",
-        "ldd {nl}, Z+{events}",
-        "ldd {nh}, Z+{events}+1",
-        // Axis i: e += s; if e >= 0 { e -= n; step }.
-        "sbrs {p}, 0",
-        "rjmp 3f",
-        "ldd {el}, Z+0", "ldd {eh}, Z+1", "ldd {sl}, Z+8", "ldd {sh}, Z+9",
-        "add {el}, {sl}", "adc {eh}, {sh}",
-        "brmi 2f",
-        "sub {el}, {nl}", "sbc {eh}, {nh}",
-        "ori {bits}, {x}",
-        "2:", "std Z+0, {el}", "std Z+1, {eh}",
-        "3:",
-        "sbrs {p}, 1",
-        "rjmp 5f",
-        "ldd {el}, Z+2", "ldd {eh}, Z+3", "ldd {sl}, Z+10", "ldd {sh}, Z+11",
-        "add {el}, {sl}", "adc {eh}, {sh}",
-        "brmi 4f",
-        "sub {el}, {nl}", "sbc {eh}, {nh}",
-        "ori {bits}, {y}",
-        "4:", "std Z+2, {el}", "std Z+3, {eh}",
-        "5:",
-        "sbrs {p}, 2",
-        "rjmp 7f",
-        "ldd {el}, Z+4", "ldd {eh}, Z+5", "ldd {sl}, Z+12", "ldd {sh}, Z+13",
-        "add {el}, {sl}", "adc {eh}, {sh}",
-        "brmi 6f",
-        "sub {el}, {nl}", "sbc {eh}, {nh}",
-        "ori {bits}, {z}",
-        "6:", "std Z+4, {el}", "std Z+5, {eh}",
-        "7:",
-        "sbrs {p}, 3",
-        "rjmp 9f",
-        "ldd {el}, Z+6", "ldd {eh}, Z+7", "ldd {sl}, Z+14", "ldd {sh}, Z+15",
-        "add {el}, {sl}", "adc {eh}, {sh}",
-        "brmi 8f",
-        "sub {el}, {nl}", "sbc {eh}, {nh}",
-        "ori {bits}, {e}",
-        "8:", "std Z+6, {el}", "std Z+7, {eh}",
-        "9:",
-        in("Z") c,
-        bits = out(reg_upper) bits,
-        p = out(reg) _,
-        nl = out(reg) _,
-        nh = out(reg) _,
-        el = out(reg) _,
-        eh = out(reg) _,
-        sl = out(reg) _,
-        sh = out(reg) _,
-        every = const core::mem::offset_of!(Chunk, every),
-        partial = const core::mem::offset_of!(Chunk, partial),
-        events = const core::mem::offset_of!(Chunk, events),
-        x = const pins::X_STEP.mask,
-        y = const pins::Y_STEP.mask,
-        z = const pins::Z_STEP.mask,
-        e = const pins::E_STEP.mask,
-        options(nostack),
-    );
+    unsafe {
+        core::arch::asm!(
+            "ldd {bits}, Z+{every}",
+            "ldd {p}, Z+{partial}",
+            "tst {p}",
+            "breq 9f",
+            "ldd {nl}, Z+{events}",
+            "ldd {nh}, Z+{events}+1",
+            // Axis i: e += s; if e >= 0 { e -= n; step }.
+            "sbrs {p}, 0",
+            "rjmp 3f",
+            "ldd {el}, Z+0", "ldd {eh}, Z+1", "ldd {sl}, Z+8", "ldd {sh}, Z+9",
+            "add {el}, {sl}", "adc {eh}, {sh}",
+            "brmi 2f",
+            "sub {el}, {nl}", "sbc {eh}, {nh}",
+            "ori {bits}, {x}",
+            "2:", "std Z+0, {el}", "std Z+1, {eh}",
+            "3:",
+            "sbrs {p}, 1",
+            "rjmp 5f",
+            "ldd {el}, Z+2", "ldd {eh}, Z+3", "ldd {sl}, Z+10", "ldd {sh}, Z+11",
+            "add {el}, {sl}", "adc {eh}, {sh}",
+            "brmi 4f",
+            "sub {el}, {nl}", "sbc {eh}, {nh}",
+            "ori {bits}, {y}",
+            "4:", "std Z+2, {el}", "std Z+3, {eh}",
+            "5:",
+            "sbrs {p}, 2",
+            "rjmp 7f",
+            "ldd {el}, Z+4", "ldd {eh}, Z+5", "ldd {sl}, Z+12", "ldd {sh}, Z+13",
+            "add {el}, {sl}", "adc {eh}, {sh}",
+            "brmi 6f",
+            "sub {el}, {nl}", "sbc {eh}, {nh}",
+            "ori {bits}, {z}",
+            "6:", "std Z+4, {el}", "std Z+5, {eh}",
+            "7:",
+            "sbrs {p}, 3",
+            "rjmp 9f",
+            "ldd {el}, Z+6", "ldd {eh}, Z+7", "ldd {sl}, Z+14", "ldd {sh}, Z+15",
+            "add {el}, {sl}", "adc {eh}, {sh}",
+            "brmi 8f",
+            "sub {el}, {nl}", "sbc {eh}, {nh}",
+            "ori {bits}, {e}",
+            "8:", "std Z+6, {el}", "std Z+7, {eh}",
+            "9:",
+            in("Z") c,
+            bits = out(reg_upper) bits,
+            p = out(reg) _,
+            nl = out(reg) _,
+            nh = out(reg) _,
+            el = out(reg) _,
+            eh = out(reg) _,
+            sl = out(reg) _,
+            sh = out(reg) _,
+            every = const core::mem::offset_of!(Chunk, every),
+            partial = const core::mem::offset_of!(Chunk, partial),
+            events = const core::mem::offset_of!(Chunk, events),
+            x = const pins::X_STEP.mask,
+            y = const pins::Y_STEP.mask,
+            z = const pins::Z_STEP.mask,
+            e = const pins::E_STEP.mask,
+            options(nostack),
+        );
+    }
     bits
 }
 
@@ -513,10 +528,14 @@ const _: () = {
 
 #[inline(always)]
 unsafe fn toggle_steps(p: u8) {
-    // Writing 1s to PINx toggles those PORTx bits atomically (datasheet §13.2.2).
-    write_volatile(pins::PF.pin, p & pins::STEP_PF);
-    write_volatile(pins::PL.pin, p & pins::STEP_PL);
-    write_volatile(pins::PA.pin, p & pins::STEP_PA);
+    // SAFETY: called from the stepper ISR only; writing 1s to PINx toggles
+    // only those bits, and the masks keep the step pins.
+    unsafe {
+        // Writing 1s to PINx toggles those PORTx bits atomically (datasheet §13.2.2).
+        write_volatile(pins::PF.pin, p & pins::STEP_PF);
+        write_volatile(pins::PL.pin, p & pins::STEP_PL);
+        write_volatile(pins::PA.pin, p & pins::STEP_PA);
+    }
 }
 
 // One step event. See the module doc for the order of operations.
@@ -550,7 +569,7 @@ fn TIMER1_COMPA() {
         }
         // The work above keeps the step high ≥ 31 cycles (DRV8825; measured
         // minimum: 39 cycles, `tools/bench`); keep it before the falling edge.
-        compiler_fence(FenceOrdering::SeqCst);
+        compiler_fence(Ordering::SeqCst);
         toggle_steps(p);
         st.pending = next;
     }

@@ -17,8 +17,8 @@
 
 use avr_device::atmega2560::{PORTD, TWI};
 use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicU8, Ordering};
 use embedded_hal::i2c::{self, ErrorKind, I2c, NoAcknowledgeSource, Operation, SevenBitAddress};
+use portable_atomic::{AtomicU8, Ordering};
 
 /// CPU clock of the Mega2560 in Hz.
 const F_CPU_HZ: u32 = 16_000_000;

@@ -11,17 +11,10 @@ use super::{Alarm, Io, Machine, State};
 use crate::atc::tools::EEPROM_SETTER_ADDR;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
-use crate::toolsetter::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent, Setter};
+use crate::toolsetter::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent};
 use crate::math::round_i32;
 use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
-
-/// Load the setter record at boot (defaults when blank).
-pub fn boot(m: &mut Machine, io: &mut impl Io) {
-    let mut b = [0u8; Setter::IMAGE_LEN];
-    io.eeprom_read(EEPROM_SETTER_ADDR, &mut b);
-    m.setter = Setter::from_bytes(&b).unwrap_or(Setter::DEFAULT);
-}
 
 /// G37 [D1] [B<tol>] / G37 L<len> R<radius> [X Y].
 #[inline(never)]

@@ -21,14 +21,17 @@
 use super::{carousel, Io, Machine, State};
 use crate::atc::change::{Action, Change, Event, Request};
 use crate::atc::tools::{
-    pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR, EEPROM_TABLE_ADDR,
+    pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_SETTER_ADDR, EEPROM_STATE_ADDR,
+    EEPROM_TABLE_ADDR,
 };
 use crate::atc::{tool_length_offset_mm, Fault};
 use crate::gcode::interp::Error;
 use crate::math::round_i32;
+use crate::toolsetter::Setter;
 use ufmt::{uwrite, uwriteln};
 
-/// Load the tool records at boot and say what the operator must know.
+/// Load the tool records and the tool setter's calibration (defaults when
+/// blank) at boot, and say what the operator must know.
 #[inline(never)]
 pub fn boot(m: &mut Machine, io: &mut impl Io) {
     let mut st = [0u8; ToolState::IMAGE_LEN];
@@ -48,7 +51,9 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
     let mut jb = [0u8; Journal::IMAGE_LEN];
     io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
     m.atc.interrupted = Journal::from_bytes(&jb);
-    super::setter::boot(m, io);
+    let mut sb = [0u8; Setter::IMAGE_LEN];
+    io.eeprom_read(EEPROM_SETTER_ADDR, &mut sb);
+    m.setter = Setter::from_bytes(&sb).unwrap_or(Setter::DEFAULT);
     apply_offset(m);
     uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle()).ok();
     report_interrupted(m, io);

@@ -55,9 +55,8 @@ pub mod arc;
 #[cfg(test)]
 mod tests;
 
-use crate::config::{Settings, MAX_STEP_RATE_HZ};
+use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::{round_i32, sqrtf};
-use crate::stepper::MIN_STEP_RATE_HZ;
 use crate::N_AXES;
 use core::mem::size_of;
 
@@ -162,7 +161,7 @@ pub struct Push {
     /// The nominal rate was lowered so the dominant axis stays within
     /// `config::MAX_STEP_RATE_HZ` (SPEC §11 overload row: warn the operator).
     pub rate_capped: bool,
-    /// The nominal rate was raised to [`crate::stepper::MIN_STEP_RATE_HZ`] on the
+    /// The nominal rate was raised to [`crate::config::MIN_STEP_RATE_HZ`] on the
     /// dominant axis: the feed was slower than the step timer can go.
     pub rate_floored: bool,
 }

@@ -178,7 +178,7 @@ fn a_feed_below_the_slowest_timer_rate_is_raised_and_reported() {
     let r = p.push_line([100, 0, 0, 0], 1.0, false, &st).unwrap();
     assert!(r.rate_floored);
     let v = p.current_block().unwrap().nominal_speed_sqr.sqrt();
-    assert_close(v * 100.0, crate::stepper::MIN_STEP_RATE_HZ, 1e-4);
+    assert_close(v * 100.0, crate::config::MIN_STEP_RATE_HZ, 1e-4);
 }
 
 #[test]

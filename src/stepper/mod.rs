@@ -151,11 +151,5 @@ pub const MIN_PERIOD_CYCLES: u16 = {
     }
 };
 
-/// Slowest step event rate the timer can produce (clk/8, OCR1A = 65535), Hz.
-/// The planner raises slower nominal rates to this (`Push::rate_floored`), and
-/// prep clamps slower segments (only the first/last few steps of a ramp at very
-/// low accelerations) to it.
-pub const MIN_STEP_RATE_HZ: f32 = F_CPU_HZ as f32 / (8.0 * 65535.0);
-
 const _: () = assert!(MIN_PERIOD_CYCLES as u32 * MAX_STEP_RATE_HZ as u32 >= F_CPU_HZ);
 const _: () = assert!(core::mem::size_of::<Segment>() <= 6);

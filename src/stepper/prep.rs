@@ -24,7 +24,7 @@
 //!   it covers at least 1.25 steps (grbl's REQ_MM_INCREMENT_SCALAR), so a ramp
 //!   from zero speed gives a first period of one segment or so, never an
 //!   absurdly long one. The timer's slowest rate is clk/8 with OCR1A = 65535
-//!   ([`super::MIN_STEP_RATE_HZ`], 30.5 Hz); slower segments (only possible at
+//!   ([`crate::config::MIN_STEP_RATE_HZ`], 30.5 Hz); slower segments (only possible at
 //!   the very start or end of a ramp with tiny accelerations) are clamped to it:
 //!   their steps still come out, a little early.
 //! - **Fastest rate.** Periods never go below [`MIN_PERIOD_CYCLES`].
@@ -48,9 +48,8 @@
 //! profile when [`Planner::take_exec_replanned`] says a new block changed the
 //! exit speed (grbl's `st_update_plan_block_parameters`).
 
-use super::{Prescale, Segment, StBlock, StepperCmd, MIN_STEP_RATE_HZ};
-use crate::config::Settings;
-use crate::flash::InFlash;
+use super::{Prescale, Segment, StBlock, StepperCmd};
+use crate::config::{Settings, MIN_STEP_RATE_HZ};
 use crate::math::sqrtf;
 use crate::planner::Planner;
 use crate::F_CPU_HZ;
@@ -165,20 +164,20 @@ fn ceil_u32(x: f32) -> u32 {
     }
 }
 
-/// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
-/// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
-/// of flash).
-#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-// SAFETY: in program memory on the AVR (the attribute above).
-static RECIPROCALS: InFlash<[f32; 13]> = unsafe {
-    let mut t = [0.0f32; 13];
-    let mut i = 1;
-    while i < 13 {
-        t[i] = 1.0 / i as f32;
-        i += 1;
-    }
-    InFlash::new(t)
-};
+in_flash! {
+    /// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
+    /// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
+    /// of flash).
+    static RECIPROCALS: [f32; 13] = {
+        let mut t = [0.0f32; 13];
+        let mut i = 1;
+        while i < 13 {
+            t[i] = 1.0 / i as f32;
+            i += 1;
+        }
+        t
+    };
+}
 
 /// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
 /// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12

@@ -32,7 +32,6 @@
 //! - `G37 L<len> R<radius> [X<x> Y<y>]`: calibration with a reference tool
 //!   (optionally moving the setter position first), `[SETTER Z:… W:…]`.
 
-use crate::flash::InFlash;
 use crate::atc::tools::{seal, valid};
 
 /// Fast seek feed, mm/min.
@@ -243,10 +242,10 @@ pub const TABLE: [Row; 12] = [
     row(State::LiftPlus, When::Diameter, Do::ZSafe),
 ];
 
-/// [`TABLE`] kept in flash (a run-time `const` table would sit in RAM on AVR).
-#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-// SAFETY: in program memory on the AVR (the attribute above).
-static TABLE_IN_FLASH: InFlash<[Row; TABLE.len()]> = unsafe { InFlash::new(TABLE) };
+in_flash! {
+    /// [`TABLE`] kept in flash (a run-time `const` table would sit in RAM on AVR).
+    static TABLE_IN_FLASH: [Row; TABLE.len()] = TABLE;
+}
 
 /// Row `i` of [`TABLE`], read from flash.
 fn row_at(i: usize) -> Option<Row> {

@@ -86,6 +86,17 @@ macro_rules! flash_texts {
         };
 
         impl Text {
+            /// The text whose discriminant is `b`, if there is one.
+            pub fn from_u8(b: u8) -> Option<Text> {
+                if (b as usize) < TEXT_COUNT {
+                    // SAFETY: Text is repr(u8) with implicit discriminants,
+                    // 0 to TEXT_COUNT - 1.
+                    Some(unsafe { core::mem::transmute::<u8, Text>(b) })
+                } else {
+                    None
+                }
+            }
+
             fn range(self) -> (usize, usize) {
                 let i = self as usize;
                 let a = $crate::ui::flash::read_u16(TEXT_OFFSETS.as_ptr(), i) as usize;

@@ -59,6 +59,7 @@ pub enum Act {
     MeasureDia,
     ToolTable,
     ConfirmSpindle,
+    /// The last variant (`act_from_u8` checks against it).
     OptStop,
 }
 
@@ -75,6 +76,18 @@ pub enum MenuId {
 
 const fn item(t: Text, a: Act) -> [u8; 2] {
     [t as u8, a as u8]
+}
+
+/// The action whose discriminant is `b`, if there is one: the inverse of
+/// `item` for the action byte.
+fn act_from_u8(b: u8) -> Option<Act> {
+    if b <= Act::OptStop as u8 {
+        // SAFETY: Act is repr(u8) with implicit discriminants, so every value
+        // from 0 to the last variant's is one.
+        Some(unsafe { core::mem::transmute::<u8, Act>(b) })
+    } else {
+        None
+    }
 }
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
@@ -139,13 +152,11 @@ impl MenuId {
     pub fn item(self, i: usize) -> (Text, Act) {
         let (a, _) = self.range();
         let p = ITEMS.as_ptr() as *const u8;
-        // SAFETY: a + i is an entry of ITEMS; both bytes were made from a
-        // Text and an Act (repr(u8)) by `item`, so they are valid values.
-        unsafe {
-            let t = flash::read_byte(p.add(2 * (a + i)));
-            let c = flash::read_byte(p.add(2 * (a + i) + 1));
-            (core::mem::transmute::<u8, Text>(t), core::mem::transmute::<u8, Act>(c))
-        }
+        // SAFETY: a + i is an entry of ITEMS (i < len()).
+        let (t, c) = unsafe { (flash::read_byte(p.add(2 * (a + i))), flash::read_byte(p.add(2 * (a + i) + 1))) };
+        // `item` made both bytes from a Text and an Act: the fallback is
+        // never taken.
+        (Text::from_u8(t).unwrap_or(Text::Back), act_from_u8(c).unwrap_or(Act::Back))
     }
 
     fn title(self) -> Text {
@@ -1129,6 +1140,15 @@ mod tests {
         assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
         assert_eq!(MenuId::Job.item(2), (Text::Abort, Act::Abort));
         assert_eq!(MenuId::Home.item(4), (Text::HomeX, Act::HomeX));
+    }
+
+    #[test]
+    fn every_menu_entry_reads_back_as_a_text_and_an_action() {
+        for [t, a] in ITEMS {
+            assert!(Text::from_u8(t).is_some() && act_from_u8(a).is_some(), "entry {t} {a}");
+        }
+        assert_eq!(act_from_u8(Act::OptStop as u8), Some(Act::OptStop));
+        assert_eq!(act_from_u8(Act::OptStop as u8 + 1), None);
     }
 
     #[test]

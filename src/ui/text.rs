@@ -150,9 +150,9 @@ mod tests {
         assert_eq!(s(Text::NotIdle), "Machine busy");
         assert_eq!(Text::Yes.len(), 3);
         assert_eq!(Text::Yes.byte(1), b'e');
+        assert_eq!(Text::from_u8(TEXT_COUNT as u8), None);
         for i in 0..TEXT_COUNT as u8 {
-            // SAFETY: Text is repr(u8) with TEXT_COUNT variants.
-            let t: Text = unsafe { core::mem::transmute(i) };
+            let t = Text::from_u8(i).unwrap();
             assert!(s(t).bytes().all(|b| (0x20..0x7F).contains(&b)), "{t:?}");
         }
     }

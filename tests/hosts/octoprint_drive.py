@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Drive the real OctoPrint server against the simulated board, as a user does.
 
-Run by tests/octoprint.rs with the Python of target/octoprint-venv (tools/setup
-installs OctoPrint there). The Rust test owns the virtual machine and the pty;
+Run by tests/octoprint.rs with the Python of target/octoprint-venv
+(tools/setup-hosts installs OctoPrint there). The Rust test owns the virtual machine and the pty;
 this script owns OctoPrint:
 
 1. writes a fresh basedir: config.yaml with only what a user sets (the first-run
