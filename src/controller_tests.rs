@@ -365,7 +365,7 @@ fn a_tool_change_moves_through_the_station_and_keeps_its_journal() {
     assert_eq!(ToolState::from_bytes(&st), Some(ToolState { spindle: 2, occupied: ALL_POCKETS & !pocket_bit(2) }));
     assert_eq!(Journal::from_bytes(&jb), None);
     assert_eq!(jb, Journal::cleared(Journal::to_bytes(Some(Journal { from: 0, to: 2 }))));
-    assert!(r.status().contains("|T:2|"));
+    assert!(r.status().contains("|T:2>"));
 
     // Repetier's immediate T.
     r.ok("$151=1");

@@ -76,6 +76,19 @@ pub enum Command {
     Unlock,
     /// `$J=<words>`: a jog (the words are read by the caller).
     Jog,
+    /// `$HX`, `$HY`, `$HZ`: home one axis (bit 0 X, 1 Y, 2 Z).
+    HomeAxis(u8),
+    /// `$N`: list the startup blocks.
+    StartupList,
+    /// `$N0=<line>`, `$N1=<line>` (the line is read by the caller).
+    StartupSet(u8),
+    /// `$I=<text>` (the text is read by the caller).
+    InfoSet,
+    /// `$RST=$` (settings), `$RST=#` (work offsets), `$RST=*` (both, and
+    /// the startup blocks and info text).
+    Restore(u8),
+    /// `$SLP`: spindle, coolant and drivers off.
+    Sleep,
 }
 
 /// Why a `$` line was refused.
@@ -107,6 +120,19 @@ pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
         b"G" | b"g" => return Ok(Command::Modes),
         b"#" => return Ok(Command::Params),
         [b'J' | b'j', b'=', ..] => return Ok(Command::Jog),
+        [b'I' | b'i', b'=', ..] => return Ok(Command::InfoSet),
+        [b'N' | b'n'] => return Ok(Command::StartupList),
+        [b'N' | b'n', d @ b'0'..=b'9', b'=', ..] => return Ok(Command::StartupSet(d - b'0')),
+        [b'H' | b'h', a] => {
+            return match a | 0x20 {
+                b'x' => Ok(Command::HomeAxis(1)),
+                b'y' => Ok(Command::HomeAxis(2)),
+                b'z' => Ok(Command::HomeAxis(4)),
+                _ => Err(DollarError::Syntax),
+            }
+        }
+        [b'S' | b's', b'L' | b'l', b'P' | b'p'] => return Ok(Command::Sleep),
+        [b'R' | b'r', b'S' | b's', b'T' | b't', b'=', w] if matches!(w, b'$' | b'#' | b'*') => return Ok(Command::Restore(*w)),
         b"I" | b"i" => return Ok(Command::Info),
         _ => {}
     }
@@ -278,8 +304,9 @@ fn xyz(w: &mut impl uWrite, v: [f32; 3]) {
 
 /// `$I`: grbl 1.1's build info lines (options: V variable spindle, N line
 /// numbers, H single-axis homing; 16-block planner, 255-byte RX ring).
-pub fn info(w: &mut impl uWrite) {
-    uwriteln!(w, "{}{}]", F!("[VER:1.1h.MillFW:"), crate::FIRMWARE_VERSION).ok();
+/// `user`: the text stored with `$I=`.
+pub fn info(w: &mut impl uWrite, user: &str) {
+    uwriteln!(w, "{}{}:{}]", F!("[VER:1.1h.MillFW:"), crate::FIRMWARE_VERSION, user).ok();
     uwriteln!(w, "{}", F!("[OPT:VNH,15,255]")).ok();
 }
 
@@ -317,6 +344,17 @@ mod tests {
         assert_eq!(parse(b"$$"), Ok(Command::List));
         assert_eq!(parse(b"$H"), Ok(Command::Home));
         assert_eq!(parse(b"$x"), Ok(Command::Unlock));
+        assert_eq!(parse(b"$J=G91 X1 F100"), Ok(Command::Jog));
+        assert_eq!(parse(b"$RST=*"), Ok(Command::Restore(b'*')));
+        assert_eq!(parse(b"$RST=$"), Ok(Command::Restore(b'$')));
+        assert_eq!(parse(b"$RST=#"), Ok(Command::Restore(b'#')));
+        assert_eq!(parse(b"$RST=x"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$N"), Ok(Command::StartupList));
+        assert_eq!(parse(b"$N1=G21 G90"), Ok(Command::StartupSet(1)));
+        assert_eq!(parse(b"$I=shop"), Ok(Command::InfoSet));
+        assert_eq!(parse(b"$hy"), Ok(Command::HomeAxis(2)));
+        assert_eq!(parse(b"$HQ"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$SLP"), Ok(Command::Sleep));
         assert_eq!(parse(b"$G"), Ok(Command::Modes));
         assert_eq!(parse(b"$#"), Ok(Command::Params));
         assert_eq!(parse(b"$I"), Ok(Command::Info));
@@ -370,9 +408,9 @@ mod tests {
         assert_eq!(l[9], "[TLO:19.500]");
         assert_eq!(l[10], "[PRB:0.000,0.000,0.000:0]");
         let mut out = S(String::new());
-        info(&mut out);
+        info(&mut out, "shop mill 2");
         let l: Vec<&str> = out.0.lines().collect();
-        assert!(l[0].starts_with("[VER:1.1h.MillFW:") && l[0].ends_with(']'), "{l:?}");
+        assert!(l[0].starts_with("[VER:1.1h.MillFW:") && l[0].ends_with(":shop mill 2]"), "{l:?}");
         assert_eq!(l[1], "[OPT:VNH,15,255]");
     }
 

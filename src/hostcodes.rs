@@ -259,7 +259,7 @@ mod tests {
         assert_eq!(code(b"M10"), None);
         assert_eq!(code(b"G0 M104"), None);
         assert_eq!(code(b"M3 S1000"), None, "spindle codes are not printer codes");
-        let all = [73, 82, 83, 104, 105, 106, 107, 109, 113, 117, 140, 155, 190, 300];
+        let all = [73, 82, 83, 104, 105, 106, 107, 109, 113, 117, 140, 155, 190, 221, 300];
         for c in all {
             assert_eq!(code(format!("M{c}").as_bytes()), Some((c, &b""[..])));
         }

@@ -39,6 +39,7 @@ use ufmt::{uwrite, uwriteln};
 pub mod carousel;
 pub mod report;
 pub mod setter;
+pub mod startup;
 pub mod toolchange;
 
 /// Realtime events collected by the hardware since the last poll.
@@ -227,6 +228,42 @@ impl Alarm {
 /// Interpreter-level error shown to the host as `Error:<text>`.
 pub type CmdResult = Result<(), interp::Error>;
 
+/// A status-report field of letters (`|Pn:XZ`, `|A:SF`), left out when
+/// no letter is set.
+struct Letters {
+    buf: [u8; 12],
+    len: u8,
+    head: u8,
+}
+
+impl Letters {
+    fn new(head: &[u8]) -> Letters {
+        let mut buf = [0; 12];
+        let n = head.len().min(6);
+        buf[..n].copy_from_slice(&head[..n]);
+        Letters { buf, len: n as u8, head: n as u8 }
+    }
+
+    fn push(&mut self, on: bool, c: u8) {
+        if on && (self.len as usize) < self.buf.len() {
+            self.buf[self.len as usize] = c;
+            self.len += 1;
+        }
+    }
+
+    fn write(&self, io: &mut impl Io) {
+        if self.len > self.head {
+            let text = core::str::from_utf8(&self.buf[..self.len as usize]).unwrap_or("");
+            io.write_str(text).ok();
+        }
+    }
+}
+
+/// The text after the first `=` of a `$` line.
+fn after_eq(text: &[u8]) -> &[u8] {
+    text.iter().position(|&b| b == b'=').map_or(&[][..], |i| &text[i + 1..])
+}
+
 /// How long a held home switch must read open before its hard limit is
 /// armed again (see `Machine::limits_held`), ms: longer than any contact
 /// bounce.
@@ -259,6 +296,8 @@ pub struct Machine {
     /// numbered line, `M110` or `M115` (a Marlin host's first words) and
     /// at power-on.
     pub grbl_replies: bool,
+    /// Status reports sent (`?`): WCO and Ov come on every tenth.
+    report_count: u8,
     /// Home switches found closed when an alarm was cleared (bit i = axis
     /// i): their hard limit waits until the switch has read open for
     /// [`LIMIT_REARM_MS`], so the axis can be jogged off it (grbl's limits
@@ -328,6 +367,7 @@ impl Machine {
             homed: 0,
             unlocked: false,
             limits_held: 0,
+            report_count: 0xFF,
             grbl_replies: false,
             held_since_ms: 0,
             holding: false,
@@ -380,6 +420,7 @@ impl Machine {
         } else if self.settings.homing_lock {
             uwriteln!(io, "{}", F!("echo:home (G28) before moving, or M999 to unlock")).ok();
         }
+        startup::run(self, io);
     }
 
     /// May motion commands run? Not after power-on or an alarm until the
@@ -900,7 +941,22 @@ impl Machine {
             dollar::Command::List => dollar::list(&self.settings, io),
             dollar::Command::Modes => dollar::modes(&self.interp, self.atc.spindle(), io),
             dollar::Command::Params => dollar::params(&self.interp, io),
-            dollar::Command::Info => dollar::info(io),
+            dollar::Command::Info => startup::info(io),
+            dollar::Command::InfoSet => startup::set_info(io, after_eq(text))?,
+            dollar::Command::StartupList => startup::list(io),
+            dollar::Command::StartupSet(i) => startup::set(io, i, after_eq(text))?,
+            dollar::Command::HomeAxis(mask) => return home(self, io, mask),
+            dollar::Command::Sleep => {
+                // grbl's sleep: everything that drives the machine off; here
+                // any command wakes it (the drivers come on with a move).
+                self.spindle_off(io);
+                if self.alarm.is_none() {
+                    self.wait_idle(io)?;
+                }
+                io.drivers(false);
+                uwriteln!(io, "{}", F!("[MSG:Sleeping]")).ok();
+            }
+            dollar::Command::Restore(what) => self.restore(io, what)?,
             dollar::Command::Home => return self.execute(b"G28", io),
             dollar::Command::Unlock => return self.execute(b"M999", io),
             dollar::Command::Jog => return self.jog_line(text, io),
@@ -914,6 +970,30 @@ impl Machine {
                 self.save_settings(io);
             }
         }
+        Ok(())
+    }
+
+    /// `$RST=$` settings to defaults (the work offsets kept), `$RST=#` work
+    /// offsets to 0, `$RST=*` both and the startup blocks and info text;
+    /// stored at once, as grbl does. The tool table and the changer's
+    /// state are kept: they describe the machine as it physically is.
+    fn restore(&mut self, io: &mut impl Io, what: u8) -> CmdResult {
+        let mut s = Settings::defaults();
+        self.interp.store_settings(&mut self.settings);
+        if what == b'#' {
+            s = self.settings;
+        }
+        if what == b'$' {
+            s.wcs_mm = self.settings.wcs_mm;
+        } else {
+            s.wcs_mm = [[0.0; 3]; crate::config::N_WCS];
+        }
+        if what == b'*' {
+            startup::clear(io);
+        }
+        self.replace_settings(s, io)?;
+        self.interp.load_settings(&self.settings);
+        self.save_settings(io);
         Ok(())
     }
 
@@ -1036,9 +1116,8 @@ impl Machine {
         if !matches!(self.state, State::Idle | State::Jog) || self.holding {
             return Err(interp::Error::BadWord(F!("$J= only while idle or jogging")));
         }
-        let words = text.iter().position(|&b| b == b'=').map_or(&[][..], |i| &text[i + 1..]);
         let mut line = crate::gcode::Line::default();
-        crate::gcode::parse_into(words, &mut line).map_err(interp::Error::Parse)?;
+        crate::gcode::parse_into(after_eq(text), &mut line).map_err(interp::Error::Parse)?;
         let (target, feed) = self.interp.jog_target(&line)?;
         if !self.motion_allowed() {
             return Err(interp::Error::NotHomed);
@@ -1368,13 +1447,44 @@ impl Machine {
         uwrite!(io, "|WPos:").ok();
         let wpos = self.interp.work_user(mpos);
         self.write_xyz(io, wpos);
-        let (feed, rpm) = self.interp.feed_and_speed();
-        uwrite!(io, "|FS:{},{}|T:{}", feed as i32, rpm as i32, self.atc.spindle()).ok();
         uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
-        if let Some(a) = self.alarm {
-            uwrite!(io, "|A:{}", a.message()).ok();
+        let (feed, rpm) = self.interp.feed_and_speed();
+        uwrite!(io, "|FS:{},{}", feed as i32, rpm as i32).ok();
+        // Pn: the inputs that read triggered (grbl's letters; C is the
+        // carousel's home switch, P the tool setter, G38's probe input).
+        // Letters are built as bytes: a `&str` per letter would sit in RAM.
+        let sw = io.switches();
+        let mut pn = Letters::new(b"|Pn:");
+        pn.push(sw.home & 1 != 0, b'X');
+        pn.push(sw.home & 2 != 0, b'Y');
+        pn.push(sw.home & 4 != 0, b'Z');
+        pn.push(sw.tool_setter, b'P');
+        pn.push(sw.carousel_home, b'C');
+        pn.write(io);
+        // WCO and Ov in turn, every few reports (grbl sends them on a
+        // refresh count too; both change rarely).
+        self.report_count = self.report_count.wrapping_add(1);
+        match self.report_count % 10 {
+            0 => {
+                uwrite!(io, "|WCO:").ok();
+                let m = crate::frame::user_from_internal(mpos);
+                let mut wco = m;
+                for a in 0..3 {
+                    wco[a] = m[a] - wpos[a];
+                }
+                self.write_xyz(io, wco);
+            }
+            1 => {
+                uwrite!(io, "|Ov:{},100,100", self.interp.feed_override_pct).ok();
+            }
+            _ => {}
         }
-        uwriteln!(io, ">").ok();
+        let mut acc = Letters::new(b"|A:");
+        acc.push(self.interp.spindle_on, b'S');
+        acc.push(self.interp.coolant_m == 8, b'F');
+        acc.push(self.interp.coolant_m == 7, b'M');
+        acc.write(io);
+        uwriteln!(io, "|T:{}>", self.atc.spindle()).ok();
     }
 
     /// Steps → mm for X, Y, Z (E in carousel units).

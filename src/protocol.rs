@@ -456,7 +456,8 @@ impl LineChecker {
         let star = line.iter().rposition(|&b| b == b'*');
         let numbered = matches!(line.first(), Some(b'N' | b'n'));
         if !numbered {
-            if star.is_some() {
+            // A `$` line is grbl's and never checksummed (`$RST=*`).
+            if star.is_some() && line.first() != Some(&b'$') {
                 return Err(ProtoError::MissingLineNumber);
             }
             if let Some(m) = m110_param(line) {

@@ -8,7 +8,7 @@ mod motion_util;
 
 use common::*;
 use motion_util::*;
-use sim::{Axis, Flow, StreamOptions, Vm};
+use sim::{Axis, Flow, Input, StreamOptions, Vm};
 
 /// Sends `?` and returns the next status line.
 fn status(vm: &mut Vm) -> String {
@@ -194,4 +194,94 @@ fn a_grbl_sender_gets_grbl_errors_and_a_marlin_host_marlin_ones() {
     ok(&mut vm, "M110 N0");
     let r = vm.command("G5 X1").unwrap();
     assert!(r[0].starts_with("Error:unsupported code") && r.last().unwrap() == "ok", "{r:?}");
+}
+
+/// grbl 1.1's status fields: Bf, FS, Pn (the inputs that read triggered),
+/// WCO and Ov on a refresh count, A (spindle and coolant).
+#[test]
+fn the_status_report_carries_grbls_fields() {
+    let mut vm = boot_homed();
+    ok(&mut vm, "G10 L20 P1 X5 Y6 Z0");
+    let mut wco = None;
+    let mut ov = None;
+    for _ in 0..10 {
+        let st = status(&mut vm);
+        assert!(st.starts_with("<Idle|MPos:") && st.contains("|Bf:") && st.contains("|FS:"), "{st}");
+        // The carousel's home switch (C) is closed at 0°; nothing else is.
+        assert!(!st.contains("|A:"), "{st}");
+        let pn = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Pn:")).unwrap_or("");
+        assert_eq!(pn, "C", "{st}");
+        for f in st.trim_matches(['<', '>']).split('|') {
+            if let Some(v) = f.strip_prefix("WCO:") {
+                wco = Some(v.to_string());
+            }
+            if let Some(v) = f.strip_prefix("Ov:") {
+                ov = Some(v.to_string());
+            }
+        }
+    }
+    // MPos 1,1,-1 is work 5,6,... : WCO = MPos - WPos.
+    assert_eq!(wco.as_deref(), Some("-4.000,-5.000,-1.000"));
+    assert_eq!(ov.as_deref(), Some("100,100,100"));
+    ok(&mut vm, "M220 S120");
+    ok(&mut vm, "M3 S6000");
+    ok(&mut vm, "M8");
+    vm.set_input(Input::HomeY, Some(true));
+    vm.set_input(Input::ToolSetter, Some(true));
+    let mut seen_ov = None;
+    for _ in 0..10 {
+        let st = status(&mut vm);
+        assert!(st.contains("|Pn:YP") && st.contains("|A:SF"), "{st}");
+        if let Some(f) = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ov:")) {
+            seen_ov = Some(f.to_string());
+        }
+    }
+    assert_eq!(seen_ov.as_deref(), Some("120,100,100"));
+}
+
+/// grbl's other `$` commands: startup blocks (stored, checked, run at
+/// boot with their echo), `$I=`, `$RST=`, `$SLP`, `$HX`.
+#[test]
+fn startup_blocks_info_restore_sleep_and_one_axis_homing() {
+    let mut vm = boot_homed();
+    ok(&mut vm, "$N0=G20 G91");
+    ok(&mut vm, "$N1=G55");
+    let r = ok(&mut vm, "$N");
+    assert_eq!(r[..2], ["$N0=G20 G91", "$N1=G55"]);
+    // A line that would not run, or a `$` line, is refused and not stored.
+    assert!(refused(&mut vm, "$N0=G5 X1").contains("unsupported"));
+    assert!(refused(&mut vm, "$N1=$H").contains("$N"));
+    assert_eq!(ok(&mut vm, "$N")[..2], ["$N0=G20 G91", "$N1=G55"]);
+    ok(&mut vm, "$I=shop mill 2");
+    assert!(ok(&mut vm, "$I")[0].ends_with(":shop mill 2]"));
+    // After a power cycle the blocks run, each echoed with its result.
+    vm.power_cycle();
+    let banner = vm.wait_banner().unwrap();
+    assert!(banner.iter().any(|l| l == ">G20 G91:ok") && banner.iter().any(|l| l == ">G55:ok"), "{banner:?}");
+    let g = modes(&mut vm);
+    assert!(g.contains("G20") && g.contains("G91") && g.contains("G55"), "{g}");
+    assert!(ok(&mut vm, "$I")[0].ends_with(":shop mill 2]"), "the info text survives");
+    ok(&mut vm, "G21 G90 G54");
+    // `$RST=*` is not a checksum: settings, offsets, blocks and text go.
+    ok(&mut vm, "$100=200");
+    ok(&mut vm, "G10 L2 P1 X3");
+    ok(&mut vm, "$RST=$");
+    assert!(ok(&mut vm, "$$").iter().any(|l| l.starts_with("$100=100")));
+    assert!(ok(&mut vm, "$#")[0].starts_with("[G54:3.000,"), "$RST=$ keeps the offsets");
+    ok(&mut vm, "$RST=#");
+    assert!(ok(&mut vm, "$#")[0].starts_with("[G54:0.000,0.000,0.000"));
+    ok(&mut vm, "$RST=*");
+    assert_eq!(ok(&mut vm, "$N")[..2], ["$N0=", "$N1="]);
+    assert!(ok(&mut vm, "$I")[0].ends_with(":]"));
+    // `$HX` homes X alone; `$SLP` turns everything off.
+    // (The power cycle kept the physical position, X and Y at 1 mm, and
+    // forgot the homing: the moves count from there.)
+    ok(&mut vm, "M999");
+    run(&mut vm, "G0 X20 Y20");
+    ok(&mut vm, "$HX");
+    assert_eq!(xyz_now(&vm)[..2], [100, 2100]);
+    ok(&mut vm, "M3 S5000");
+    let r = ok(&mut vm, "$SLP");
+    assert!(r.iter().any(|l| l == "[MSG:Sleeping]"), "{r:?}");
+    assert!(!vm.spindle_on() && !vm.driver_enabled(Axis::X));
 }

@@ -51,7 +51,8 @@ pub fn g37(m: &mut Machine, io: &mut impl Io, mode: Mode, x: Option<f32>, y: Opt
     match out {
         Some(Ok(o)) => store(m, io, tool, o),
         Some(Err(f)) => {
-            if f == Fault::BeamNeverBroke && failure.is_none() && m.wait_idle(io).is_ok() {
+            // (An abort or an alarm on the way ends as `Fault::Stopped`.)
+            if f == Fault::BeamNeverBroke && m.alarm.is_none() && m.wait_idle(io).is_ok() {
                 // As a G38.2 that touches nothing (grbl's ALARM:5): what
                 // follows must not run with a tool that was never measured.
                 m.raise(io, Alarm::ProbeFailed);
