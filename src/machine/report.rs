@@ -89,6 +89,29 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.out(F!(", hard limits "));
     d.out(on_off(s.hard_limits));
     d.text("\n");
+    d.out(F!("echo:Dialect: $153="));
+    d.int(s.dwell_p_ms as i32);
+    d.out(if s.dwell_p_ms { F!(" (G4 P in ms) $154=") } else { F!(" (G4 P in seconds) $154=") });
+    d.int(s.g80_keeps_motion as i32);
+    d.out(if s.g80_keeps_motion { F!(" (G80 keeps the motion mode)\n") } else { F!(" (G80 ends the motion mode)\n") });
+}
+
+/// M31, as Marlin answers it: `echo:Print time: 1h 2m 3s` (leading zero
+/// units left out), the time since the running SD job started; `0s` when
+/// no job runs (a streamed job has no start this firmware knows of).
+#[inline(never)]
+pub fn print_time(m: &Machine, io: &mut impl Io) {
+    let s = if m.sd_job { io.millis().wrapping_sub(m.job_start_ms) / 1000 } else { 0 };
+    let (d, h, min) = (s / 86_400, s / 3600 % 24, s / 60 % 60);
+    uwrite!(io, "{}", F!("echo:Print time: ")).ok();
+    if d != 0 {
+        uwrite!(io, "{}d {}h {}m ", d, h, min).ok();
+    } else if h != 0 {
+        uwrite!(io, "{}h {}m ", h, min).ok();
+    } else if min != 0 {
+        uwrite!(io, "{}m ", min).ok();
+    }
+    uwriteln!(io, "{}s", s % 60).ok();
 }
 
 /// ` X` … ` E`: short, so plain RAM strings.

@@ -612,6 +612,19 @@ pub fn command_with(
                 }
             }
         }
+        33 => {
+            // Marlin's long name of a path: `/<name>`, `/???` when there is
+            // no such file. FAT short names only here: the name is its own.
+            let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
+            card.mount().map_err(SdError::text)?;
+            let mut found = false;
+            card.list(&mut |n, _| found |= *n == name).map_err(SdError::text)?;
+            if found {
+                uwriteln!(out, "/{}", name).ok();
+            } else {
+                uwriteln!(out, "/???").ok();
+            }
+        }
         22 => {
             if busy {
                 return Err(Text::ErrJobRunning);
