@@ -889,37 +889,47 @@ const ALWAYS_USED: u32 = Word::mask(&[Word::F, Word::S, Word::T, Word::X, Word::
 #[inline(never)]
 fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
     use Word::*;
+    // Consts: a mask built at run time would keep its word list in RAM.
+    const ARC: u32 = Word::mask(&[I, J, K, R]);
+    const CYCLE: u32 = Word::mask(&[R, L]);
+    const P_: u32 = Word::mask(&[P]);
+    const Q_: u32 = Word::mask(&[Q]);
+    const PQ: u32 = Word::mask(&[P, Q]);
+    const G10: u32 = Word::mask(&[L, P, R]);
+    const G37: u32 = Word::mask(&[B, D, L, R]);
+    const H_: u32 = Word::mask(&[H]);
+    const N_: u32 = Word::mask(&[N]);
     let mut used = ALWAYS_USED;
     let moves = has_axis_words(l) || l.motion.is_some();
     match g.motion {
-        Motion::ArcCw | Motion::ArcCcw if moves => used |= Word::mask(&[I, J, K, R]),
+        Motion::ArcCw | Motion::ArcCcw if moves => used |= ARC,
         Motion::Cycle(kind) if moves => {
-            used |= Word::mask(&[R, L]);
+            used |= CYCLE;
             if kind.dwells() {
-                used |= Word::mask(&[P]);
+                used |= P_;
             }
             if kind.pecks() {
-                used |= Word::mask(&[Q]);
+                used |= Q_;
             }
         }
         _ => {}
     }
     used |= match l.non_modal {
-        Some(NonModal::Dwell) => Word::mask(&[P]),
-        Some(NonModal::SetOffsets) => Word::mask(&[L, P, R]),
-        Some(NonModal::MeasureTool) => Word::mask(&[B, D, L, R]),
-        Some(NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxReport | NonModal::AuxEnable | NonModal::AuxHome) => Word::mask(&[P]),
+        Some(NonModal::Dwell) => P_,
+        Some(NonModal::SetOffsets) => G10,
+        Some(NonModal::MeasureTool) => G37,
+        Some(NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxReport | NonModal::AuxEnable | NonModal::AuxHome) => P_,
         _ => 0,
     };
     if l.path_mode == Some(super::PathMode::Blend) {
-        used |= Word::mask(&[P, Q]);
+        used |= PQ;
     }
     if l.tool_length == Some(ToolLength::Apply) {
-        used |= Word::mask(&[H]);
+        used |= H_;
     }
     match l.other_m {
-        Some(61) => used |= Word::mask(&[P, Q]),
-        Some(110) => used |= Word::mask(&[N]),
+        Some(61) => used |= PQ,
+        Some(110) => used |= N_,
         _ => {}
     }
     match l.words.first_outside(used) {

@@ -105,8 +105,8 @@ impl Word {
         Word::Caret,
     ];
 
-    /// The word for a letter, any case; `None` for letters outside the
-    /// dialect and for `G` and `M`, which are codes.
+    /// The word for a letter, any case (and `@`, `^`); `None` for letters
+    /// outside the dialect and for `G` and `M`, which are codes.
     pub fn from_letter(c: u8) -> Option<Word> {
         Some(match c.to_ascii_uppercase() {
             b'B' => Word::B,
@@ -127,13 +127,65 @@ impl Word {
             b'X' => Word::X,
             b'Y' => Word::Y,
             b'Z' => Word::Z,
+            b'@' => Word::At,
+            b'^' => Word::Caret,
             _ => return None,
         })
     }
 
-    /// The upper-case letter of the word (`@`, `^` for the polar words).
+    /// The upper-case letter of the word (`@`, `^` for the polar words). A
+    /// match, not a table: on AVR a table would be copied into RAM.
     pub fn letter(self) -> u8 {
-        b"BDEFHIJKLNPQRSTXYZ@^"[self as usize % Word::COUNT]
+        match self {
+            Word::B => b'B',
+            Word::D => b'D',
+            Word::E => b'E',
+            Word::F => b'F',
+            Word::H => b'H',
+            Word::I => b'I',
+            Word::J => b'J',
+            Word::K => b'K',
+            Word::L => b'L',
+            Word::N => b'N',
+            Word::P => b'P',
+            Word::Q => b'Q',
+            Word::R => b'R',
+            Word::S => b'S',
+            Word::T => b'T',
+            Word::X => b'X',
+            Word::Y => b'Y',
+            Word::Z => b'Z',
+            Word::At => b'@',
+            Word::Caret => b'^',
+        }
+    }
+
+    /// The word of bit `i` ([`Word::ALL`]`[i]`, by a match).
+    fn from_index(i: u8) -> Option<Word> {
+        let letter = match i {
+            0 => b'B',
+            1 => b'D',
+            2 => b'E',
+            3 => b'F',
+            4 => b'H',
+            5 => b'I',
+            6 => b'J',
+            7 => b'K',
+            8 => b'L',
+            9 => b'N',
+            10 => b'P',
+            11 => b'Q',
+            12 => b'R',
+            13 => b'S',
+            14 => b'T',
+            15 => b'X',
+            16 => b'Y',
+            17 => b'Z',
+            18 => b'@',
+            19 => b'^',
+            _ => return None,
+        };
+        Word::from_letter(letter)
     }
 
     /// The presence mask of `words` (for [`Words::first_outside`]).
@@ -257,14 +309,23 @@ impl Words {
     /// True when `@` or `^` is present.
     #[inline]
     pub fn has_polar(&self) -> bool {
-        self.present & Word::mask(&[Word::At, Word::Caret]) != 0
+        const POLAR: u32 = Word::mask(&[Word::At, Word::Caret]);
+        self.present & POLAR != 0
     }
 
     /// The first present word, in bit order, that is not in `allowed` (a
     /// [`Word::mask`]): a word no code on the line uses.
     pub fn first_outside(&self, allowed: u32) -> Option<Word> {
         let extra = self.present & !allowed;
-        Word::ALL.iter().copied().find(|&w| extra & w.bit() != 0)
+        // `Word::ALL` is a table (RAM on AVR): the letters' match instead.
+        let mut i = 0u8;
+        while i < Word::COUNT as u8 {
+            if extra & (1 << i) != 0 {
+                return Word::from_index(i);
+            }
+            i += 1;
+        }
+        None
     }
 
     /// The first present word in bit order (e.g. to name a left-over word).
@@ -1157,7 +1218,8 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
             b';' => break,
             // A program marker (`%`, `% vfd enable`): the rest is not G-code.
             b'%' if !seen_word => break,
-            _ if c.is_ascii_alphabetic() => {
+            // `@` and `^`: LinuxCNC's polar words, read like the letters.
+            _ if c.is_ascii_alphabetic() || c == b'@' || c == b'^' => {
                 pos += 1;
                 match c.to_ascii_uppercase() {
                     b'G' => {
@@ -1217,17 +1279,6 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
                             return err(ParseErrorKind::RepeatedWord, col);
                         }
                     }
-                }
-                seen_word = true;
-            }
-            b'@' | b'^' => {
-                // LinuxCNC's polar coordinates: `@` radius, `^` angle.
-                pos += 1;
-                let w = if c == b'@' { Word::At } else { Word::Caret };
-                let (n, next) = lex_number(s, pos, col)?;
-                pos = next;
-                if !line.words.insert(w, n.to_f32()) {
-                    return err(ParseErrorKind::RepeatedWord, col);
                 }
                 seen_word = true;
             }
@@ -1775,6 +1826,20 @@ mod tests {
         // Anywhere else it is still a stray character.
         assert_eq!(fails("G1 %"), (ParseErrorKind::Unexpected, 4));
         assert_eq!(fails("N10 %"), (ParseErrorKind::Unexpected, 5));
+    }
+
+    #[test]
+    fn word_bits_letters_and_indexes_agree() {
+        for (i, &w) in Word::ALL.iter().enumerate() {
+            assert_eq!(Word::from_index(i as u8), Some(w));
+            assert_eq!(Word::from_letter(w.letter()), Some(w));
+            assert_eq!(Word::mask(&[w]), 1 << i);
+            let mut words = Words::new();
+            words.insert(w, 1.0);
+            assert_eq!(words.first_outside(0), Some(w));
+            assert_eq!(words.first_outside(Word::mask(&[w])), None);
+        }
+        assert_eq!(Word::from_index(Word::COUNT as u8), None);
     }
 
     #[test]

@@ -101,17 +101,19 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
 /// no job runs (a streamed job has no start this firmware knows of).
 #[inline(never)]
 pub fn print_time(m: &Machine, io: &mut impl Io) {
-    let s = if m.sd_job { io.millis().wrapping_sub(m.job_start_ms) / 1000 } else { 0 };
-    let (d, h, min) = (s / 86_400, s / 3600 % 24, s / 60 % 60);
-    uwrite!(io, "{}", F!("echo:Print time: ")).ok();
-    if d != 0 {
-        uwrite!(io, "{}d {}h {}m ", d, h, min).ok();
-    } else if h != 0 {
-        uwrite!(io, "{}h {}m ", h, min).ok();
-    } else if min != 0 {
-        uwrite!(io, "{}m ", min).ok();
+    let s = if m.sd_job { (io.millis().wrapping_sub(m.job_start_ms) / 1000) as i32 } else { 0 };
+    let parts = [(s / 86_400, F!("d ")), (s / 3600 % 24, F!("h ")), (s / 60 % 60, F!("m ")), (s % 60, F!("s"))];
+    let mut d = Dyn(io);
+    d.out(F!("echo:Print time: "));
+    let mut started = false;
+    for (i, (v, unit)) in parts.into_iter().enumerate() {
+        started |= v != 0 || i == 3;
+        if started {
+            d.int(v);
+            d.out(unit);
+        }
     }
-    uwriteln!(io, "{}s", s % 60).ok();
+    d.text("\n");
 }
 
 /// ` X` … ` E`: short, so plain RAM strings.
