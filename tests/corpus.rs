@@ -822,18 +822,22 @@ struct Answer {
 }
 
 /// Run `text` (a G28 goes in front) over serial, one line in flight, every
-/// line sent even after an error; then the path check of [`finish`] against
-/// `corpus_scale.py path` of the same text (`model_args`: its options).
-/// `check` looks at each line's answer and the VM first; then any problem
-/// [`finish`] finds (violations, moves after the end, a path off the
-/// reference) fails the test.
-fn run_reproduction(name: &str, text: &str, model_args: &[&str], check: impl FnOnce(&[Answer], &mut Vm)) {
+/// line sent even after an error. The lines of `refused` must be answered
+/// with an `Error:` and every other line without one. Then the path check of
+/// [`finish`] against `corpus_scale.py path` (`model_args`: its options) of
+/// the same text without the refused lines: a refused line must change
+/// nothing, so the path is the one of the others. `check` looks at each
+/// line's answer and the VM first; then any problem [`finish`] finds
+/// (violations, moves after the end, a path off the reference) fails the
+/// test.
+fn run_reproduction(name: &str, text: &str, model_args: &[&str], refused: &[&str], check: impl FnOnce(&[Answer], &mut Vm)) {
     let dir = repo().join("target/dialect").join(name);
     std::fs::create_dir_all(&dir).unwrap();
     let job = dir.join("job.gcode");
     let path = dir.join("reference.path");
     let text = format!("G28\n{text}");
-    std::fs::write(&job, &text).unwrap();
+    let model: String = text.lines().filter(|l| !refused.contains(&host_line(l).as_str())).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&job, &model).unwrap();
     let zflag = if FIRMWARE_Z_UP { "--z-up" } else { "--z-down" };
     let mut args = vec!["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start"];
     let start = start_arg();
@@ -841,7 +845,8 @@ fn run_reproduction(name: &str, text: &str, model_args: &[&str], check: impl FnO
     args.push(zflag);
     args.extend_from_slice(model_args);
     python(&args);
-    let p = Prepared { name: name.to_string(), scaled: text.clone(), scale: 1.0, reference: read_reference(&path) };
+    let mut p = Prepared { name: name.to_string(), scaled: model, scale: 1.0, reference: read_reference(&path) };
+    p.scaled = text.clone();
     let wall = Instant::now();
     let mut vm = vm_for_corpus();
     let t0 = vm.seconds();
@@ -868,6 +873,7 @@ fn run_reproduction(name: &str, text: &str, model_args: &[&str], check: impl FnO
         a.secs = vm.seconds() - sent;
         answers.push(a);
     }
+    only_refused(&answers, refused);
     check(&answers, &mut vm);
     let r = finish(&p, vm, None, Vec::new(), t0, wall, name);
     assert!(r.problems.is_empty(), "{name}: {:#?}", r.problems);
@@ -891,11 +897,10 @@ fn fusion_mach3_post_moves_with_bare_axis_words_after_g80_as_the_motion_before_t
     // Fusion 360's Mach3 post ends a cycle with G80 and moves on with bare
     // axis words: the G0 in force before the cycle (`$154=1`, the default).
     let job = "G0 X5 Y5 Z-2\nG98 G73 X10 Y10 Z-11 R-5 Q0.25 F250\nG80\nZ-4\nX12 Y12 Z-4\nM400\n";
-    run_reproduction("g80_mach3", job, &[], |a, _| only_refused(a, &[]));
+    run_reproduction("g80_mach3", job, &[], &[], |_, _| {});
     // `$154=0`: LinuxCNC's and grbl's refusal, and nothing moves after it.
     let job = "$154=0\nG0 X5 Y5 Z-2\nG98 G81 X10 Y10 Z-11 R-5 F250\nG80\nZ-4\n";
-    run_reproduction("g80_strict", job, &["--g80-cancels"], |a, _| {
-        only_refused(a, &["Z-4"]);
+    run_reproduction("g80_strict", job, &["--g80-cancels"], &["Z-4"], |a, _| {
         assert!(answer(a, "Z-4").error.as_ref().unwrap().contains("G80 active"));
     });
 }
@@ -906,11 +911,13 @@ fn linuxcnc_polar_coordinates_drill_six_holes_on_a_circle_and_move_by_radius_and
     // `G81 R.1 Z-.1 ^60 L6` under G91 (six holes 60° apart), and polar
     // moves under G90 and G91.
     let job = "G0 X20 Y20 Z-2\nG92 X0 Y0\nG0 @10 ^0\nG91 G98 G81 R-1 Z-3 ^60 L6 F300\nG90 G80\nG1 @5 ^90 F600\nG91 ^-90\n@2\nG90 G92.1\nM400\n";
-    run_reproduction("polar", job, &[], |a, _| only_refused(a, &[]));
+    run_reproduction("polar", job, &[], &[], |_, _| {});
     // What LinuxCNC refuses is refused, and nothing moves.
     let job = "G0 X20 Y20 Z-2\nG1 @5 X3 F600\nG18 G1 @5 ^10\nG17 G53 G0 @5 ^10\nM400\n";
-    run_reproduction("polar_refused", job, &[], |a, _| {
-        only_refused(a, &["G1 @5 X3 F600", "G18 G1 @5 ^10", "G17 G53 G0 @5 ^10"]);
+    run_reproduction("polar_refused", job, &[], &["G1 @5 X3 F600", "G18 G1 @5 ^10", "G17 G53 G0 @5 ^10"], |a, _| {
+        for l in ["G1 @5 X3 F600", "G18 G1 @5 ^10", "G17 G53 G0 @5 ^10"] {
+            assert!(answer(a, l).error.as_ref().unwrap().contains("polar"), "{l}");
+        }
     });
 }
 
@@ -918,8 +925,7 @@ fn linuxcnc_polar_coordinates_drill_six_holes_on_a_circle_and_move_by_radius_and
 fn g4_with_p_dwells_then_runs_the_spindle_and_the_move_of_its_line() {
     // LinuxCNC's program skeleton: with P on the line, S is the spindle speed.
     let job = "G0 X5 Y5\nG04 P.5 G0 X10 Y10 S1000 M3\nM400\n";
-    run_reproduction("g4_skeleton", job, &[], |a, vm| {
-        only_refused(a, &[]);
+    run_reproduction("g4_skeleton", job, &[], &[], |a, vm| {
         assert!(vm.spindle_on(), "M3 on the G4 line");
         let duty = vm.spindle_duty();
         assert!((duty - 1000.0 / 10300.0).abs() < 0.01, "S1000 of 10300 rpm: duty {duty}");
@@ -931,8 +937,7 @@ fn g4_with_p_dwells_then_runs_the_spindle_and_the_move_of_its_line() {
 #[test]
 fn g4_p_is_seconds_by_default_and_milliseconds_with_setting_153() {
     let job = "G4 P0.25\n$153=1\nG04 P400\nG4 S0.3\n$153=0\nM400\n";
-    run_reproduction("g4_units", job, &[], |a, _| {
-        only_refused(a, &[]);
+    run_reproduction("g4_units", job, &[], &[], |a, _| {
         let t = answer(a, "G4 P0.25").secs;
         assert!((0.25..0.4).contains(&t), "P0.25 s: {t}");
         let t = answer(a, "G04 P400").secs;
@@ -945,8 +950,7 @@ fn g4_p_is_seconds_by_default_and_milliseconds_with_setting_153() {
 #[test]
 fn percent_lines_with_text_report_only_codes_and_long_numbers_are_accepted() {
     let job = "% vfd enable\nG0 X5 Y5\nM31\nM62 P1\nG1 X24.985715729 Y1.23456789012 F600\nX1.234567\n%\nM400\n";
-    run_reproduction("marker_codes_numbers", job, &[], |a, _| {
-        only_refused(a, &["M62 P1"]);
+    run_reproduction("marker_codes_numbers", job, &[], &["M62 P1"], |a, _| {
         assert!(answer(a, "M31").other.iter().any(|l| l == "echo:Print time: 0s"), "{:?}", answer(a, "M31").other);
         let e = answer(a, "M62 P1").error.clone().unwrap();
         assert!(e.contains("M62-M65"), "{e}");
@@ -956,8 +960,7 @@ fn percent_lines_with_text_report_only_codes_and_long_numbers_are_accepted() {
 #[test]
 fn fractional_line_numbers_pass_and_words_no_code_uses_are_refused_as_linuxcnc_does() {
     let job = "G0 X5 Y5\nN4567.789 S1200\nG61 R0.5\nG38.2 F1\nG0 X6 I2\nG1 X7 Y6 F300\nG1 X8 P2\nG0 X9 H1\nM400\n";
-    run_reproduction("unused_words", job, &[], |a, _| {
-        only_refused(a, &["G61 R0.5", "G38.2 F1", "G0 X6 I2", "G1 X8 P2", "G0 X9 H1"]);
+    run_reproduction("unused_words", job, &[], &["G61 R0.5", "G38.2 F1", "G0 X6 I2", "G1 X8 P2", "G0 X9 H1"], |a, _| {
         assert_eq!(answer(a, "G61 R0.5").error.as_deref(), Some("Error:R word with no code that uses it"));
         assert_eq!(answer(a, "G0 X6 I2").error.as_deref(), Some("Error:I word with no code that uses it"));
         assert!(answer(a, "G38.2 F1").error.as_ref().unwrap().contains("all axes missing"));
