@@ -869,11 +869,14 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
 /// The line's S word as a spindle speed: on a G4 line without P, S is the
 /// dwell in seconds (grbl, Marlin), otherwise the speed (RS274/NGC:
 /// `G4 P.5 G0 X10 S1000 M3` dwells, then starts the spindle at 1000).
+#[inline]
 fn spindle_speed(l: &Line) -> Option<f32> {
+    // The usual line has no S: one mask test.
+    let s = l.word(Word::S)?;
     if l.non_modal == Some(NonModal::Dwell) && !l.words.contains(Word::P) {
         return None;
     }
-    l.word(Word::S)
+    Some(s)
 }
 
 /// The words any line may carry: F, S, T, and the words of a point (X, Y,
@@ -1089,7 +1092,7 @@ impl Interp {
                 self.run.target[1] = work_to_machine(self, g, 1, p[1]);
             }
         }
-        if matches!(l.motion, Some(Motion::ProbeToward | Motion::ProbeTowardNoError)) && !any_axis {
+        if !any_axis && matches!(l.motion, Some(Motion::ProbeToward | Motion::ProbeTowardNoError)) {
             return Err(Error::BadWord(F!("G38.2/G38.3: all axes missing with motion code, nothing moved")));
         }
         let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
