@@ -10,7 +10,9 @@
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
-pub const SETTINGS_VERSION: u8 = 3;
+/// Version 3 (the image before the dwell and G80 flags) still loads, with
+/// those two at their defaults.
+pub const SETTINGS_VERSION: u8 = 4;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -59,6 +61,14 @@ pub struct Settings {
     pub optional_stop: bool,
     /// Work coordinate offsets G54..G59, X/Y/Z, mm.
     pub wcs_mm: [[f32; 3]; N_WCS],
+    /// `G4 P` is milliseconds (Mach3 and UCCNC posts, Marlin); off: seconds
+    /// (RS274/NGC, LinuxCNC, grbl).
+    pub dwell_p_ms: bool,
+    /// G80 cancels only the canned cycle and the motion mode from before
+    /// the cycle stays (Fanuc, Haas, Mach3: Fusion 360's Mach3 post moves
+    /// with bare axis words after G80); off: G80 leaves no motion mode and
+    /// bare axis words are refused (LinuxCNC, grbl).
+    pub g80_keeps_motion: bool,
 }
 
 /// Highest step rate the stepper ISR is allowed to be asked for, Hz.
@@ -98,10 +108,14 @@ impl Settings {
         immediate_tool_change: false,
         optional_stop: false,
         wcs_mm: [[0.0; 3]; N_WCS],
+        dwell_p_ms: false,
+        g80_keeps_motion: true,
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 6 + 1;
+    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V3 + 2;
+    /// Size of a version 3 image: no dwell or G80 flag.
+    const IMAGE_LEN_V3: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 6 + 1;
 
     /// The f32 fields in EEPROM image order.
     fn f32_fields(&self) -> [&[f32]; 12] {
@@ -158,6 +172,8 @@ impl Settings {
         w.u8(self.homing_lock as u8);
         w.u8(self.immediate_tool_change as u8);
         w.u8(self.optional_stop as u8);
+        w.u8(self.dwell_p_ms as u8);
+        w.u8(self.g80_keeps_motion as u8);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -165,7 +181,9 @@ impl Settings {
     }
 
     /// Parse an EEPROM image. `None` if blank, of another version, corrupt,
-    /// or holding values no machine could use (NaN, zero steps/mm, …).
+    /// or holding values no machine could use (NaN, zero steps/mm, …). A
+    /// version 3 image (shorter by the two last flags) loads with those
+    /// flags at their defaults.
     pub fn from_bytes(b: &[u8]) -> Option<Settings> {
         let mut s = Settings::defaults();
         s.read_image(b).then_some(s)
@@ -176,10 +194,12 @@ impl Settings {
     /// the settings through a pointer, within AVR's `ldd` reach.
     #[inline(never)]
     fn read_image(&mut self, b: &[u8]) -> bool {
-        if b.len() < Self::IMAGE_LEN || b[0] != SETTINGS_VERSION {
-            return false;
-        }
-        if checksum(&b[..Self::IMAGE_LEN - 1]) != b[Self::IMAGE_LEN - 1] {
+        let len = match b.first() {
+            Some(&SETTINGS_VERSION) => Self::IMAGE_LEN,
+            Some(3) => Self::IMAGE_LEN_V3,
+            _ => return false,
+        };
+        if b.len() < len || checksum(&b[..len - 1]) != b[len - 1] {
             return false;
         }
         let mut r = Reader { buf: b, at: 1 };
@@ -195,6 +215,10 @@ impl Settings {
         self.homing_lock = r.u8() != 0;
         self.immediate_tool_change = r.u8() != 0;
         self.optional_stop = r.u8() != 0;
+        if len == Self::IMAGE_LEN {
+            self.dwell_p_ms = r.u8() != 0;
+            self.g80_keeps_motion = r.u8() != 0;
+        }
         self.is_sane()
     }
 
@@ -303,6 +327,30 @@ mod tests {
         s.hard_limits = false;
         let img = s.to_bytes();
         assert_eq!(Settings::from_bytes(&img), Some(s));
+    }
+
+    #[test]
+    fn a_version_3_image_loads_with_the_new_flags_at_their_defaults() {
+        // The image the firmware wrote before the dwell and G80 flags:
+        // version 3, the same fields, its checksum right after M1's flag.
+        let mut s = Settings::DEFAULT;
+        s.steps_per_mm[2] = 400.0;
+        s.optional_stop = true;
+        s.dwell_p_ms = true;
+        s.g80_keeps_motion = false;
+        let new = s.to_bytes();
+        let mut old = [0xFFu8; Settings::IMAGE_LEN];
+        old[0] = 3;
+        old[1..Settings::IMAGE_LEN_V3 - 1].copy_from_slice(&new[1..Settings::IMAGE_LEN_V3 - 1]);
+        old[Settings::IMAGE_LEN_V3 - 1] = checksum(&old[..Settings::IMAGE_LEN_V3 - 1]);
+        let loaded = Settings::from_bytes(&old).unwrap();
+        assert_eq!(loaded.steps_per_mm[2], 400.0);
+        assert!(loaded.optional_stop);
+        assert_eq!((loaded.dwell_p_ms, loaded.g80_keeps_motion), (false, true));
+        // A version 3 image with a bad checksum is still refused.
+        old[5] ^= 1;
+        assert_eq!(Settings::from_bytes(&old), None);
+        assert_eq!(Settings::from_bytes(&new), Some(s));
     }
 
     #[test]

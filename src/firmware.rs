@@ -714,7 +714,10 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         }
         Cmd::RunFile(i) => match hw.file_name(i) {
             Some(name) => match hw.job.select(&mut hw.sd, &name) {
-                Ok(()) => hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr())),
+                Ok(()) => {
+                    m.job_start_ms = hw.millis();
+                    hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr()))
+                }
                 Err(e) => Err(interp::Error::Sd(e.text().as_fstr())),
             },
             None => Err(interp::Error::Sd(SdError::NotFound.text().as_fstr())),

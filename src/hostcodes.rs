@@ -152,7 +152,7 @@ pub fn run(host: &mut HostState, io: &mut impl ufmt::uWrite<Error = Infallible>,
     Ok(())
 }
 
-/// If `text` is an SD command (M20–M29 or M524), its code and argument
+/// If `text` is an SD command (M20–M29, M33 or M524), its code and argument
 /// (trimmed, without a `;` comment).
 ///
 /// Inline, the first byte is looked at before anything else, as in
@@ -178,7 +178,7 @@ fn sd_code_of(text: &[u8]) -> Option<(u16, &[u8])> {
     for &b in &rest[..digits] {
         code = code * 10 + (b - b'0') as u16;
     }
-    if !(20..=29).contains(&code) && code != 524 {
+    if !(20..=29).contains(&code) && code != 33 && code != 524 {
         return None;
     }
     let mut arg = &rest[digits..];

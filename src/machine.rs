@@ -325,6 +325,8 @@ pub struct Machine {
     numbered: bool,
     /// An SD job is under way: serial lines may only ask for status.
     pub sd_job: bool,
+    /// `io.millis()` when the running SD job started (M31).
+    pub job_start_ms: u32,
     /// The line being executed comes from the SD job.
     job_line: bool,
     /// An abort is decelerating; the queue is dropped once stopped.
@@ -390,6 +392,7 @@ impl Machine {
             },
             numbered: false,
             sd_job: false,
+            job_start_ms: 0,
             job_line: false,
             aborting: false,
             aborts: 0,
@@ -550,6 +553,7 @@ impl Machine {
                 self.last_busy_ms = io.millis();
                 self.line_aborts = self.aborts;
                 let sd = crate::hostcodes::sd_code(cmd);
+                let was_running = self.sd_job;
                 let r = match sd {
                     // M28 is writing a file: every line but M29 goes there.
                     Some((29, _)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, 29, &[]),
@@ -558,6 +562,9 @@ impl Machine {
                     None => self.execute(cmd, io),
                 };
                 self.serial_line = false;
+                if self.sd_job && !was_running {
+                    self.job_start_ms = io.millis();
+                }
                 if self.silenced {
                     // A soft reset ended the line: grbl prints nothing more
                     // for it (the banner already went out).
@@ -622,6 +629,9 @@ impl Machine {
             interp::Error::Sd(t) => {
                 // SD card errors print their own text.
                 uwrite!(io, "{}", t).ok();
+            }
+            interp::Error::UnusedWord(w) => {
+                uwriteln!(io, "Error:{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
             }
             other => {
                 uwrite!(io, "{}", other.message()).ok();
@@ -765,6 +775,7 @@ impl Machine {
                     }
                     interp::Report::Switches => report::switches(self, io),
                     interp::Report::Settings => report::settings(self, io),
+                    interp::Report::PrintTime => report::print_time(self, io),
                 }
                 Ok(())
             }

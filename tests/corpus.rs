@@ -179,14 +179,23 @@ fn prepare(e: &Entry) -> Prepared {
     let zflag = if FIRMWARE_Z_UP { "--z-up" } else { "--z-down" };
     let params = python(&["scale", src.to_str().unwrap(), job.to_str().unwrap(), zflag]);
     let params: serde_json::Value = serde_json::from_str(params.trim()).expect("scale parameters");
+    python(&["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start", &start_arg(), zflag]);
+    Prepared {
+        name: e.folder.clone(),
+        scaled: std::fs::read_to_string(&job).unwrap(),
+        scale: params["scale"].as_f64().unwrap(),
+        reference: read_reference(&path),
+    }
+}
+
+/// The reference start point, machine mm, as `--start` takes it.
+fn start_arg() -> String {
     let zs = if FIRMWARE_Z_UP { -1.0 } else { 1.0 };
-    let start = format!(
-        "{},{},{}",
-        START_STEPS[0] as f64 / SPMM,
-        START_STEPS[1] as f64 / SPMM,
-        zs * START_STEPS[2] as f64 / SPMM
-    );
-    python(&["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start", &start, zflag]);
+    format!("{},{},{}", START_STEPS[0] as f64 / SPMM, START_STEPS[1] as f64 / SPMM, zs * START_STEPS[2] as f64 / SPMM)
+}
+
+/// A path file of `corpus_scale.py path`, in physical steps.
+fn read_reference(path: &std::path::Path) -> RefPath {
     let mut r = RefPath::default();
     r.pts.push(START_STEPS.map(|v| v as f64));
     r.line.push(0);
@@ -212,12 +221,7 @@ fn prepare(e: &Entry) -> Prepared {
             _ => {}
         }
     }
-    Prepared {
-        name: e.folder.clone(),
-        scaled: std::fs::read_to_string(&job).unwrap(),
-        scale: params["scale"].as_f64().unwrap(),
-        reference: r,
-    }
+    r
 }
 
 /// What one run did.
@@ -799,3 +803,167 @@ fn the_reference_interpreter_passes_its_own_checks() {
     let out = python(&["selftest"]);
     assert!(out.contains("self-test: ok"), "{out}");
 }
+
+// ---- Dialect reproductions -------------------------------------------------
+//
+// Short jobs written the way some generators and controllers write them,
+// run on the real ELF over serial like the corpus files (a G28 in front),
+// every line's answer checked, and the recorded steps checked against the
+// reference model's path of the same text.
+
+/// What one line of a reproduction answered: its `Error:` line, if any, and
+/// every other line before its `ok`.
+struct Answer {
+    line: String,
+    error: Option<String>,
+    other: Vec<String>,
+    /// Simulated seconds from sending the line to its `ok`.
+    secs: f64,
+}
+
+/// Run `text` (a G28 goes in front) over serial, one line in flight, every
+/// line sent even after an error. The lines of `refused` must be answered
+/// with an `Error:` and every other line without one. Then the path check of
+/// [`finish`] against `corpus_scale.py path` (`model_args`: its options) of
+/// the same text without the refused lines: a refused line must change
+/// nothing, so the path is the one of the others. `check` looks at each
+/// line's answer and the VM first; then any problem [`finish`] finds
+/// (violations, moves after the end, a path off the reference) fails the
+/// test.
+fn run_reproduction(name: &str, text: &str, model_args: &[&str], refused: &[&str], check: impl FnOnce(&[Answer], &mut Vm)) {
+    let dir = repo().join("target/dialect").join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    let job = dir.join("job.gcode");
+    let path = dir.join("reference.path");
+    let text = format!("G28\n{text}");
+    let model: String = text.lines().filter(|l| !refused.contains(&host_line(l).as_str())).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&job, &model).unwrap();
+    let zflag = if FIRMWARE_Z_UP { "--z-up" } else { "--z-down" };
+    let mut args = vec!["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start"];
+    let start = start_arg();
+    args.push(&start);
+    args.push(zflag);
+    args.extend_from_slice(model_args);
+    python(&args);
+    let mut p = Prepared { name: name.to_string(), scaled: model, scale: 1.0, reference: read_reference(&path) };
+    p.scaled = text.clone();
+    let wall = Instant::now();
+    let mut vm = vm_for_corpus();
+    let t0 = vm.seconds();
+    let mut answers = Vec::new();
+    for raw in p.scaled.lines() {
+        let line = host_line(raw);
+        if line.is_empty() {
+            continue;
+        }
+        let sent = vm.seconds();
+        vm.send_line(&line);
+        let mut a = Answer { line: line.clone(), error: None, other: Vec::new(), secs: 0.0 };
+        loop {
+            let r = vm.wait_line(|_| true, LINE_TIMEOUT_S).unwrap_or_else(|e| panic!("{name}: `{line}`: {e}"));
+            if r == "ok" || r.starts_with("ok ") {
+                break;
+            }
+            if r.starts_with("Error") {
+                a.error = Some(r);
+            } else {
+                a.other.push(r);
+            }
+        }
+        a.secs = vm.seconds() - sent;
+        answers.push(a);
+    }
+    only_refused(&answers, refused);
+    check(&answers, &mut vm);
+    let r = finish(&p, vm, None, Vec::new(), t0, wall, name);
+    assert!(r.problems.is_empty(), "{name}: {:#?}", r.problems);
+}
+
+/// The answer to the line `text` (the first one sent as it).
+fn answer<'a>(answers: &'a [Answer], text: &str) -> &'a Answer {
+    answers.iter().find(|a| a.line == text).unwrap_or_else(|| panic!("`{text}` was not sent"))
+}
+
+/// Every line was answered `ok` without an error but those of `refused`.
+fn only_refused(answers: &[Answer], refused: &[&str]) {
+    for a in answers {
+        let expected = refused.contains(&a.line.as_str());
+        assert_eq!(a.error.is_some(), expected, "`{}` answered {:?}", a.line, a.error);
+    }
+}
+
+#[test]
+fn fusion_mach3_post_moves_with_bare_axis_words_after_g80_as_the_motion_before_the_cycle() {
+    // Fusion 360's Mach3 post ends a cycle with G80 and moves on with bare
+    // axis words: the G0 in force before the cycle (`$154=1`, the default).
+    let job = "G0 X5 Y5 Z-2\nG98 G73 X10 Y10 Z-11 R-5 Q0.25 F250\nG80\nZ-4\nX12 Y12 Z-4\nM400\n";
+    run_reproduction("g80_mach3", job, &[], &[], |_, _| {});
+    // `$154=0`: LinuxCNC's and grbl's refusal, and nothing moves after it.
+    let job = "$154=0\nG0 X5 Y5 Z-2\nG98 G81 X10 Y10 Z-11 R-5 F250\nG80\nZ-4\n";
+    run_reproduction("g80_strict", job, &["--g80-cancels"], &["Z-4"], |a, _| {
+        assert!(answer(a, "Z-4").error.as_ref().unwrap().contains("G80 active"));
+    });
+}
+
+#[test]
+fn linuxcnc_polar_coordinates_drill_six_holes_on_a_circle_and_move_by_radius_and_angle() {
+    // The work origin at the circle's centre (G92), then LinuxCNC's
+    // `G81 R.1 Z-.1 ^60 L6` under G91 (six holes 60° apart), and polar
+    // moves under G90 and G91.
+    let job = "G0 X20 Y20 Z-2\nG92 X0 Y0\nG0 @10 ^0\nG91 G98 G81 R-1 Z-3 ^60 L6 F300\nG90 G80\nG1 @5 ^90 F600\nG91 ^-90\n@2\nG90 G92.1\nM400\n";
+    run_reproduction("polar", job, &[], &[], |_, _| {});
+    // What LinuxCNC refuses is refused, and nothing moves.
+    let job = "G0 X20 Y20 Z-2\nG1 @5 X3 F600\nG18 G1 @5 ^10\nG17 G53 G0 @5 ^10\nM400\n";
+    run_reproduction("polar_refused", job, &[], &["G1 @5 X3 F600", "G18 G1 @5 ^10", "G17 G53 G0 @5 ^10"], |a, _| {
+        for l in ["G1 @5 X3 F600", "G18 G1 @5 ^10", "G17 G53 G0 @5 ^10"] {
+            assert!(answer(a, l).error.as_ref().unwrap().contains("polar"), "{l}");
+        }
+    });
+}
+
+#[test]
+fn g4_with_p_dwells_then_runs_the_spindle_and_the_move_of_its_line() {
+    // LinuxCNC's program skeleton: with P on the line, S is the spindle speed.
+    let job = "G0 X5 Y5\nG04 P.5 G0 X10 Y10 S1000 M3\nM400\n";
+    run_reproduction("g4_skeleton", job, &[], &[], |a, vm| {
+        assert!(vm.spindle_on(), "M3 on the G4 line");
+        let duty = vm.spindle_duty();
+        assert!((duty - 1000.0 / 10300.0).abs() < 0.01, "S1000 of 10300 rpm: duty {duty}");
+        let t = answer(a, "G04 P.5 G0 X10 Y10 S1000 M3").secs;
+        assert!(t >= 0.5, "the dwell before the move: {t} s");
+    });
+}
+
+#[test]
+fn g4_p_is_seconds_by_default_and_milliseconds_with_setting_153() {
+    let job = "G4 P0.25\n$153=1\nG04 P400\nG4 S0.3\n$153=0\nM400\n";
+    run_reproduction("g4_units", job, &[], &[], |a, _| {
+        let t = answer(a, "G4 P0.25").secs;
+        assert!((0.25..0.4).contains(&t), "P0.25 s: {t}");
+        let t = answer(a, "G04 P400").secs;
+        assert!((0.4..0.55).contains(&t), "P400 ms under $153=1: {t}");
+        let t = answer(a, "G4 S0.3").secs;
+        assert!((0.3..0.45).contains(&t), "S stays seconds: {t}");
+    });
+}
+
+#[test]
+fn percent_lines_with_text_report_only_codes_and_long_numbers_are_accepted() {
+    let job = "% vfd enable\nG0 X5 Y5\nM31\nM62 P1\nG1 X24.985715729 Y1.23456789012 F600\nX1.234567\n%\nM400\n";
+    run_reproduction("marker_codes_numbers", job, &[], &["M62 P1"], |a, _| {
+        assert!(answer(a, "M31").other.iter().any(|l| l == "echo:Print time: 0s"), "{:?}", answer(a, "M31").other);
+        let e = answer(a, "M62 P1").error.clone().unwrap();
+        assert!(e.contains("M62-M65"), "{e}");
+    });
+}
+
+#[test]
+fn fractional_line_numbers_pass_and_words_no_code_uses_are_refused_as_linuxcnc_does() {
+    let job = "G0 X5 Y5\nN4567.789 S1200\nG61 R0.5\nG38.2 F1\nG0 X6 I2\nG1 X7 Y6 F300\nG1 X8 P2\nG0 X9 H1\nM400\n";
+    run_reproduction("unused_words", job, &[], &["G61 R0.5", "G38.2 F1", "G0 X6 I2", "G1 X8 P2", "G0 X9 H1"], |a, _| {
+        assert_eq!(answer(a, "G61 R0.5").error.as_deref(), Some("Error:R word with no code that uses it"));
+        assert_eq!(answer(a, "G0 X6 I2").error.as_deref(), Some("Error:I word with no code that uses it"));
+        assert!(answer(a, "G38.2 F1").error.as_ref().unwrap().contains("all axes missing"));
+    });
+}
+

@@ -104,7 +104,8 @@ fn g81_retracts_to_the_initial_z_under_g98_and_to_r_under_g99_and_bare_x_y_lines
     assert!((plunge - 500.0).abs() < 500.0 * 0.03, "plunge at {plunge:.0} steps/s");
     let retract = z_rate_between(&vm, 1500, 800, t0);
     assert!(retract > 2000.0, "retract at {retract:.0} steps/s, not a rapid");
-    // G80 ends it: a bare X is refused and nothing moves.
+    // G80 ends it: with `$154=0` a bare X is refused and nothing moves.
+    ok(&mut vm, "$154=0");
     ok(&mut vm, "G80");
     mark(&mut vm);
     assert!(refused(&mut vm, "X35").contains("G80"));

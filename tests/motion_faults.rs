@@ -326,6 +326,8 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
     let mut vm = boot_homed();
     run(&mut vm, "G0 X10 Y10 Z-10");
     ok(&mut vm, "G1 F600");
+    // G80 as LinuxCNC has it (no motion mode after it), for `G80 X20` below.
+    ok(&mut vm, "$154=0");
     let settings = ok(&mut vm, "M503");
     mark(&mut vm);
     let cases: &[(&str, &str)] = &[
@@ -350,7 +352,7 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G0 X20 M104 S200", "Error:unsupported code at col 8"),
         ("G1.5 X20", "Error:unsupported code at col 1"),
         ("G1 X1000000", "Error:number out of range at col 4"),
-        ("G1 X1.234567891", "Error:number out of range at col 4"),
+        ("G1 X-1234567.891", "Error:number out of range at col 4"),
         ("G1 X20 F99999999999", "Error:number out of range at col 8"),
         ("G1 X99999", "Error:target outside travel"),
         // +Z is up: above the top switch (machine Z 0) is outside travel.
@@ -360,9 +362,15 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G1 A5", "Error:axis word for an axis this machine does not have (X Y Z only) at col 4"),
         ("G1 X20 (oops", "Error:unclosed comment at col 8"),
         ("G1 X20 #", "Error:# parameters and [expressions] not supported at col 8"),
-        ("G1 X20 @", "Error:unexpected character at col 8"),
+        ("G1 X20 &", "Error:unexpected character at col 8"),
+        ("G1 X20 @", "Error:bad number at col 8"),
+        ("G1 X20 @5", "Error:polar coordinates (@ ^) with X or Y on one line"),
+        ("G61 R0.5", "Error:R word with no code that uses it"),
+        ("G1 X20 I1", "Error:I word with no code that uses it"),
+        ("G38.2 F100", "Error:G38.2/G38.3: all axes missing with motion code"),
+        ("M62 P1", "Error:M62-M65 digital outputs not supported: this machine has none at col 1"),
         ("M4 S1000", "Error:M4 not supported"),
-        ("G4 P-1", "Error:G4 needs one of P<s> or S<s>"),
+        ("G4 P-1", "Error:G4: the dwell must not be negative"),
         ("G10 L3 P1 X0", "Error:G10: L must be 1, 2 or 20"),
         ("G10 L2 P9 X0", "Error:G10 L2/L20: P must be 0-6"),
         ("M220 S5", "Error:M220 S must be 10-500"),

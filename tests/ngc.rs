@@ -122,7 +122,9 @@ fn preamble_codes_are_accepted_and_their_lines_run() {
     let got = check_arc(&vm, (0, 1, 2), [2000.0, 1200.0], 350.0, [1650, 1200, 100], [2000, 850, 100], ARC_DEV);
     assert!((got.swept - TWO_PI / 4.0).abs() < 0.05, "{got:?}");
     ok(&mut vm, "G91.1");
-    // Refused, each by name, and nothing moves.
+    // Refused, each by name, and nothing moves (`$154=0`: G80 as LinuxCNC
+    // has it, so that `G80 X1` is refused for its G80).
+    ok(&mut vm, "$154=0");
     let n = vm.recorder().trace().len();
     for (l, what) in [
         ("G41 D1", "cutter radius compensation"),

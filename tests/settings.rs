@@ -20,7 +20,7 @@ fn setting(vm: &mut sim::Vm, n: u32) -> String {
 fn dollar_settings_list_set_persist_and_drive_the_motion() {
     let mut vm = boot();
     let lines = ok(&mut vm, "$$");
-    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 31, "{lines:?}");
+    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 33, "{lines:?}");
     assert_eq!(setting(&mut vm, 100), "100.000");
     assert_eq!(setting(&mut vm, 130), "45.000");
 
@@ -55,4 +55,37 @@ fn dollar_settings_list_set_persist_and_drive_the_motion() {
     assert_eq!(vm.position(Axis::X) - x0, 800);
     let e = refused(&mut vm, "G1 Y35");
     assert!(e.contains("soft limit"), "{e}");
+}
+
+/// The settings image's checksum (`config::checksum`, spelled out).
+fn image_checksum(b: &[u8]) -> u8 {
+    b.iter().fold(0x5Au8, |s, &x| s.rotate_left(1) ^ x)
+}
+
+#[test]
+fn eeprom_settings_written_before_the_dialect_flags_still_load() {
+    // The image as the firmware wrote it before `$153`/`$154` (version 3:
+    // the same fields up to M1's flag, then the checksum), made here from
+    // today's image with `$100=80`.
+    const LEN_V3: usize = 177;
+    let mut vm = boot();
+    ok(&mut vm, "$100=80");
+    ok(&mut vm, "$153=1");
+    ok(&mut vm, "$154=0");
+    let now = vm.eeprom();
+    assert_eq!(now[0], 4, "version 4 now");
+    let mut old = now[..LEN_V3].to_vec();
+    old[0] = 3;
+    old[LEN_V3 - 1] = image_checksum(&old[..LEN_V3 - 1]);
+    old.extend_from_slice(&[0xFF, 0xFF]);
+    vm.set_eeprom_at(0, &old);
+    vm.power_cycle();
+    let boot_lines = vm.wait_for_start(3.0).unwrap();
+    vm.run_for(0.05).unwrap();
+    let boot_lines = [boot_lines, vm.take_lines()].concat();
+    assert!(!boot_lines.iter().any(|l| l.contains("EEPROM settings invalid")), "{boot_lines:?}");
+    assert_eq!(setting(&mut vm, 100), "80.000", "the old image's values");
+    assert_eq!((setting(&mut vm, 153), setting(&mut vm, 154)), ("0".to_string(), "1".to_string()), "the new flags at their defaults");
+    let m503 = ok(&mut vm, "M503").join("\n");
+    assert!(m503.contains("echo:Dialect: $153=0 (G4 P in seconds) $154=1 (G80 keeps the motion mode)"), "{m503}");
 }

@@ -36,7 +36,7 @@ Scaling choices (also in README "Real jobs (corpus)"):
 
 Usage:
   corpus_scale.py scale IN OUT [--z-down]      prints the parameters as JSON
-  corpus_scale.py path JOB OUT --start X,Y,Z [--z-down]
+  corpus_scale.py path JOB OUT --start X,Y,Z [--z-down] [--g80-cancels]
   corpus_scale.py selftest                     checks of the model itself
 Path file: ``L <job line>`` before the points of that line, ``P x y z s``
 (machine mm, +Z up unless --z-down; s = 1: no Z word since the last tool
@@ -111,7 +111,7 @@ def tokenize(line):
             continue
         if c == ";":
             break
-        if c.isalpha():
+        if c.isalpha() or c in "@^":
             letter = c.upper()
             j = i + 1
             while j < n and line[j] in " \t":
@@ -218,8 +218,13 @@ class Interp:
     (+Z up); otherwise the firmware's old frame, where machine Z grows
     downward (home pull-off at +1)."""
 
-    def __init__(self, start=(0.0, 0.0, 0.0), z_up=True, bbox_only=False):
+    def __init__(self, start=(0.0, 0.0, 0.0), z_up=True, bbox_only=False, g80_keeps_motion=True):
         self.pos = list(start)
+        # G80 ends only the canned cycle and the motion mode from before it
+        # stays (Fanuc, Haas, Mach3; the firmware's default `$154=1`);
+        # False: G80 leaves no motion mode (LinuxCNC, `$154=0`).
+        self.g80_keeps_motion = g80_keeps_motion
+        self.before_cycle = 0
         self.z_up = z_up
         self.inch = False
         self.absolute = True
@@ -317,9 +322,14 @@ class Interp:
             elif code in (0, 1, 2, 3):
                 self.motion = int(code)
             elif code in CANNED:
+                if self.motion not in CANNED:
+                    self.before_cycle = self.motion
                 self.motion = int(code)
             elif code == 80:
-                self.motion = None
+                if not self.g80_keeps_motion:
+                    self.motion = None
+                elif self.motion in CANNED:
+                    self.motion = self.before_cycle
             elif code == 53:
                 g53 = True
             elif code == 28:
@@ -340,7 +350,10 @@ class Interp:
         if "Z" in val or (self.motion in CANNED and any(a in val for a in "XY")):
             # A Z word, or a canned cycle (its moves state Z): Z known again.
             self.z_stale = False
-        axes = [a for a in "XYZ" if a in val]
+        polar = "@" in val or "^" in val
+        if polar and ("X" in val or "Y" in val or g53 or self.plane != 17):
+            raise Unsupported("polar words with X/Y, G53 or outside G17")
+        axes = [a for a in "XYZ@^" if a in val]
         if home:
             self.homing(axes or ["X", "Y", "Z"])
             return
@@ -349,8 +362,10 @@ class Interp:
                 if a in val:
                     self.g92[i] = self.pos[i] - val[a] * self.unit()
             return
-        if 4 in g or 10 in g:
+        if 10 in g:
             return
+        # G4 dwells (no path) and the line goes on to its motion (RS274/NGC
+        # order: dwell, then motion).
         # A full circle names only its centre (G2 I-45).
         arc_words = self.motion in (2, 3) and any(k in val for k in "IJKR")
         if not axes and not arc_words:
@@ -373,12 +388,36 @@ class Interp:
                 if a in val:
                     target[i] = math.nan
             self.pos = target
-        elif self.motion in (0, 1) or g53:
-            self.line_to(target)
-        elif self.motion in (2, 3):
-            self.arc(target, val, self.motion == 2)
-        else:
+        elif self.motion in CANNED:
             self.canned(val)
+        else:
+            if polar:
+                target[0], target[1] = self.polar_point(val, self.absolute, self.pos)
+            if self.motion in (0, 1) or g53:
+                self.line_to(target)
+            else:
+                self.arc(target, val, self.motion == 2)
+
+    def polar_point(self, val, absolute, pos):
+        """LinuxCNC's polar words (find_ends): `@` radius, `^` angle in
+        degrees about the work origin; under G90 a missing one is the
+        current point's, under G91 both add to the current point's. Returns
+        machine X, Y (mm)."""
+        u = self.unit()
+        wx, wy = pos[0] - self.g92[0], pos[1] - self.g92[1]
+        r0, a0 = math.hypot(wx, wy), math.atan2(wy, wx)
+        at_origin = wx == 0 and wy == 0
+        if absolute:
+            if "^" not in val and at_origin:
+                raise Unsupported("polar radius at the origin without an angle")
+            r = val["@"] * u if "@" in val else r0
+            a = math.radians(val["^"]) if "^" in val else a0
+        else:
+            if at_origin:
+                raise Unsupported("G91 polar move from the origin")
+            r = r0 + val.get("@", 0.0) * u
+            a = a0 + math.radians(val.get("^", 0.0))
+        return r * math.cos(a) + self.g92[0], r * math.sin(a) + self.g92[1]
 
     def homing(self, axes):
         pull = [PULL_OFF, PULL_OFF, -PULL_OFF if self.z_up else PULL_OFF]
@@ -496,8 +535,13 @@ class Interp:
             p = list(self.pos)
             p[zi] = r_m
             self.emit(p)
+        polar = "@" in val or "^" in val
         for _ in range(reps):
             p = list(self.pos)
+            if polar:
+                # LinuxCNC's CYCLE_MACRO: under G91 each repeat adds the
+                # radius and the angle again (holes on a circle).
+                p[0], p[1] = self.polar_point(val, self.absolute, self.pos)
             for i, a in enumerate("XY"):
                 if a in val:
                     p[i] = self.work_to_machine(i, val[a]) if self.absolute else self.pos[i] + val[a] * u
@@ -537,8 +581,8 @@ class Interp:
             self.emit(p)
 
 
-def run(text, start, z_up, bbox_only=False):
-    it = Interp(start, z_up, bbox_only)
+def run(text, start, z_up, bbox_only=False, g80_keeps_motion=True):
+    it = Interp(start, z_up, bbox_only, g80_keeps_motion)
     unsupported = None
     for n, raw in enumerate(text.splitlines(), 1):
         try:
@@ -762,6 +806,21 @@ def selftest():
     # G91 canned: R relative to the start Z, Z relative to R, L repeats.
     d = path("G0 X0 Y0 Z5\nG91 G99 G81 X2 R-4 Z-3 L2 F100\n")
     assert [tuple(round(v, 6) for v in p) for p in d[-3:]] == [(4, 0, 1), (4, 0, -2), (4, 0, 1)], d
+    # G80 keeps the motion mode from before the cycle (Fanuc, Mach3);
+    # with --g80-cancels bare axis words after it stop the model.
+    d = path("G0 X0 Y0 Z5\nG98 G73 X10 Y10 Z-11 R-5 Q4 F250\nG80\nZ-4\nX12 Y12 Z-4\n")
+    assert close(d[-2], (10, 10, -4)) and close(d[-1], (12, 12, -4)), d[-3:]
+    it, uns = run("G0 X0\nG81 X1 R1 Z0 F1\nG80\nX2\n", (0.0, 0.0, 5.0), True, g80_keeps_motion=False)
+    assert uns and uns[0] == 4, uns
+    # Polar words about the work origin: G90 absolute, G91 added.
+    d = path("G0 X10 Y0\nG1 @5 ^90 F100\nG91 ^90\n@1\n")
+    assert close(d[1], (0, 5, 0)) and close(d[2], (-5, 0, 0)) and close(d[3], (-6, 0, 0)), d
+    # G91 G81 ^60 L6: six holes on the circle.
+    d = path("G0 X10 Y0 Z5\nG91 G98 G81 R-4 Z-2 ^60 L6 F100\n")
+    bottoms = [p for p in d if abs(p[2] - -1) < 1e-9]
+    assert len(bottoms) == 6 and close(bottoms[-1], (10, 0, -1), 1e-9) and close(bottoms[0], (5, 8.660254037844386, -1)), bottoms
+    # G4 on a motion line: the dwell, then the move (RS274/NGC order).
+    assert close(path("G0 X1\nG04 P.5 G0 X10 Y10 S1000 M3\n")[-1], (10, 10, 0))
     # Scaling: numbers only, uniform factor, G91 and R only scaled.
     out, params = scale_text("G21 G90\nG0 X0 Y0 Z0\nG1 X100 Y10 Z-10 F500 (c X1)\nG2 X100 Y30 R10\nG91 G1 X-10\n", True)
     lines = out.splitlines()
@@ -787,7 +846,7 @@ def main(argv):
         if "--start" in argv:
             start = tuple(float(v) for v in argv[argv.index("--start") + 1].split(","))
         text = open(argv[1], encoding="latin-1").read()
-        it, uns = run(text, start, z_up)
+        it, uns = run(text, start, z_up, g80_keeps_motion="--g80-cancels" not in argv)
         with open(argv[2], "w") as f:
             for e in it.out:
                 if e[0] == "P":

@@ -53,6 +53,7 @@ fn g99_returns_to_r_and_the_next_hole_travels_at_r() {
 #[test]
 fn g80_and_g0_end_the_cycle_and_its_sticky_words() {
     let (mut m, mut io) = machine();
+    m.settings.g80_keeps_motion = false;
     run(&mut m, &mut io, "G0 X10 Y10 Z-5");
     run(&mut m, &mut io, "G81 X20 Z-15 R-8 F300");
     run(&mut m, &mut io, "G80");

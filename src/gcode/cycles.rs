@@ -30,7 +30,9 @@
 //! started; it is kept across lines until a non-cycle motion mode (G80,
 //! G0–G3) ends the run ([`resolve`]).
 //!
-//! `L` repeats the hole: under G91 each repeat moves by the X/Y increment;
+//! `L` repeats the hole: under G91 each repeat moves by the X/Y increment,
+//! or with the polar words adds `@` to the radius and `^` to the angle about
+//! the work origin (`G91 G81 R.1 Z-.1 ^60 L6`: six holes on a circle);
 //! under G90 the same hole is drilled again (as LinuxCNC does).
 
 /// How far above the depth already reached a peck comes back down at rapid
@@ -123,6 +125,8 @@ pub enum Error {
     MissingQ,
     /// G82/G89 started without P.
     MissingP,
+    /// G91 polar words with the tool at the work origin.
+    PolarAtOrigin,
 }
 
 impl Error {
@@ -137,6 +141,7 @@ impl Error {
             Error::MissingR => F!("canned cycle: R missing (needed on the cycle's first line), nothing moved"),
             Error::MissingQ => F!("G73/G83: Q (peck depth) missing, nothing moved"),
             Error::MissingP => F!("G82/G89: P (dwell, seconds) missing, nothing moved"),
+            Error::PolarAtOrigin => F!("G91 polar move from the origin is indeterminate, nothing moved"),
         }
     }
 }
@@ -148,8 +153,11 @@ pub struct Params {
     pub retract: Retract,
     /// The first hole's X, Y.
     pub hole_xy: [f32; 2],
-    /// Added to X, Y for each repeat (G91 `L`); zero under G90.
+    /// Added to X, Y for each repeat (G91 `L`); zero under G90. With
+    /// `polar`: added to the radius (mm) and the angle (radians) instead.
     pub repeat_xy: [f32; 2],
+    /// The repeats step in polar coordinates about the work origin.
+    pub polar: bool,
     /// R plane Z, mm.
     pub r_z: f32,
     /// Bottom Z, mm.
@@ -243,17 +251,31 @@ impl Cycle {
     }
 
     /// Every X, Y, Z the cycle can reach: (low corner, high corner), for the
-    /// soft-limit check before anything moves.
+    /// soft-limit check before anything moves. Not inlined: its frame
+    /// stays out of the interpreter's cycle line.
+    #[inline(never)]
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
-        let last = [
-            self.p.hole_xy[0] + self.p.repeat_xy[0] * (self.p.repeats - 1) as f32,
-            self.p.hole_xy[1] + self.p.repeat_xy[1] * (self.p.repeats - 1) as f32,
-        ];
+        let mut lo = self.p.hole_xy;
+        let mut hi = self.p.hole_xy;
+        if self.p.polar {
+            // Holes on a circle or a spiral: every one of them.
+            let mut xy = self.p.hole_xy;
+            for _ in 1..self.p.repeats {
+                xy = polar_step(xy, self.p.repeat_xy);
+                for a in 0..2 {
+                    lo[a] = min(lo[a], xy[a]);
+                    hi[a] = max(hi[a], xy[a]);
+                }
+            }
+        } else {
+            for a in 0..2 {
+                let last = self.p.hole_xy[a] + self.p.repeat_xy[a] * (self.p.repeats - 1) as f32;
+                lo[a] = min(lo[a], last);
+                hi[a] = max(hi[a], last);
+            }
+        }
         let top = if self.start_z > self.clear_z { self.start_z } else { self.clear_z };
-        (
-            [min(self.p.hole_xy[0], last[0]), min(self.p.hole_xy[1], last[1]), self.p.bottom_z],
-            [max(self.p.hole_xy[0], last[0]), max(self.p.hole_xy[1], last[1]), top],
-        )
+        ([lo[0], lo[1], self.p.bottom_z], [hi[0], hi[1], top])
     }
 
     /// The next move, `None` when the cycle is done.
@@ -335,7 +357,11 @@ impl Cycle {
                     (None, Phase::Done)
                 } else {
                     self.left -= 1;
-                    self.xy = [self.xy[0] + p.repeat_xy[0], self.xy[1] + p.repeat_xy[1]];
+                    self.xy = if p.polar {
+                        polar_step(self.xy, p.repeat_xy)
+                    } else {
+                        [self.xy[0] + p.repeat_xy[0], self.xy[1] + p.repeat_xy[1]]
+                    };
                     (None, Phase::ToHole)
                 }
             }
@@ -373,6 +399,9 @@ pub struct LineWords {
     pub q: Option<f32>,
     pub p: Option<f32>,
     pub l: Option<f32>,
+    /// G91 polar words: added to the radius (mm) and the angle (radians)
+    /// of the position for each hole; X and Y are then absent.
+    pub polar: Option<[f32; 2]>,
 }
 
 /// Resolve one cycle line into the [`Params`] of its holes and the sticky
@@ -413,15 +442,32 @@ pub fn resolve(
         Some(_) => return Err(Error::BadRepeat),
     };
     let initial_z = if prev.is_some() { sticky.initial_z } else { pos[2] };
+    let polar = incremental && w.polar.is_some();
     let (hole_xy, repeat_xy, r_z, bottom_z) = if incremental {
-        let inc = [w.x.unwrap_or(0.0), w.y.unwrap_or(0.0)];
         let r_z = initial_z + r;
-        ([pos[0] + inc[0], pos[1] + inc[1]], inc, r_z, r_z + z)
+        if let Some(step) = w.polar {
+            if pos[0] == 0.0 && pos[1] == 0.0 {
+                return Err(Error::PolarAtOrigin);
+            }
+            (polar_step([pos[0], pos[1]], step), step, r_z, r_z + z)
+        } else {
+            let inc = [w.x.unwrap_or(0.0), w.y.unwrap_or(0.0)];
+            ([pos[0] + inc[0], pos[1] + inc[1]], inc, r_z, r_z + z)
+        }
     } else {
         ([w.x.unwrap_or(pos[0]), w.y.unwrap_or(pos[1])], [0.0, 0.0], r, z)
     };
-    let params = Params { kind, retract, hole_xy, repeat_xy, r_z, bottom_z, initial_z, peck_mm: q, dwell_s: p, repeats };
+    let params = Params { kind, retract, hole_xy, repeat_xy, polar, r_z, bottom_z, initial_z, peck_mm: q, dwell_s: p, repeats };
     Ok((params, Sticky { r, z, q, p, initial_z }))
+}
+
+/// `xy` (about the work origin) with `step[0]` mm added to its radius and
+/// `step[1]` radians to its angle (LinuxCNC's `CYCLE_MACRO`).
+fn polar_step(xy: [f32; 2], step: [f32; 2]) -> [f32; 2] {
+    let r = crate::math::sqrtf(xy[0] * xy[0] + xy[1] * xy[1]) + step[0];
+    let a = crate::math::atan2f(xy[1], xy[0]) + step[1];
+    let (sin, cos) = crate::math::sincosf(a);
+    [r * cos, r * sin]
 }
 
 fn min(a: f32, b: f32) -> f32 {
@@ -450,6 +496,7 @@ mod tests {
             retract,
             hole_xy: [10.0, 5.0],
             repeat_xy: [0.0, 0.0],
+            polar: false,
             r_z: 2.0,
             bottom_z: -3.0,
             initial_z: 10.0,
@@ -656,7 +703,7 @@ mod tests {
     }
 
     fn words() -> LineWords {
-        LineWords { x: Some(4.0), y: Some(6.0), z: Some(-3.0), r: Some(2.0), q: Some(1.5), p: Some(0.25), l: None }
+        LineWords { x: Some(4.0), y: Some(6.0), z: Some(-3.0), r: Some(2.0), q: Some(1.5), p: Some(0.25), l: None, polar: None }
     }
 
     #[test]
@@ -724,5 +771,27 @@ mod tests {
             want.extend([Rapid([x, y, 4.8]), Rapid([x, y, 4.8]), Feed([x, y, 4.2]), Rapid([x, y, 4.8])]);
         }
         assert_eq!(s, want);
+    }
+
+    #[test]
+    fn g91_polar_words_drill_holes_on_a_circle_about_the_work_origin() {
+        // `G91 G81 R1 Z-2 ^60 L6` from (10, 0, 5): six holes 60° apart on
+        // the 10 mm circle, the first at 60°, the last back at 0°.
+        let w = LineWords { z: Some(-2.0), r: Some(1.0), l: Some(6.0), polar: Some([0.0, 60f32.to_radians()]), ..LineWords::default() };
+        let (p, _) = resolve(Kind::Drill, Retract::Initial, true, None, &Sticky::NONE, &w, [10.0, 0.0, 5.0]).unwrap();
+        let holes: Vec<[f32; 2]> = run(p, [10.0, 0.0, 5.0]).into_iter().filter_map(|s| match s {
+            Feed(t) => Some([t[0], t[1]]),
+            _ => None,
+        }).collect();
+        assert_eq!(holes.len(), 6);
+        for (i, h) in holes.iter().enumerate() {
+            let a = (60.0 * (i + 1) as f32).to_radians();
+            assert!((h[0] - 10.0 * a.cos()).abs() < 1e-4 && (h[1] - 10.0 * a.sin()).abs() < 1e-4, "hole {i}: {h:?}");
+        }
+        // The soft-limit box holds every hole of the circle.
+        let (lo, hi) = Cycle::new(p, [10.0, 0.0, 5.0]).unwrap().bounds();
+        assert!(lo[0] < -9.99 && hi[0] > 9.99 && lo[1] < -8.6 && hi[1] > 8.6, "{lo:?} {hi:?}");
+        // At the origin the angle is undefined: refused.
+        assert_eq!(resolve(Kind::Drill, Retract::Initial, true, None, &Sticky::NONE, &w, [0.0, 0.0, 5.0]).unwrap_err(), Error::PolarAtOrigin);
     }
 }

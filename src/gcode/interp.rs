@@ -115,6 +115,9 @@ pub enum Error {
     JobRunning,
     /// An SD card error (its message in flash, printed after `Error:`).
     Sd(FStr),
+    /// A word no code on the line uses (LinuxCNC: "R word with no g code
+    /// that uses it"); printed with its letter.
+    UnusedWord(Word),
 }
 
 impl Error {
@@ -138,6 +141,7 @@ impl Error {
             Error::Aborted => F!("aborted"),
             Error::JobRunning => F!("SD job running: command refused (status only: ?, M27, M114)"),
             Error::Sd(_) => F!("SD card error"),
+            Error::UnusedWord(_) => F!("word with no code that uses it"),
         }
     }
 
@@ -178,6 +182,9 @@ pub struct Interp {
     pub arc_absolute: bool,
     /// Modal motion (G0/G1/G2/G3/G80, a canned cycle).
     pub motion: Motion,
+    /// The motion mode in force when the canned cycle now modal began: what
+    /// G80 goes back to with `$154=1` (Fanuc, Haas, Mach3 posts).
+    motion_before_cycle: Motion,
     /// Canned cycle return level (G98/G99, NGC group 10).
     pub retract: Retract,
     /// The canned cycle words kept from line to line (R, Z, Q, P, the
@@ -233,6 +240,7 @@ impl Interp {
             plane: Plane::Xy,
             arc_absolute: false,
             motion: Motion::Rapid,
+            motion_before_cycle: Motion::Rapid,
             retract: Retract::Initial,
             cycle: cycles::Sticky::NONE,
             feed_mm_per_min: 0.0,
@@ -404,9 +412,9 @@ impl Default for Interp {
 
 const AXIS_WORDS: [Word; 3] = [Word::X, Word::Y, Word::Z];
 
-/// True when a line carries any of X, Y, Z.
+/// True when a line names a point: any of X, Y, Z, or the polar `@`, `^`.
 fn has_axis_words(l: &Line) -> bool {
-    l.words.has_xyz()
+    l.words.has_position()
 }
 
 /// True when the line's X, Y, Z words are the arguments of its M code
@@ -494,6 +502,8 @@ pub enum Report {
     Switches,
     /// M503.
     Settings,
+    /// M31: the running SD job's time, as Marlin prints it.
+    PrintTime,
 }
 
 /// What the interpreter may read of the rest of the machine while it
@@ -521,6 +531,8 @@ enum Phase {
     Spindle,
     /// M7, M8, M9.
     Coolant,
+    /// G4 (after the spindle and coolant, before the motion: RS274/NGC).
+    Dwell,
     /// The line's motion.
     Motion,
     /// An arc's chords, then its end.
@@ -643,7 +655,7 @@ impl Interp {
                     }
                 }
                 Phase::Coolant => {
-                    self.run.phase = Phase::Motion;
+                    self.run.phase = Phase::Dwell;
                     if let Some(c) = l.coolant {
                         let m = match c {
                             Coolant::Mist => 7,
@@ -651,6 +663,14 @@ impl Interp {
                             Coolant::Off => 9,
                         };
                         return Ok(Some(Command::Coolant { m }));
+                    }
+                }
+                Phase::Dwell => {
+                    self.run.phase = Phase::Motion;
+                    if l.non_modal == Some(NonModal::Dwell) {
+                        if let Ok(ms) = dwell(cx.settings, l) {
+                            return Ok(Some(Command::Dwell { ms }));
+                        }
                     }
                 }
                 Phase::Motion => {
@@ -729,8 +749,11 @@ impl Interp {
         // Work on a copy of the modal state; commit only when the line is valid.
         let mut g = ModalCopy::from(self);
         modal_words(cx, l, &mut g)?;
+        if !l.words.within(ALWAYS_USED) {
+            unused_word(l, &g)?;
+        }
         if l.non_modal.is_some() {
-            if let Some(done) = self.non_modal(&g, l) {
+            if let Some(done) = self.non_modal(cx, &g, l) {
                 return done;
             }
         }
@@ -750,8 +773,7 @@ impl Interp {
 
     /// S, M3, M5: the spindle command, if any.
     fn spindle(&mut self, cx: &Ctx, l: &Line) -> Option<Command> {
-        // M220's S is its percentage, not a speed.
-        let s = if l.other_m == Some(220) { None } else { l.word(Word::S) };
+        let s = spindle_speed(l);
         if let Some(s) = s {
             self.spindle_rpm = s;
         }
@@ -819,7 +841,7 @@ fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>
             && l.coolant.is_none()
             && !l.tool_change
             && l.stopping.is_none()
-            && matches!(l.other_m, Some(114 | 115 | 119 | 220 | 503));
+            && matches!(l.other_m, Some(31 | 114 | 115 | 119 | 220 | 503));
         if !status_only {
             return Some(Err(Error::JobRunning));
         }
@@ -835,6 +857,7 @@ fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>
             105 => Some(Command::Report(Report::Temperatures)),
             119 => Some(Command::Report(Report::Switches)),
             503 => Some(Command::Report(Report::Settings)),
+            31 => Some(Command::Report(Report::PrintTime)),
             61 => return Some(m61(l).map(Some)),
             999 => Some(Command::ClearAlarm),
             110 => return Some(Ok(None)), // handled by the line checker
@@ -899,14 +922,98 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
             return Some(Err(Error::BadFeed));
         }
     }
-    let s_word = l.word(Word::S);
+    let s_word = spindle_speed(l);
     if let Some(s) = s_word {
-        if s < 0.0 && l.non_modal != Some(NonModal::Dwell) {
+        if s < 0.0 {
             return Some(Err(Error::BadWord(F!("S must not be negative"))));
         }
     }
-    *extras = l.tool_change || l.spindle.is_some() || l.coolant.is_some() || tool.is_some() || s_word.is_some();
+    *extras = l.tool_change
+        || l.spindle.is_some()
+        || l.coolant.is_some()
+        || tool.is_some()
+        || s_word.is_some()
+        || l.non_modal == Some(NonModal::Dwell);
     None
+}
+
+/// The line's S word as a spindle speed: on a G4 line without P, S is the
+/// dwell in seconds (grbl, Marlin), otherwise the speed (RS274/NGC:
+/// `G4 P.5 G0 X10 S1000 M3` dwells, then starts the spindle at 1000).
+#[inline]
+fn spindle_speed(l: &Line) -> Option<f32> {
+    // The usual line has no S: one mask test.
+    let s = l.word(Word::S)?;
+    if l.non_modal == Some(NonModal::Dwell) && !l.words.contains(Word::P) {
+        return None;
+    }
+    // M220's S is its percentage, not a speed.
+    if l.other_m == Some(220) {
+        return None;
+    }
+    Some(s)
+}
+
+/// The words any line may carry: F, S, T, and the words of a point (X, Y,
+/// Z, `@`, `^`, E), which the motion checks itself (no motion mode, E only
+/// with G0/G1). A streamed line has only these: one mask test.
+const ALWAYS_USED: u32 = Word::mask(&[Word::F, Word::S, Word::T, Word::X, Word::Y, Word::Z, Word::At, Word::Caret, Word::E]);
+
+/// LinuxCNC's rule, which grbl shares (error 20/36): a word that no code on
+/// the line uses is an error ("R word with no g code that uses it"), not
+/// silently dropped (`G61 R0.5`, `G0 X1 I2`). `g` holds the line's modal
+/// state: I, J, K, R belong to an arc, R, L, P (G82, G89) and Q (G73, G83)
+/// to a canned cycle, when the line moves.
+#[inline(never)]
+fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
+    use Word::*;
+    // Consts: a mask built at run time would keep its word list in RAM.
+    const ARC: u32 = Word::mask(&[I, J, K, R]);
+    const CYCLE: u32 = Word::mask(&[R, L]);
+    const P_: u32 = Word::mask(&[P]);
+    const Q_: u32 = Word::mask(&[Q]);
+    const PQ: u32 = Word::mask(&[P, Q]);
+    const G10: u32 = Word::mask(&[L, P, R]);
+    const G37: u32 = Word::mask(&[B, D, L, R]);
+    const H_: u32 = Word::mask(&[H]);
+    const N_: u32 = Word::mask(&[N]);
+    let mut used = ALWAYS_USED;
+    let moves = has_axis_words(l) || l.motion.is_some();
+    match g.motion {
+        Motion::ArcCw | Motion::ArcCcw if moves => used |= ARC,
+        Motion::Cycle(kind) if moves => {
+            used |= CYCLE;
+            if kind.dwells() {
+                used |= P_;
+            }
+            if kind.pecks() {
+                used |= Q_;
+            }
+        }
+        _ => {}
+    }
+    used |= match l.non_modal {
+        Some(NonModal::Dwell) => P_,
+        Some(NonModal::SetOffsets) => G10,
+        Some(NonModal::MeasureTool) => G37,
+        Some(NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxReport | NonModal::AuxEnable | NonModal::AuxHome) => P_,
+        _ => 0,
+    };
+    if l.path_mode == Some(super::PathMode::Blend) {
+        used |= PQ;
+    }
+    if l.tool_length == Some(ToolLength::Apply) {
+        used |= H_;
+    }
+    match l.other_m {
+        Some(61) => used |= PQ,
+        Some(110) => used |= N_,
+        _ => {}
+    }
+    match l.words.first_outside(used) {
+        Some(w) => Err(Error::UnusedWord(w)),
+        None => Ok(()),
+    }
 }
 
 /// True when the line changes tools: M6 (with or without a T word), or,
@@ -938,7 +1045,19 @@ fn modal_words(cx: &Ctx, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
         g.feed = to_mm(g.inches, f);
     }
     if let Some(mo) = l.motion {
-        g.motion = mo;
+        g.motion = match mo {
+            Motion::Cycle(_) if !matches!(g.motion, Motion::Cycle(_)) => {
+                g.before_cycle = g.motion;
+                mo
+            }
+            // `$154=1`: G80 cancels the cycle only (Fanuc's group 9): the
+            // motion mode before it stays, so `G80` then `Z-4` moves.
+            Motion::Cancel if cx.settings.g80_keeps_motion => match g.motion {
+                Motion::Cycle(_) => g.before_cycle,
+                other => other,
+            },
+            _ => mo,
+        };
     }
     if let Some(r) = l.retract {
         g.retract = r;
@@ -962,12 +1081,14 @@ impl Interp {
     /// Non-modal codes that end the line (G4, G10, G92, G28, G37,
     /// G201–G205); `None` for the others (G53), which go on to the motion.
     #[inline(never)]
-    fn non_modal(&mut self, g: &ModalCopy, l: &Line) -> Option<Result<Option<Command>, Error>> {
+    fn non_modal(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Option<Result<Option<Command>, Error>> {
         Some(match l.non_modal {
-            Some(NonModal::Dwell) => dwell(l).map(|ms| {
-                g.commit(self);
-                Some(Command::Dwell { ms })
-            }),
+            // Checked here; run in its own phase, after the spindle and the
+            // coolant of its line and before its motion.
+            Some(NonModal::Dwell) => match dwell(cx.settings, l) {
+                Ok(_) => return None,
+                Err(e) => Err(e),
+            },
             Some(NonModal::SetOffsets) => self.set_offsets(g, l),
             Some(NonModal::SetPosition) => {
                 let mut off = self.g92_mm;
@@ -1038,6 +1159,17 @@ impl Interp {
         if machine_coords && matches!(g.motion, Motion::Cycle(_)) {
             return Err(Error::BadWord(F!("G53 not allowed with a canned cycle (G80 first)")));
         }
+        if l.words.has_polar() {
+            self.polar_checks(g, l, machine_coords)?;
+            if !(g.incremental && matches!(g.motion, Motion::Cycle(_))) {
+                let p = self.polar_point(g, l)?;
+                self.run.target[0] = work_to_machine(self, g, 0, p[0]);
+                self.run.target[1] = work_to_machine(self, g, 1, p[1]);
+            }
+        }
+        if !any_axis && matches!(l.motion, Some(Motion::ProbeToward | Motion::ProbeTowardNoError)) {
+            return Err(Error::BadWord(F!("G38.2/G38.3: all axes missing with motion code, nothing moved")));
+        }
         let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
         // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
         // offsets (Repetier's E0 motor), so all four motors can move at once.
@@ -1056,7 +1188,7 @@ impl Interp {
         let mut do_motion = None;
         if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
             match motion {
-                Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active)"))),
+                Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active; $154=1 keeps the mode from before a cycle)"))),
                 Motion::Rapid => {}
                 _ => {
                     if !(g.feed > 0.0) {
@@ -1103,7 +1235,16 @@ impl Interp {
             return Err(Error::BadFeed);
         }
         let mm = |w: Word| l.word(w).map(|v| to_mm(g.inches, v));
-        let words = cycles::LineWords { x: mm(Word::X), y: mm(Word::Y), z: mm(Word::Z), r: mm(Word::R), q: mm(Word::Q), p: l.word(Word::P), l: l.word(Word::L) };
+        let mut words = cycles::LineWords { x: mm(Word::X), y: mm(Word::Y), z: mm(Word::Z), r: mm(Word::R), q: mm(Word::Q), p: l.word(Word::P), l: l.word(Word::L), polar: None };
+        if l.words.has_polar() {
+            if g.incremental {
+                // Radius and angle added per hole (LinuxCNC's CYCLE_MACRO).
+                words.polar = Some([mm(Word::At).unwrap_or(0.0), deg_to_rad(l.word(Word::Caret).unwrap_or(0.0))]);
+            } else {
+                let p = self.polar_point(g, l)?;
+                (words.x, words.y) = (Some(p[0]), Some(p[1]));
+            }
+        }
         let mut off = [0.0f32; 3];
         let mut pos = [0.0f32; 3];
         for a in 0..3 {
@@ -1127,6 +1268,50 @@ impl Interp {
         self.cycle = run.sticky;
         self.run.progress = Progress::Cycle(run);
         Ok(None)
+    }
+
+    /// What LinuxCNC refuses of polar words: with X or Y, outside G17, with
+    /// G53.
+    #[inline(never)]
+    fn polar_checks(&self, g: &ModalCopy, l: &Line, machine_coords: bool) -> Result<(), Error> {
+        if l.words.contains(Word::X) || l.words.contains(Word::Y) {
+            return Err(Error::BadWord(F!("polar coordinates (@ ^) with X or Y on one line")));
+        }
+        if g.plane != Plane::Xy {
+            return Err(Error::BadWord(F!("polar coordinates (@ ^) only in the XY plane (G17)")));
+        }
+        if machine_coords {
+            return Err(Error::BadWord(F!("polar coordinates (@ ^) not with G53")));
+        }
+        Ok(())
+    }
+
+    /// The X, Y (work coordinates, mm) of a line's polar words `@` radius
+    /// and `^` angle (degrees, counter-clockwise from +X) about the work
+    /// origin, as LinuxCNC reads them: under G90 a missing one is the
+    /// current position's; under G91 both are added to the current
+    /// position's radius and angle (indeterminate at the origin).
+    #[inline(never)]
+    fn polar_point(&self, g: &ModalCopy, l: &Line) -> Result<[f32; 2], Error> {
+        let at = l.word(Word::At).map(|v| to_mm(g.inches, v));
+        let angle = l.word(Word::Caret).map(deg_to_rad);
+        let cur = [self.pos_mm[0] - self.wcs_mm[g.wcs as usize][0] - g.g92[0], self.pos_mm[1] - self.wcs_mm[g.wcs as usize][1] - g.g92[1]];
+        let at_origin = cur[0] == 0.0 && cur[1] == 0.0;
+        let r0 = crate::math::sqrtf(cur[0] * cur[0] + cur[1] * cur[1]);
+        let a0 = crate::math::atan2f(cur[1], cur[0]);
+        let (r, a) = if g.incremental {
+            if at_origin {
+                return Err(Error::BadWord(F!("G91 polar move from the origin is indeterminate, nothing moved")));
+            }
+            (r0 + at.unwrap_or(0.0), a0 + angle.unwrap_or(0.0))
+        } else {
+            if angle.is_none() && at_origin {
+                return Err(Error::BadWord(F!("polar move from the origin needs ^ (the angle), nothing moved")));
+            }
+            (at.unwrap_or(r0), angle.unwrap_or(a0))
+        };
+        let (sin, cos) = crate::math::sincosf(a);
+        Ok([r * cos, r * sin])
     }
 
     /// Arcs: compute the chord plan before committing anything, then commit
@@ -1290,14 +1475,20 @@ fn m61(l: &Line) -> Result<Command, Error> {
     }
 }
 
-/// G4's time: P or S seconds (P in seconds as in RS274/NGC, grbl and
-/// LinuxCNC, and every CAM file of the corpus; Marlin's P is ms: README
-/// "G4"), in ms.
-fn dwell(l: &Line) -> Result<f32, Error> {
-    match (l.word(Word::P), l.word(Word::S)) {
-        (Some(s), None) | (None, Some(s)) if s >= 0.0 => Ok(s * 1000.0),
-        _ => Err(Error::BadWord(F!("G4 needs one of P<s> or S<s> (seconds), not negative"))),
+/// G4's time, in ms: P in seconds (RS274/NGC, grbl, LinuxCNC and every CAM
+/// file of the corpus) or, with `$153=1`, in milliseconds (Mach3 and UCCNC
+/// posts, Marlin: README "G4"); without P, S in seconds (grbl, Marlin).
+/// With P, an S on the line is the spindle speed.
+fn dwell(s: &Settings, l: &Line) -> Result<f32, Error> {
+    let ms = match (l.word(Word::P), l.word(Word::S)) {
+        (Some(p), _) if s.dwell_p_ms => p,
+        (Some(secs), _) | (None, Some(secs)) => secs * 1000.0,
+        (None, None) => return Err(Error::BadWord(F!("G4 needs P (or S in seconds)"))),
+    };
+    if !(ms >= 0.0) {
+        return Err(Error::BadWord(F!("G4: the dwell must not be negative")));
     }
+    Ok(ms)
 }
 
 /// G37's words as a measurement mode, with the setter position (mm) for a
@@ -1458,6 +1649,11 @@ fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXE
     st
 }
 
+/// Degrees → radians.
+pub(crate) fn deg_to_rad(deg: f32) -> f32 {
+    deg * (core::f32::consts::PI / 180.0)
+}
+
 /// `round(mm · steps_per_mm)`.
 #[inline(never)]
 fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
@@ -1492,6 +1688,7 @@ struct ModalCopy {
     plane: Plane,
     arc_absolute: bool,
     motion: Motion,
+    before_cycle: Motion,
     retract: Retract,
     feed: f32,
     wcs: u8,
@@ -1507,6 +1704,7 @@ impl ModalCopy {
             plane: i.plane,
             arc_absolute: i.arc_absolute,
             motion: i.motion,
+            before_cycle: i.motion_before_cycle,
             retract: i.retract,
             feed: i.feed_mm_per_min,
             wcs: i.wcs,
@@ -1521,6 +1719,7 @@ impl ModalCopy {
         i.plane = self.plane;
         i.arc_absolute = self.arc_absolute;
         i.motion = self.motion;
+        i.motion_before_cycle = self.before_cycle;
         i.retract = self.retract;
         i.feed_mm_per_min = self.feed;
         i.wcs = self.wcs;

@@ -314,6 +314,7 @@ fn preamble_codes_run_and_leave_the_rest_of_their_line_in_force() {
 #[test]
 fn g80_cancels_the_motion_mode_and_axis_words_need_one_as_in_linuxcnc() {
     let (mut m, mut io) = machine();
+    m.settings.g80_keeps_motion = false;
     run(&mut m, &mut io, "G1 X1 F600");
     run(&mut m, &mut io, "G80");
     assert_eq!(m.interp.motion, super::Motion::Cancel);
@@ -433,4 +434,101 @@ fn bare_axis_words_at_power_up_are_a_rapid() {
     run(&mut m, &mut io, "Z-10");
     assert_eq!(xyz(&io), [0, 0, 1000], "10 mm below the top (internal steps count down)");
     assert!(refused(&mut m, &mut io, "G0 G80 X1").contains("modal group"), "G0 and G80 share group 1, as in LinuxCNC and grbl");
+}
+
+#[test]
+fn g80_goes_back_to_the_motion_mode_before_the_cycle_by_default_as_fanuc_and_mach3() {
+    let (mut m, mut io) = machine();
+    assert!(m.settings.g80_keeps_motion, "$154=1 is the default");
+    run(&mut m, &mut io, "G0 X5 Y5 Z-2");
+    run(&mut m, &mut io, "G98 G81 X10 Y10 Z-11 R-5 F250");
+    run(&mut m, &mut io, "G80");
+    assert_eq!(m.interp.motion, super::Motion::Rapid, "the G0 before the cycle");
+    // Fusion 360's Mach3 post: bare axis words after G80.
+    run(&mut m, &mut io, "Z-4");
+    run(&mut m, &mut io, "X12 Y12 Z-4");
+    assert_eq!(xyz(&io), [1200, 1200, 400]);
+    // A G80 with no cycle in force changes nothing (a preamble's G80).
+    run(&mut m, &mut io, "G1 X13 F600");
+    run(&mut m, &mut io, "G80");
+    assert_eq!(m.interp.motion, super::Motion::Linear);
+    // A feed move before the cycle: G80 goes back to G1.
+    run(&mut m, &mut io, "G81 X14 Z-11 R-5");
+    run(&mut m, &mut io, "G80");
+    assert_eq!(m.interp.motion, super::Motion::Linear);
+}
+
+#[test]
+fn g4_with_p_on_a_motion_line_dwells_after_the_spindle_and_before_the_move() {
+    let (mut m, mut io) = machine();
+    run(&mut m, &mut io, "G0 X5 Y5");
+    let before = io.path.len();
+    let t0 = io.ms;
+    run(&mut m, &mut io, "G04 P.5 G0 X10 Y10 S1000 M3");
+    assert_eq!(xyz(&io), [1000, 1000, 0], "the move ran");
+    assert!(io.spindle > 0, "S1000 M3 ran");
+    assert_eq!(m.interp.spindle_rpm, 1000.0, "S is the speed when P is there");
+    // The move was queued after the dwell.
+    assert!(io.path_ms[before] - t0 >= 500, "queued {} ms after the line began", io.path_ms[before] - t0);
+    // Without P, S is the dwell in seconds and the speed stays.
+    let t0 = io.ms;
+    run(&mut m, &mut io, "G4 S0.2");
+    assert!(io.ms - t0 >= 200);
+    assert_eq!(m.interp.spindle_rpm, 1000.0);
+    assert!(refused(&mut m, &mut io, "G4").contains("G4 needs P"));
+    assert!(refused(&mut m, &mut io, "G4 P-1").contains("negative"));
+}
+
+#[test]
+fn g4_p_is_milliseconds_with_setting_153() {
+    let (mut m, mut io) = machine();
+    m.settings.dwell_p_ms = true;
+    let t0 = io.ms;
+    run(&mut m, &mut io, "G04 P400");
+    let t = io.ms - t0;
+    assert!((400..450).contains(&t), "{t} ms");
+    // S stays seconds.
+    let t0 = io.ms;
+    run(&mut m, &mut io, "G4 S0.3");
+    assert!((300..350).contains(&(io.ms - t0)));
+}
+
+#[test]
+fn words_no_code_uses_are_refused_and_nothing_moves() {
+    let (mut m, mut io) = machine();
+    run(&mut m, &mut io, "G1 X1 F600");
+    for (l, w) in [("G61 R0.5", 'R'), ("G0 X2 I1", 'I'), ("G1 X2 P2", 'P'), ("G0 X2 H1", 'H'), ("G1 X2 Q1", 'Q'), ("G0 X2 L2", 'L'), ("G0 X2 D1", 'D'), ("G0 X2 B1", 'B'), ("G1 X2 N5", 'N'), ("G81 X2 R0 Z-1 P1", 'P'), ("G82 X2 R0 Z-1 P1 Q1", 'Q')] {
+        match m.execute(l.as_bytes(), &mut io) {
+            Err(super::Error::UnusedWord(got)) => assert_eq!(got.letter() as char, w, "{l}"),
+            other => panic!("{l}: {other:?}"),
+        }
+    }
+    assert!(refused(&mut m, &mut io, "G38.2 F1").contains("all axes missing"));
+    assert_eq!(xyz(&io), [100, 0, 0], "nothing moved");
+    // The words the codes of the line use pass.
+    for l in ["G2 X3 I1 F600", "G3 X1 R1", "G64 P0.01 Q0.01", "G4 P0", "G43 H0", "G49", "G10 L2 P1 X0", "G83 X2 R0 Z-1 Q0.5 F300", "X3", "G82 X2 R0 Z-1 P0.1 L2", "G89 X4 R0 Z-1 P0.1", "G80", "N4567.789 S1200", "M5"] {
+        run(&mut m, &mut io, l);
+    }
+}
+
+#[test]
+fn polar_words_move_about_the_work_origin_as_in_linuxcnc() {
+    let (mut m, mut io) = machine();
+    run(&mut m, &mut io, "G0 X20 Y20");
+    run(&mut m, &mut io, "G92 X0 Y0");
+    run(&mut m, &mut io, "G1 @10 ^90 F600");
+    assert_eq!(xyz(&io), [2000, 3000, 0]);
+    run(&mut m, &mut io, "G91 ^-90");
+    assert_eq!(xyz(&io), [3000, 2000, 0]);
+    run(&mut m, &mut io, "@-5");
+    assert_eq!(xyz(&io), [2500, 2000, 0]);
+    run(&mut m, &mut io, "G90 @2");
+    assert_eq!(xyz(&io), [2200, 2000, 0], "G90: the angle stays");
+    for l in ["G1 @1 X1", "G18 G1 @1 ^0", "G53 G0 @1 ^0"] {
+        assert!(refused(&mut m, &mut io, l).contains("polar"), "{l}");
+    }
+    run(&mut m, &mut io, "G0 X0 Y0");
+    assert!(refused(&mut m, &mut io, "G1 @3").contains("origin"));
+    assert!(refused(&mut m, &mut io, "G91 G1 ^10").contains("origin"));
+    assert_eq!(xyz(&io), [2000, 2000, 0], "nothing moved");
 }

@@ -11,8 +11,11 @@
 //!   (`G1X10Y-2.5`, `X 10`, `X1 6.5` is X16.5, `X- 1` is X-1);
 //! - `( … )` comments (no nesting; an unclosed `(` is an error) and `;` to the
 //!   end of the line;
-//! - numbers `[+|-][digits][.digits]` with at least one digit, below 1e6 in
-//!   magnitude and with at most 9 significant digits. There is no exponent:
+//! - numbers `[+|-][digits][.digits]` with at least one digit and below 1e6
+//!   in magnitude, with any number of digits: beyond 9 significant digits
+//!   the number is rounded to 9 (more than f32's 7), so `X24.985715729`
+//!   reads as written would on a controller with doubles, to the step. There
+//!   is no exponent:
 //!   a number directly followed by `E` (`X1e99`) is an error, so write a
 //!   blank before an `E` word (`X1 E5`);
 //! - `#` parameters, `[` expressions, O-word subroutines and loops, G41/G42
@@ -24,7 +27,11 @@
 //! - a leading `N<n>` is skipped (with or without a checksum: grbl-style
 //!   senders stream files with `N` on every line); an `N` word later on the
 //!   line is a value word (M110 reads it);
-//! - a line that is only `%` (a program delimiter in files) is empty;
+//! - a line that starts with `%` (a program delimiter in files, `% vfd
+//!   enable`) is empty: what follows the `%` is not read;
+//! - `@` and `^` are LinuxCNC's polar coordinates (radius, angle in degrees);
+//! - a leading line number may have a fraction (`N4567.789`), as LinuxCNC
+//!   allows;
 //! - `M23` and `M28` take the rest of the line, up to `;`, as a file name.
 //!
 //! Every error points at a 1-based column of the text given to [`parse`]:
@@ -65,11 +72,15 @@ pub enum Word {
     X,
     Y,
     Z,
+    /// `@`: polar radius (LinuxCNC), mm or inches.
+    At,
+    /// `^`: polar angle (LinuxCNC), degrees counter-clockwise from +X.
+    Caret,
 }
 
 impl Word {
     /// Number of value words.
-    pub const COUNT: usize = 18;
+    pub const COUNT: usize = 20;
     /// Every word, in bit order.
     pub const ALL: [Word; Word::COUNT] = [
         Word::B,
@@ -90,10 +101,12 @@ impl Word {
         Word::X,
         Word::Y,
         Word::Z,
+        Word::At,
+        Word::Caret,
     ];
 
-    /// The word for a letter, any case; `None` for letters outside the
-    /// dialect and for `G` and `M`, which are codes.
+    /// The word for a letter, any case (and `@`, `^`); `None` for letters
+    /// outside the dialect and for `G` and `M`, which are codes.
     pub fn from_letter(c: u8) -> Option<Word> {
         Some(match c.to_ascii_uppercase() {
             b'B' => Word::B,
@@ -114,13 +127,76 @@ impl Word {
             b'X' => Word::X,
             b'Y' => Word::Y,
             b'Z' => Word::Z,
+            b'@' => Word::At,
+            b'^' => Word::Caret,
             _ => return None,
         })
     }
 
-    /// The upper-case letter of the word.
+    /// The upper-case letter of the word (`@`, `^` for the polar words). A
+    /// match, not a table: on AVR a table would be copied into RAM.
     pub fn letter(self) -> u8 {
-        b"BDEFHIJKLNPQRSTXYZ"[self as usize % Word::COUNT]
+        match self {
+            Word::B => b'B',
+            Word::D => b'D',
+            Word::E => b'E',
+            Word::F => b'F',
+            Word::H => b'H',
+            Word::I => b'I',
+            Word::J => b'J',
+            Word::K => b'K',
+            Word::L => b'L',
+            Word::N => b'N',
+            Word::P => b'P',
+            Word::Q => b'Q',
+            Word::R => b'R',
+            Word::S => b'S',
+            Word::T => b'T',
+            Word::X => b'X',
+            Word::Y => b'Y',
+            Word::Z => b'Z',
+            Word::At => b'@',
+            Word::Caret => b'^',
+        }
+    }
+
+    /// The word of bit `i` ([`Word::ALL`]`[i]`, by a match).
+    fn from_index(i: u8) -> Option<Word> {
+        let letter = match i {
+            0 => b'B',
+            1 => b'D',
+            2 => b'E',
+            3 => b'F',
+            4 => b'H',
+            5 => b'I',
+            6 => b'J',
+            7 => b'K',
+            8 => b'L',
+            9 => b'N',
+            10 => b'P',
+            11 => b'Q',
+            12 => b'R',
+            13 => b'S',
+            14 => b'T',
+            15 => b'X',
+            16 => b'Y',
+            17 => b'Z',
+            18 => b'@',
+            19 => b'^',
+            _ => return None,
+        };
+        Word::from_letter(letter)
+    }
+
+    /// The presence mask of `words` (for [`Words::first_outside`]).
+    pub const fn mask(words: &[Word]) -> u32 {
+        let mut m = 0;
+        let mut i = 0;
+        while i < words.len() {
+            m |= words[i].bit();
+            i += 1;
+        }
+        m
     }
 
     /// Bit of this word in a presence mask.
@@ -213,6 +289,43 @@ impl Words {
     #[inline]
     pub fn is_empty(&self) -> bool {
         self.present == 0
+    }
+
+    /// True when any of X, Y, Z or the polar words `@`, `^` is present: the
+    /// line names a point.
+    #[inline]
+    pub fn has_position(&self) -> bool {
+        const POINT: u32 = Word::mask(&[Word::X, Word::Y, Word::Z, Word::At, Word::Caret]);
+        self.present & POINT != 0
+    }
+
+    /// True when every present word is in `mask` (a [`Word::mask`]): one
+    /// test.
+    #[inline(always)]
+    pub fn within(&self, mask: u32) -> bool {
+        self.present & !mask == 0
+    }
+
+    /// True when `@` or `^` is present.
+    #[inline]
+    pub fn has_polar(&self) -> bool {
+        const POLAR: u32 = Word::mask(&[Word::At, Word::Caret]);
+        self.present & POLAR != 0
+    }
+
+    /// The first present word, in bit order, that is not in `allowed` (a
+    /// [`Word::mask`]): a word no code on the line uses.
+    pub fn first_outside(&self, allowed: u32) -> Option<Word> {
+        let extra = self.present & !allowed;
+        // `Word::ALL` is a table (RAM on AVR): the letters' match instead.
+        let mut i = 0u8;
+        while i < Word::COUNT as u8 {
+            if extra & (1 << i) != 0 {
+                return Word::from_index(i);
+            }
+            i += 1;
+        }
+        None
     }
 
     /// The first present word in bit order (e.g. to name a left-over word).
@@ -374,7 +487,7 @@ pub enum Spindle {
 /// of them per line, in [`Line::other_m`]. Add new ones here.
 pub const OTHER_M_CODES: &[u16] = &[
     17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220,
-    400, 500, 501, 502, 503, 999,
+    400, 500, 501, 502, 503, 999, 31,
 ];
 
 /// M codes whose argument is the rest of the line (a file name).
@@ -489,6 +602,8 @@ crate::flash_messages! {
         NoSuchAxis => "axis word for an axis this machine does not have (X Y Z only)",
         /// G76, G84, G86, G87, G88.
         UnsupportedCycle => "canned cycle not supported (G73 G81 G82 G83 G85 G89 are)",
+        /// M62, M63, M64, M65: digital outputs this machine does not have.
+        NoOutputs => "M62-M65 digital outputs not supported: this machine has none",
     }
 }
 
@@ -530,7 +645,7 @@ fn col_of(i: usize) -> u8 {
 #[derive(Clone, Copy, Debug)]
 struct Number {
     negative: bool,
-    /// Significant digits, < 1e9.
+    /// Significant digits, ≤ 1e9.
     mantissa: u32,
     /// Power of ten to divide by.
     scale: u16,
@@ -756,6 +871,12 @@ fn lex_plain(s: &[u8]) -> (u32, u8, u8) {
 
 /// [`lex_number`] from `first` (after the sign), digit by digit, taking
 /// blanks inside the number (RS274/NGC ignores them: `X1 6.5` is X16.5).
+///
+/// Digits beyond [`MAX_SIG_DIGITS`] significant ones (`X24.985715729`) are
+/// read and dropped, the kept ones rounded half up on the first dropped
+/// digit: 9 digits are more than f32 holds, so the value is the nearest
+/// f32 of the number as written (within an ulp). Only a number of 10⁶ or
+/// more is out of range.
 #[inline(never)]
 fn lex_spaced(s: &[u8], first: usize, negative: bool, col: u8) -> Result<(Number, usize), ParseError> {
     let mut pos = first;
@@ -785,6 +906,9 @@ fn lex_spaced(s: &[u8], first: usize, negative: bool, col: u8) -> Result<(Number
     }
     let mut digits = pos != first;
     let mut scale: u16 = 0;
+    // Digits were dropped past MAX_SIG_DIGITS; the first dropped one was ≥ 5.
+    let mut dropped = false;
+    let mut round_up = false;
     if s.get(pos) == Some(&b'.') {
         pos += 1;
         // Fraction digits read, and the zeros among the last of them not yet
@@ -802,7 +926,7 @@ fn lex_spaced(s: &[u8], first: usize, negative: bool, col: u8) -> Result<(Number
             }
             pos += 1;
             frac = frac.saturating_add(1);
-            if d == 0 {
+            if d == 0 || dropped {
                 pending = pending.saturating_add(1);
                 continue;
             }
@@ -810,22 +934,27 @@ fn lex_spaced(s: &[u8], first: usize, negative: bool, col: u8) -> Result<(Number
                 // The zeros between two significant digits are significant.
                 while pending != 0 {
                     if sig == MAX_SIG_DIGITS {
-                        too_long = true;
+                        dropped = true;
                         break;
                     }
                     mantissa = crate::math::times10_plus(mantissa, 0);
                     sig += 1;
+                    scale = frac - pending;
                     pending -= 1;
                 }
             }
             pending = 0;
+            if dropped {
+                continue;
+            }
             if sig == MAX_SIG_DIGITS {
-                too_long = true;
+                dropped = true;
+                round_up = d >= 5;
             } else {
                 mantissa = crate::math::times10_plus(mantissa, d);
                 sig += 1;
+                scale = frac;
             }
-            scale = frac;
         }
         digits |= frac != 0;
     }
@@ -839,6 +968,19 @@ fn lex_spaced(s: &[u8], first: usize, negative: bool, col: u8) -> Result<(Number
     }
     if too_long {
         return err(ParseErrorKind::NumberOutOfRange, col);
+    }
+    if dropped {
+        mantissa += round_up as u32;
+        // Trailing zeros out, as the other paths leave them (`1.9999999999`
+        // rounds to 2, scale 0).
+        while scale != 0 {
+            let (q, r) = crate::math::div10(mantissa);
+            if r != 0 {
+                break;
+            }
+            mantissa = q;
+            scale -= 1;
+        }
     }
     Ok((
         Number {
@@ -866,7 +1008,8 @@ fn blank_then(s: &[u8], pos: usize, point: bool) -> Option<usize> {
     }
 }
 
-/// Skip a leading `N<n>` line number (any length, optional sign, integer).
+/// Skip a leading `N<n>` line number (any length, optional sign, digits
+/// with an optional fraction: LinuxCNC takes `N4567.789`).
 fn skip_line_number(s: &[u8], pos: usize, col: u8) -> Result<usize, ParseError> {
     let mut pos = skip_blanks(s, pos);
     if matches!(s.get(pos), Some(b'-' | b'+')) {
@@ -875,6 +1018,12 @@ fn skip_line_number(s: &[u8], pos: usize, col: u8) -> Result<usize, ParseError> 
     let start = pos;
     while matches!(s.get(pos), Some(b'0'..=b'9')) {
         pos += 1;
+    }
+    if pos != start && s.get(pos) == Some(&b'.') {
+        pos += 1;
+        while matches!(s.get(pos), Some(b'0'..=b'9')) {
+            pos += 1;
+        }
     }
     if pos == start || matches!(s.get(pos), Some(b'.' | b'e' | b'E' | b'+' | b'-')) {
         return err(ParseErrorKind::BadNumber, col);
@@ -972,6 +1121,7 @@ fn apply_m(line: &mut Line, code: u16, col: u8) -> Result<(), ParseError> {
             Ok(())
         }
         _ if OTHER_M_CODES.contains(&code) => set_group(&mut line.other_m, code, col),
+        62..=65 => err(ParseErrorKind::NoOutputs, col),
         _ => err(ParseErrorKind::UnsupportedCode, col),
     }
 }
@@ -1052,8 +1202,6 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
     }
     let mut pos = 0;
     let mut seen_word = false;
-    // Column of a `%` program delimiter, 0 if none.
-    let mut percent_col = 0u8;
     // Column of the first axis word without a number (`G28 X`), 0 if none.
     let mut bare_axis_col = 0u8;
     while let Some(&c) = s.get(pos) {
@@ -1068,14 +1216,10 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
                 }
             }
             b';' => break,
-            b'%' if !seen_word && percent_col == 0 => {
-                percent_col = col;
-                pos += 1;
-            }
-            _ if c.is_ascii_alphabetic() => {
-                if percent_col != 0 {
-                    return err(ParseErrorKind::Unexpected, percent_col);
-                }
+            // A program marker (`%`, `% vfd enable`): the rest is not G-code.
+            b'%' if !seen_word => break,
+            // `@` and `^`: LinuxCNC's polar words, read like the letters.
+            _ if c.is_ascii_alphabetic() || c == b'@' || c == b'^' => {
                 pos += 1;
                 match c.to_ascii_uppercase() {
                     b'G' => {
@@ -1182,14 +1326,11 @@ mod tests {
         ok(s).word(Word::X).unwrap()
     }
 
-    /// The number lexer as it was before the plain/spaced split (issue 11's
-    /// speed work), kept as the reference the new one must match.
-    /// Lex the number of the word whose letter is at column `col`, starting at
-    /// `pos` (just after the letter). Returns the number and the index after it.
-    ///
-    /// The digits go into a `u32` mantissa (leading zeros and trailing fraction
-    /// zeros dropped) with a power-of-ten scale; [`Number::to_f32`] converts once.
-    /// On the AVR this is about 40 cycles a digit.
+    /// The number lexer spelled out on decimal text, the reference the
+    /// one-pass lexer must match: the digits are gathered as characters
+    /// (blanks inside the number skipped as RS274/NGC says), then cut to
+    /// [`MAX_SIG_DIGITS`] significant digits with half-up rounding on the
+    /// digit text, and only then turned into a mantissa and a scale.
     fn reference_lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseError> {
         let mut pos = skip_blanks(s, pos);
         let mut negative = false;
@@ -1205,85 +1346,37 @@ mod tests {
         if matches!(s.get(pos), Some(b'#' | b'[')) {
             return err(ParseErrorKind::Parameter, col);
         }
-        let first = pos;
-        let mut mantissa: u32 = 0;
-        // Significant digits in `mantissa`.
-        let mut sig: u8 = 0;
-        let mut too_long = false;
-        // Integer part: at most MAX_INT_DIGITS significant digits.
+        let mut int = String::new();
+        let mut frac = String::new();
         loop {
-            let d = digit(s.get(pos));
-            if d > 9 {
-                // RS274/NGC ignores blanks inside a number: `X1 6.5` is X16.5.
-                // (The blank test inline: a call per number end cost ~400
-                // cycles a streamed line.)
-                if matches!(s.get(pos), Some(b' ' | b'\t')) {
-                    if let Some(next) = blank_then(s, pos, true) {
-                        pos = next;
-                        continue;
-                    }
+            match s.get(pos) {
+                Some(c @ b'0'..=b'9') => {
+                    int.push(*c as char);
+                    pos += 1;
                 }
-                break;
-            }
-            pos += 1;
-            if mantissa != 0 || d != 0 {
-                if sig == MAX_INT_DIGITS {
-                    too_long = true;
-                } else {
-                    mantissa = crate::math::times10_plus(mantissa, d);
-                    sig += 1;
-                }
+                _ => match blank_then(s, pos, true) {
+                    Some(next) => pos = next,
+                    None => break,
+                },
             }
         }
-        let mut digits = pos != first;
-        let mut scale: u16 = 0;
-        if s.get(pos) == Some(&b'.') {
+        let point = s.get(pos) == Some(&b'.');
+        if point {
             pos += 1;
-            // Fraction digits read, and the zeros among the last of them not yet
-            // known to be followed by a non-zero digit.
-            let mut frac: u16 = 0;
-            let mut pending: u16 = 0;
             loop {
-                let d = digit(s.get(pos));
-                if d > 9 {
-                    if matches!(s.get(pos), Some(b' ' | b'\t')) {
-                        if let Some(next) = blank_then(s, pos, false) {
-                            pos = next;
-                            continue;
-                        }
+                match s.get(pos) {
+                    Some(c @ b'0'..=b'9') => {
+                        frac.push(*c as char);
+                        pos += 1;
                     }
-                    break;
+                    _ => match blank_then(s, pos, false) {
+                        Some(next) => pos = next,
+                        None => break,
+                    },
                 }
-                pos += 1;
-                frac = frac.saturating_add(1);
-                if d == 0 {
-                    pending = pending.saturating_add(1);
-                    continue;
-                }
-                if mantissa != 0 {
-                    // The zeros between two significant digits are significant.
-                    while pending != 0 {
-                        if sig == MAX_SIG_DIGITS {
-                            too_long = true;
-                            break;
-                        }
-                        mantissa = crate::math::times10_plus(mantissa, 0);
-                        sig += 1;
-                        pending -= 1;
-                    }
-                }
-                pending = 0;
-                if sig == MAX_SIG_DIGITS {
-                    too_long = true;
-                } else {
-                    mantissa = crate::math::times10_plus(mantissa, d);
-                    sig += 1;
-                }
-                scale = frac;
             }
-            digits |= frac != 0;
         }
-        if !digits {
+        if int.is_empty() && frac.is_empty() {
             return err(ParseErrorKind::BadNumber, col);
         }
         match s.get(pos) {
@@ -1291,17 +1384,32 @@ mod tests {
             Some(b'.' | b'+' | b'-') => return err(ParseErrorKind::BadNumber, col),
             _ => {}
         }
-        if too_long {
+        let int = int.trim_start_matches('0');
+        if int.len() > MAX_INT_DIGITS as usize {
             return err(ParseErrorKind::NumberOutOfRange, col);
         }
-        Ok((
-            Number {
-                negative,
-                mantissa,
-                scale,
-            },
-            pos,
-        ))
+        let frac = frac.trim_end_matches('0');
+        // All the digits, and how many of them are fraction digits.
+        let all = format!("{int}{frac}");
+        let mut scale = frac.len();
+        let lead = all.len() - all.trim_start_matches('0').len();
+        let mut kept: Vec<u8> = all.bytes().skip(lead).collect();
+        let mut up = false;
+        if kept.len() > MAX_SIG_DIGITS as usize {
+            let cut = kept.len() - MAX_SIG_DIGITS as usize;
+            up = kept[MAX_SIG_DIGITS as usize] >= b'5';
+            kept.truncate(MAX_SIG_DIGITS as usize);
+            scale -= cut;
+        }
+        let mut mantissa: u64 = kept.iter().fold(0, |m, &d| m * 10 + (d - b'0') as u64) + up as u64;
+        while scale > 0 && mantissa % 10 == 0 && mantissa != 0 {
+            mantissa /= 10;
+            scale -= 1;
+        }
+        if mantissa == 0 {
+            scale = 0;
+        }
+        Ok((Number { negative, mantissa: mantissa as u32, scale: scale as u16 }, pos))
     }
 
     /// Random number-ish texts: digits, points, signs, blanks, exponents,
@@ -1524,7 +1632,7 @@ mod tests {
 
     #[test]
     fn every_value_word_is_read() {
-        let l = ok("B1 D2 E3 F4 H5 I6 J7 K8 L9 N10 P11 Q12 R13 S14 T15 X16 Y17 Z18");
+        let l = ok("B1 D2 E3 F4 H5 I6 J7 K8 L9 N10 P11 Q12 R13 S14 T15 X16 Y17 Z18 @19 ^20");
         for (i, w) in Word::ALL.iter().enumerate() {
             assert_eq!(l.word(*w), Some((i + 1) as f32), "{}", w.letter() as char);
         }
@@ -1701,18 +1809,59 @@ mod tests {
     #[test]
     fn stray_characters_are_unexpected() {
         assert_eq!(fails("G1 )"), (ParseErrorKind::Unexpected, 4));
-        assert_eq!(fails("@"), (ParseErrorKind::Unexpected, 1));
+        assert_eq!(fails("&"), (ParseErrorKind::Unexpected, 1));
         assert_eq!(fails("G1 X1*12"), (ParseErrorKind::Unexpected, 6));
         assert_eq!(fails("$H"), (ParseErrorKind::Unexpected, 1));
     }
 
     #[test]
-    fn a_percent_line_is_an_empty_program_delimiter() {
+    fn a_line_starting_with_percent_is_a_program_marker_and_the_rest_is_not_read() {
         assert!(ok("%").is_empty());
         assert!(ok(" % (start)").is_empty());
-        assert_eq!(fails("% G1"), (ParseErrorKind::Unexpected, 1));
+        // A Fusion 360 post for the MPCNC writes text after it.
+        assert!(ok("% vfd enable").is_empty());
+        assert!(ok("% G1 X5").is_empty());
+        assert!(ok("%%").is_empty());
+        assert!(ok("%(unclosed").is_empty());
+        // Anywhere else it is still a stray character.
         assert_eq!(fails("G1 %"), (ParseErrorKind::Unexpected, 4));
-        assert_eq!(fails("%%"), (ParseErrorKind::Unexpected, 2));
+        assert_eq!(fails("N10 %"), (ParseErrorKind::Unexpected, 5));
+    }
+
+    #[test]
+    fn word_bits_letters_and_indexes_agree() {
+        for (i, &w) in Word::ALL.iter().enumerate() {
+            assert_eq!(Word::from_index(i as u8), Some(w));
+            assert_eq!(Word::from_letter(w.letter()), Some(w));
+            assert_eq!(Word::mask(&[w]), 1 << i);
+            let mut words = Words::new();
+            words.insert(w, 1.0);
+            assert_eq!(words.first_outside(0), Some(w));
+            assert_eq!(words.first_outside(Word::mask(&[w])), None);
+        }
+        assert_eq!(Word::from_index(Word::COUNT as u8), None);
+    }
+
+    #[test]
+    fn polar_words_at_and_caret_are_read_as_numbers() {
+        let l = ok("G1 @.5 ^90");
+        assert_eq!((l.word(Word::At), l.word(Word::Caret)), (Some(0.5), Some(90.0)));
+        assert!(l.words.has_position() && l.words.has_polar() && !l.words.has_xyz());
+        let l = ok("G81 R.1 Z-.1 ^60 L6");
+        assert_eq!(l.word(Word::Caret), Some(60.0));
+        assert!(!l.words.has_polar() || l.word(Word::At).is_none());
+        assert_eq!(fails("G1 @1 @2"), (ParseErrorKind::RepeatedWord, 7));
+        assert_eq!(fails("G1 ^"), (ParseErrorKind::BadNumber, 4));
+        assert_eq!(fails("G1 @#1"), (ParseErrorKind::Parameter, 4));
+    }
+
+    #[test]
+    fn outputs_m62_to_m65_are_refused_by_name_and_m31_is_a_code() {
+        for m in ["M62 P1", "M63 P1", "M64 P0", "M65 P0"] {
+            assert_eq!(fails(m), (ParseErrorKind::NoOutputs, 1), "{m}");
+        }
+        assert_eq!(ok("M31").other_m, Some(31));
+        assert_eq!(fails("M66"), (ParseErrorKind::UnsupportedCode, 1));
     }
 
     #[test]
@@ -1722,7 +1871,12 @@ mod tests {
         assert_eq!(ok("N-1 M110"), ok("M110"));
         assert_eq!(ok("M110 N100").word(Word::N), Some(100.0));
         assert_eq!(fails("N G1"), (ParseErrorKind::BadNumber, 1));
-        assert_eq!(fails("N1.5 G1"), (ParseErrorKind::BadNumber, 1));
+        // A fraction is accepted, as LinuxCNC does.
+        assert_eq!(ok("N4567.789 S1200"), ok("S1200"));
+        assert_eq!(ok("N1. G1"), ok("G1"));
+        assert_eq!(fails("N.5 G1"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("N1.5.2 G1"), (ParseErrorKind::BadNumber, 1));
+        assert_eq!(fails("N1e5 G1"), (ParseErrorKind::BadNumber, 1));
     }
 
     #[test]
@@ -1806,18 +1960,24 @@ mod tests {
     }
 
     #[test]
-    fn numbers_too_big_or_too_precise_are_out_of_range() {
+    fn numbers_too_big_are_out_of_range_and_long_ones_are_rounded() {
         assert_eq!(fails("X1000000"), (ParseErrorKind::NumberOutOfRange, 1));
         assert_eq!(fails("X-1000000.0"), (ParseErrorKind::NumberOutOfRange, 1));
         assert_eq!(
             fails("G1 F99999999999999999999999"),
             (ParseErrorKind::NumberOutOfRange, 4)
         );
-        assert_eq!(fails("X1.234567891"), (ParseErrorKind::NumberOutOfRange, 1));
-        assert_eq!(
-            fails("X0.0000000001234567891"),
-            (ParseErrorKind::NumberOutOfRange, 1)
-        );
+        // Any number of digits: the nearest f32 of the number as written.
+        for t in ["24.985715729", "1.23456789012", "1.234567891", "-0.33333333333333333333", "7.99999999999", "0.0000000001234567891", "123456.78901234"] {
+            let v = x(&format!("X{t}"));
+            let nearest: f32 = t.parse().unwrap();
+            assert!((v - nearest).abs() <= nearest.abs() * 2.4e-7, "{t}: {v} vs {nearest}");
+        }
+        assert_eq!(x("X1.9999999999"), 2.0);
+        assert_eq!(x("X1.00000000001"), 1.0);
+        assert_eq!(x("X999999.99999"), 1_000_000.0);
+        assert_eq!(ok("G1.00000000001").motion, Some(Motion::Linear));
+        assert_eq!(ok("T2.0000000000").tool(), Some(2));
         assert_eq!(
             x("X999999.999"),
             1_000_000.0,
@@ -1932,6 +2092,8 @@ mod tests {
             ParseErrorKind::Parameter,
             ParseErrorKind::OWord,
             ParseErrorKind::NoSuchAxis,
+            ParseErrorKind::UnsupportedCycle,
+            ParseErrorKind::NoOutputs,
         ];
         for k in kinds {
             assert!(!k.message().is_empty());
@@ -1945,12 +2107,12 @@ mod tests {
     #[test]
     fn every_error_kind_comes_from_some_line_with_the_column_of_its_cause() {
         let long = " ".repeat(MAX_PARSE_LEN + 1);
-        let cases: [(&str, ParseErrorKind, u8); 16] = [
+        let cases: [(&str, ParseErrorKind, u8); 17] = [
             ("G1 X1..2", ParseErrorKind::BadNumber, 4),
             ("G1 Y1e5", ParseErrorKind::Exponent, 4),
             ("G1 Z-1000000", ParseErrorKind::NumberOutOfRange, 4),
             ("G1 U3", ParseErrorKind::NoSuchAxis, 4),
-            ("G1 X1 @", ParseErrorKind::Unexpected, 7),
+            ("G1 X1 &", ParseErrorKind::Unexpected, 7),
             ("G1 M10", ParseErrorKind::UnsupportedCode, 4),
             ("G1 F1 F2", ParseErrorKind::RepeatedWord, 7),
             ("G17 G18", ParseErrorKind::ModalGroupConflict, 5),
@@ -1962,8 +2124,9 @@ mod tests {
             ("G0 X#1", ParseErrorKind::Parameter, 4),
             ("o100 sub", ParseErrorKind::OWord, 1),
             ("G0 G84", ParseErrorKind::UnsupportedCycle, 4),
+            ("G4 P1 M64 P2", ParseErrorKind::NoOutputs, 7),
         ];
-        let mut seen = [false; 16];
+        let mut seen = [false; 17];
         for (text, kind, col) in cases {
             assert_eq!(fails(text), (kind, col), "{text:?}");
             // Exhaustive: a new kind must be added to the table above.
@@ -1984,6 +2147,7 @@ mod tests {
                 ParseErrorKind::Parameter => 13,
                 ParseErrorKind::OWord => 14,
                 ParseErrorKind::UnsupportedCycle => 15,
+                ParseErrorKind::NoOutputs => 16,
             };
             seen[i] = true;
         }

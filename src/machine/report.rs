@@ -89,6 +89,31 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.out(F!(", hard limits "));
     d.out(on_off(s.hard_limits));
     d.text("\n");
+    d.out(F!("echo:Dialect: $153="));
+    d.int(s.dwell_p_ms as i32);
+    d.out(if s.dwell_p_ms { F!(" (G4 P in ms) $154=") } else { F!(" (G4 P in seconds) $154=") });
+    d.int(s.g80_keeps_motion as i32);
+    d.out(if s.g80_keeps_motion { F!(" (G80 keeps the motion mode)\n") } else { F!(" (G80 ends the motion mode)\n") });
+}
+
+/// M31, as Marlin answers it: `echo:Print time: 1h 2m 3s` (leading zero
+/// units left out), the time since the running SD job started; `0s` when
+/// no job runs (a streamed job has no start this firmware knows of).
+#[inline(never)]
+pub fn print_time(m: &Machine, io: &mut impl Io) {
+    let s = if m.sd_job { (io.millis().wrapping_sub(m.job_start_ms) / 1000) as i32 } else { 0 };
+    let parts = [(s / 86_400, F!("d ")), (s / 3600 % 24, F!("h ")), (s / 60 % 60, F!("m ")), (s % 60, F!("s"))];
+    let mut d = Dyn(io);
+    d.out(F!("echo:Print time: "));
+    let mut started = false;
+    for (i, (v, unit)) in parts.into_iter().enumerate() {
+        started |= v != 0 || i == 3;
+        if started {
+            d.int(v);
+            d.out(unit);
+        }
+    }
+    d.text("\n");
 }
 
 /// ` X` … ` E`: short, so plain RAM strings.

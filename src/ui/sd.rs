@@ -612,6 +612,19 @@ pub fn command_with(
                 }
             }
         }
+        33 => {
+            // Marlin's long name of a path: `/<name>`, `/???` when there is
+            // no such file. FAT short names only here: the name is its own.
+            let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
+            card.mount().map_err(SdError::text)?;
+            let mut found = false;
+            card.list(&mut |n, _| found |= *n == name).map_err(SdError::text)?;
+            if found {
+                uwriteln!(out, "{}{}", F!("/"), name).ok();
+            } else {
+                uwriteln!(out, "{}", F!("/???")).ok();
+            }
+        }
         22 => {
             if busy {
                 return Err(Text::ErrJobRunning);
@@ -878,6 +891,21 @@ pub(crate) mod tests {
         command(&mut job, &mut card, &mut m, &mut out, 27, b"").unwrap();
         assert_eq!(out.0, "Not SD printing\n");
         assert_eq!(command(&mut job, &mut card, &mut m, &mut out, 23, b"nope.g"), Err(Text::ErrNotFound));
+    }
+
+    #[test]
+    fn m33_answers_the_long_name_as_marlin_and_leaves_the_selected_file() {
+        let mut card = FakeCard::new(&[("A.GCO", "G0 X1\n"), ("B.NC", "G0 X2\nG0 X3\n")]);
+        let mut job = SdJob::new();
+        let mut m = Machine::new();
+        let mut out = Out::default();
+        assert_eq!(sd_code(b"M33 b.nc"), Some((33, &b"b.nc"[..])));
+        command(&mut job, &mut card, &mut m, &mut out, 23, b"a.gco").unwrap();
+        out.0.clear();
+        command(&mut job, &mut card, &mut m, &mut out, 33, b"b.nc").unwrap();
+        command(&mut job, &mut card, &mut m, &mut out, 33, b"c.nc").unwrap();
+        assert_eq!(out.0, "/B.NC\n/???\n");
+        assert_eq!(job.name, Name::parse(b"A.GCO").unwrap(), "the selected job is unchanged");
     }
 
     #[test]
