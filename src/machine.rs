@@ -253,8 +253,7 @@ impl Letters {
 
     fn write(&self, io: &mut impl Io) {
         if self.len > self.head {
-            let text = core::str::from_utf8(&self.buf[..self.len as usize]).unwrap_or("");
-            io.write_str(text).ok();
+            io.write_str(crate::protocol::ascii_str(&self.buf[..self.len as usize])).ok();
         }
     }
 }

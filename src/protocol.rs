@@ -163,6 +163,16 @@ crate::flash_messages! {
     }
 }
 
+/// `b` as text when it is all ASCII, else "". (`core::str::from_utf8`
+/// would put core's 256-byte UTF-8 width table in RAM on the AVR.)
+pub fn ascii_str(b: &[u8]) -> &str {
+    if !b.is_ascii() {
+        return "";
+    }
+    // SAFETY: every byte is ASCII, so `b` is valid UTF-8.
+    unsafe { core::str::from_utf8_unchecked(b) }
+}
+
 /// What [`LineAssembler::push`] reports when a line ends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Assembled {

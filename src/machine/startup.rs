@@ -61,7 +61,7 @@ pub fn list(io: &mut impl Io) {
     let mut buf = [0u8; SLOT];
     for i in 0..2u8 {
         let n = load(io, EEPROM_STARTUP_ADDR + i as u16 * SLOT as u16, STARTUP_LEN, &mut buf);
-        let text = core::str::from_utf8(&buf[..n]).unwrap_or("");
+        let text = crate::protocol::ascii_str(&buf[..n]);
         uwriteln!(io, "$N{}={}", i, text).ok();
     }
 }
@@ -103,7 +103,7 @@ pub fn run(m: &mut Machine, io: &mut impl Io) {
             continue;
         }
         let line = &buf[..n];
-        uwrite!(io, ">{}:", core::str::from_utf8(line).unwrap_or("")).ok();
+        uwrite!(io, ">{}:", crate::protocol::ascii_str(line)).ok();
         match m.run_menu_line(line, io) {
             Ok(()) => {
                 uwriteln!(io, "ok").ok();
@@ -129,5 +129,5 @@ pub fn set_info(io: &mut impl Io, text: &[u8]) -> Result<(), Error> {
 pub fn info(io: &mut impl Io) {
     let mut buf = [0u8; SLOT];
     let n = load(io, EEPROM_INFO_ADDR, INFO_LEN, &mut buf);
-    crate::dollar::info(io, core::str::from_utf8(&buf[..n]).unwrap_or(""));
+    crate::dollar::info(io, crate::protocol::ascii_str(&buf[..n]));
 }
