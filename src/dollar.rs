@@ -92,6 +92,8 @@ pub enum Command {
     Restore(u8),
     /// `$SLP`: spindle, coolant and drivers off.
     Sleep,
+    /// `$C`: check mode on or off.
+    Check,
 }
 
 /// Why a `$` line was refused.
@@ -135,6 +137,7 @@ pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
             }
         }
         [b'S' | b's', b'L' | b'l', b'P' | b'p'] => return Ok(Command::Sleep),
+        [b'C' | b'c'] => return Ok(Command::Check),
         [b'R' | b'r', b'S' | b's', b'T' | b't', b'=', w] if matches!(w, b'$' | b'#' | b'*') => return Ok(Command::Restore(*w)),
         b"I" | b"i" => return Ok(Command::Info),
         _ => {}
@@ -360,6 +363,7 @@ mod tests {
         assert_eq!(parse(b"$hy"), Ok(Command::HomeAxis(2)));
         assert_eq!(parse(b"$HQ"), Err(DollarError::Syntax));
         assert_eq!(parse(b"$SLP"), Ok(Command::Sleep));
+        assert_eq!(parse(b"$c"), Ok(Command::Check));
         assert_eq!(parse(b"$G"), Ok(Command::Modes));
         assert_eq!(parse(b"$#"), Ok(Command::Params));
         assert_eq!(parse(b"$I"), Ok(Command::Info));

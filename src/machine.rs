@@ -168,6 +168,8 @@ pub enum State {
     Probe,
     /// A `$J=` jog is running (grbl 1.1).
     Jog,
+    /// `$C` check mode: lines are read and checked, nothing moves.
+    Check,
 }
 
 impl State {
@@ -182,6 +184,7 @@ impl State {
             State::Tool => "Tool",
             State::Probe => "Probe",
             State::Jog => "Jog",
+            State::Check => "Check",
         }
     }
 }
@@ -697,7 +700,13 @@ impl Machine {
             // Matched by reference: the command is not copied again.
             let r = self.interp.next(&cx, l);
             match &r {
+                Ok(Some(Command::Move { .. } | Command::CycleMove { .. })) if self.state == State::Check => {
+                    self.interp.target_reached();
+                }
                 Ok(Some(Command::Move { feed_mm_per_min, rapid })) => self.move_interp(io, *feed_mm_per_min, *rapid)?,
+                // `$C`: only reports run; spindle, tool, probe, dwell,
+                // homing and EEPROM writes are checked and skipped.
+                Ok(Some(cmd)) if self.state == State::Check && !matches!(cmd, Command::Report(_)) => {}
                 Ok(Some(cmd)) => self.dispatch(cmd, io)?,
                 Ok(None) => return Ok(()),
                 Err(e) => return Err(*e),
@@ -967,6 +976,7 @@ impl Machine {
                 uwriteln!(io, "{}", F!("[MSG:Sleeping]")).ok();
             }
             dollar::Command::Restore(what) => self.restore(io, what)?,
+            dollar::Command::Check => self.toggle_check(io)?,
             dollar::Command::Home => return self.execute(b"G28", io),
             dollar::Command::Unlock => return self.execute(b"M999", io),
             dollar::Command::Jog => return self.jog_line(text, io),
@@ -980,6 +990,28 @@ impl Machine {
                 self.save_settings(io);
             }
         }
+        Ok(())
+    }
+
+    /// `$C`: check mode on (from Idle) or off. Leaving it puts the commanded
+    /// position back where the machine is and the work offsets back to the
+    /// stored ones; the modal state stays as the checked lines left it
+    /// (grbl resets it with a soft reset).
+    fn toggle_check(&mut self, io: &mut impl Io) -> CmdResult {
+        if self.state == State::Check {
+            let p = io.stepper().position;
+            self.interp.sync_position(&self.settings, p);
+            self.interp.load_settings(&self.settings);
+            self.state = State::Idle;
+            uwriteln!(io, "{}", F!("[MSG:Disabled]")).ok();
+            return Ok(());
+        }
+        if self.alarm.is_some() {
+            return Err(interp::Error::Alarm);
+        }
+        self.wait_idle(io)?;
+        self.state = State::Check;
+        uwriteln!(io, "{}", F!("[MSG:Enabled]")).ok();
         Ok(())
     }
 

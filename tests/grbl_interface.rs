@@ -285,3 +285,30 @@ fn startup_blocks_info_restore_sleep_and_one_axis_homing() {
     assert!(r.iter().any(|l| l == "[MSG:Sleeping]"), "{r:?}");
     assert!(!vm.spindle_on() && !vm.driver_enabled(Axis::X));
 }
+
+/// `$C`: every line is read and checked, nothing moves, nothing is stored;
+/// leaving it, the commanded position is the machine's again.
+#[test]
+fn check_mode_reads_every_line_and_moves_nothing() {
+    let mut vm = boot_homed();
+    let n = total_steps(&vm);
+    assert!(ok(&mut vm, "$C").iter().any(|l| l == "[MSG:Enabled]"));
+    assert!(status(&mut vm).starts_with("<Check|"));
+    let started = vm.seconds();
+    for l in ["G0 X20 Y20", "G91 G1 X5 F300", "M3 S5000", "G4 P5", "G10 L20 P1 X0", "G28", "T2 M6"] {
+        ok(&mut vm, l);
+    }
+    assert!(vm.seconds() - started < 1.0, "the dwell and the homing were skipped");
+    // Errors are still found: beyond the travel, an unknown code.
+    assert!(refused(&mut vm, "G1 X99").contains("soft limit"));
+    assert!(refused(&mut vm, "G5 X1").contains("unsupported"));
+    assert!(refused(&mut vm, "$J=X5 F100").contains("idle"));
+    vm.run_for(0.3).unwrap();
+    assert_eq!(total_steps(&vm), n, "check mode moved");
+    assert!(!vm.spindle_on());
+    assert!(ok(&mut vm, "$C").iter().any(|l| l == "[MSG:Disabled]"));
+    assert!(status(&mut vm).starts_with("<Idle|"));
+    // The stored G54 (0) is back and moves count from where the machine is.
+    run(&mut vm, "G90 G54 G1 X10 F600");
+    assert_eq!(xyz_now(&vm)[0], 1000);
+}

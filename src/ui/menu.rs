@@ -815,7 +815,7 @@ fn paused(v: &View) -> bool {
 /// The machine state's name on the display.
 pub fn state_text(s: State) -> Text {
     match s {
-        State::Idle => Text::StIdle,
+        State::Idle | State::Check => Text::StIdle,
         State::Run | State::Jog => Text::StRun,
         State::Hold => Text::StHold,
         State::Alarm => Text::StAlarm,
