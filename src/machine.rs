@@ -633,7 +633,7 @@ impl Machine {
                 uwrite!(io, "{}", t).ok();
             }
             interp::Error::UnusedWord(w) => {
-                uwriteln!(io, "Error:{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
+                uwrite!(io, "{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
             }
             other => {
                 uwrite!(io, "{}", other.message()).ok();

@@ -164,6 +164,7 @@ impl Error {
             Error::Arc(_) => 33,
             Error::Atc(crate::atc::Fault::ToolRange) => 38,
             Error::ProbeAlreadyTriggered | Error::ProbeFailed => 9,
+            Error::UnusedWord(_) => 36,
             _ => 20,
         }
     }
