@@ -107,7 +107,7 @@ pub enum DollarError {
 impl DollarError {
     pub fn message(self) -> FStr {
         match self {
-            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H, $X, $G, $# or $I"),
+            DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H[XYZ], $X, $G, $#, $I[=], $J=, $N[0|1=], $C, $RST=$|#|*, $SLP"),
             DollarError::Unknown => F!("$ command: no such setting (see $$)"),
             DollarError::BadValue => F!("$ command: value out of range, nothing changed"),
         }
