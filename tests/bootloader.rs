@@ -77,9 +77,10 @@ fn image(hex: &Path) -> Vec<u8> {
 }
 
 /// Runs `tools/flash PORT` with `MILL_HEX=hex` against the virtual board,
-/// pumping the pty until avrdude exits. Returns avrdude's output; panics
-/// if it failed.
-fn flash(vm: &mut Vm, hex: &Path, dir: &Path) -> String {
+/// pumping the pty until avrdude exits. Returns avrdude's output and how
+/// much the chip had printed when the bootloader last ran (what follows is
+/// the application's); panics if avrdude failed.
+fn flash(vm: &mut Vm, hex: &Path, dir: &Path) -> (String, usize) {
     let mut bridge = PtyBridge::open(vm, None).expect("pty").realtime(true).fast_while_busy(true);
     let log = dir.join("avrdude.log");
     let out = std::fs::File::create(&log).unwrap();
@@ -92,6 +93,7 @@ fn flash(vm: &mut Vm, hex: &Path, dir: &Path) -> String {
         .spawn()
         .expect("tools/flash");
     let t = Instant::now();
+    let mut boot_out = 0;
     let status = loop {
         if let Some(st) = child.try_wait().unwrap() {
             break st;
@@ -104,6 +106,9 @@ fn flash(vm: &mut Vm, hex: &Path, dir: &Path) -> String {
         // flash: a crash there (the full-space noise image) ends the pumping.
         if vm.fatal_error().is_none() {
             let _ = bridge.pump(vm, 0.001);
+            if vm.pc() >= boot::BOOT_START {
+                boot_out = vm.output_bytes().len();
+            }
         } else {
             std::thread::sleep(Duration::from_millis(5));
         }
@@ -112,7 +117,7 @@ fn flash(vm: &mut Vm, hex: &Path, dir: &Path) -> String {
     eprintln!("tools/flash: {:.1} s wall, {} auto-reset(s)\n{}", t.elapsed().as_secs_f64(), bridge.auto_resets, tail(&text));
     assert!(status.success(), "tools/flash failed:\n{text}");
     assert!(bridge.auto_resets >= 1, "opening the port did not reset the board");
-    text
+    (text, boot_out)
 }
 
 fn tail(s: &str) -> String {
@@ -142,12 +147,11 @@ fn tools_flash_writes_and_verifies_the_firmware_and_the_board_boots_it() {
     // Only the bootloader: it waits, starts the erased application (0xFFFF
     // is a no-op that runs up to the bootloader again), and waits again.
     assert!(vm.read_flash(0, 4) == [0xFF; 4]);
-    let out = flash(&mut vm, &hex, &dir);
+    let (out, from) = flash(&mut vm, &hex, &dir);
     assert_eq!(avrdude_bytes(&out, "written"), Some(want.len()), "{out}");
     assert_eq!(avrdude_bytes(&out, "verified"), Some(want.len()), "{out}");
     assert!(vm.read_flash(0, want.len()) == want, "flash differs from the image");
     // avrdude leaves the bootloader, which starts the flashed firmware.
-    let from = vm.output_bytes().len().saturating_sub(4096);
     if let Err(e) = vm.run_until(|vm| lines_after(vm, from).iter().any(|l| l.starts_with("echo:reset cause")), 5.0) {
         panic!("{e}: no banner from the flashed image: {:?}", lines_after(&vm, from));
     }
@@ -169,7 +173,7 @@ fn tools_flash_writes_and_verifies_the_whole_application_space() {
     boot::write_ihex(&hex, 0, &noise).unwrap();
     let mut vm = board(&VmConfig::default_elf_path(), true);
     let boot_section = vm.read_flash(boot::BOOT_START, 8192);
-    let out = flash(&mut vm, &hex, &dir);
+    let (out, _) = flash(&mut vm, &hex, &dir);
     assert_eq!(avrdude_bytes(&out, "written"), Some(n), "{out}");
     assert_eq!(avrdude_bytes(&out, "verified"), Some(n), "{out}");
     assert!(vm.read_flash(0, n) == noise, "flash differs from the image");

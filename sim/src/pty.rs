@@ -23,7 +23,9 @@
 //! `?`, `!`, `~` at the start of a line (inside a line they are text: a
 //! comment, or a checksummed line the checksum covers), Ctrl-X (0x18)
 //! wherever it is, and a whole `M112` line (the RX interrupt's emergency
-//! scanner then sees it at once).
+//! scanner then sees it at once). While the chip runs its bootloader
+//! (the program counter in the boot section, see [`crate::boot`]) every
+//! byte goes in order: avrdude's messages are binary.
 //!
 //! Auto-reset: on a Mega2560 the USB chip's DTR line drives RESET through
 //! a capacitor, and Linux raises DTR whenever a program opens the port, so
@@ -348,6 +350,12 @@ impl PtyBridge {
 
     /// One byte from the sender (see the module doc for what passes ahead).
     fn from_sender(&mut self, vm: &mut Vm, b: u8) {
+        if vm.pc() >= crate::boot::BOOT_START {
+            // The bootloader runs (avrdude's binary STK500 messages): every
+            // byte in order, none of them is a realtime command.
+            self.pending.push_back(b);
+            return;
+        }
         if b == 0x18 || (self.at_line_start && matches!(b, b'?' | b'!' | b'~')) {
             self.urgent(vm, &[b]);
             return;
