@@ -266,3 +266,41 @@ fn three_bangs_right_after_a_reset_enter_the_bootloader_monitor_not_the_firmware
         panic!("{e}: {:?}", String::from_utf8_lossy(&vm.output_bytes()[from..]));
     }
 }
+
+/// Simulated seconds from `vm.seconds()` now until the firmware's banner
+/// (at most `timeout_s`); None if it never came.
+fn seconds_to_banner(vm: &mut Vm, timeout_s: f64) -> Option<f64> {
+    let from = vm.output_bytes().len();
+    let t0 = vm.seconds();
+    vm.run_until(|vm| lines_after(vm, from).iter().any(|l| l.starts_with("echo:reset cause")), timeout_s).ok()?;
+    Some(vm.seconds() - t0)
+}
+
+#[test]
+fn the_bootloader_waits_a_second_and_a_byte_in_that_second_holds_it_until_the_line_is_quiet() {
+    let mut vm = board(&VmConfig::default_elf_path(), false);
+    vm.wait_banner().unwrap();
+    // A reset with a quiet line: the bootloader's wait, then the firmware.
+    vm.reset();
+    let quiet = seconds_to_banner(&mut vm, 5.0).expect("banner");
+    assert!((0.8..1.3).contains(&quiet), "{quiet:.2} s from reset to banner");
+    // A host that writes right after opening the port: the bootloader
+    // takes the bytes and waits for avrdude until 4.5 s of silence.
+    vm.reset();
+    vm.run_for(0.1).unwrap();
+    vm.send(b"M105\n");
+    let held = seconds_to_banner(&mut vm, 10.0).expect("banner");
+    assert!((4.3..5.2).contains(&held), "{held:.2} s from the host's line to the banner");
+    // A host that polls every 2 s keeps it there as long as it polls.
+    vm.reset();
+    let from = vm.output_bytes().len();
+    for _ in 0..6 {
+        vm.run_for(0.5).unwrap();
+        vm.send(b"?");
+        vm.run_for(1.5).unwrap();
+    }
+    assert!(!lines_after(&vm, from).iter().any(|l| l.starts_with("echo:reset cause")), "the firmware started while polled");
+    let polled = seconds_to_banner(&mut vm, 10.0).expect("banner once the polling stops");
+    assert!((3.0..4.0).contains(&polled), "{polled:.2} s after the last poll");
+    eprintln!("boot wait {quiet:.2} s; a line in it: banner {held:.2} s later; polling every 2 s for 12 s: banner {polled:.2} s after the last poll (+1.5 already waited)");
+}
