@@ -283,7 +283,7 @@ fn the_bootloader_waits_a_second_and_a_byte_in_that_second_holds_it_until_the_li
     // A reset with a quiet line: the bootloader's wait, then the firmware.
     vm.reset();
     let quiet = seconds_to_banner(&mut vm, 5.0).expect("banner");
-    assert!((0.8..1.3).contains(&quiet), "{quiet:.2} s from reset to banner");
+    assert!((0.85..1.0).contains(&quiet), "{quiet:.2} s from reset to banner");
     // A host that writes right after opening the port: the bootloader
     // takes the bytes and waits for avrdude until 4.5 s of silence.
     vm.reset();

@@ -4,7 +4,8 @@
 //! checksums. The bridge corrupts one line's checksum in transit; the firmware
 //! must ask for it again and printcore must recover. The recorded steps must
 //! end exactly at the job's final point. Opening the port resets the board
-//! (auto-reset, as on a Mega2560), also when printcore reconnects mid-job.
+//! (auto-reset, as on a Mega2560), also when printcore reconnects mid-job;
+//! the board runs the stock bootloader, as one bought does.
 
 mod common;
 use common::*;
@@ -13,6 +14,11 @@ use sim::Axis;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// printcore opens the port, closes it and opens it again when it
+/// connects (Printrun 2.2's workaround for a parity bug), and each open
+/// resets the board.
+const OPENS_PER_CONNECT: u64 = 2;
 
 fn printcore_python() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -25,7 +31,7 @@ fn printcore_python() -> PathBuf {
 
 #[test]
 fn printcore_streams_a_job_with_checksums_and_recovers_a_corrupted_line() {
-    let mut vm = boot();
+    let mut vm = boot_with(board_as_sold());
     // A square with a rounded corner and a diagonal back, in mm from the
     // power-on position (the firmware's 0 until homed).
     let job = "\
@@ -108,9 +114,12 @@ M400
     assert_eq!(vm.position(Axis::Y), start[1] + 225);
     assert_eq!(vm.position(Axis::Z), start[2]);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
-    // printcore opened the port once: one reset (auto-reset), before the job.
-    assert_eq!(bridge.auto_resets, 1);
-    assert_eq!(vm.resets().iter().filter(|r| r.kind == sim::ResetKind::External).count(), 1);
+    // printcore opens the port twice to connect (open, close, open: its
+    // parity workaround); each open resets the board (two opens between two
+    // looks of the bridge are one reset), all before the job.
+    assert!((1..=OPENS_PER_CONNECT).contains(&bridge.auto_resets), "{} resets", bridge.auto_resets);
+    let external = vm.resets().iter().filter(|r| r.kind == sim::ResetKind::External).count() as u64;
+    assert_eq!(external, bridge.auto_resets);
 }
 
 /// Runs printcore on `job` through `bridge` until it exits or `stop` says
@@ -148,7 +157,7 @@ fn printcore_run(bridge: &mut PtyBridge, vm: &mut sim::Vm, job: &std::path::Path
 /// refused until the machine is homed or unlocked.
 #[test]
 fn a_sender_that_reconnects_mid_job_resets_the_board_and_the_job_is_gone() {
-    let mut vm = boot();
+    let mut vm = boot_with(board_as_sold());
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/tmp");
     std::fs::create_dir_all(&dir).unwrap();
     let long = dir.join("printcore-long.gcode");
@@ -159,10 +168,11 @@ fn a_sender_that_reconnects_mid_job_resets_the_board_and_the_job_is_gone() {
     let mut bridge = PtyBridge::open(&vm, None).expect("pty").realtime(true);
     // The first connection: the job runs until X has gone 5 mm.
     printcore_run(&mut bridge, &mut vm, &long, |vm| vm.position(Axis::X) >= start[0] + 500);
-    assert_eq!(bridge.auto_resets, 1);
+    let first = bridge.auto_resets;
+    assert!((1..=OPENS_PER_CONNECT).contains(&first), "{first} resets");
     // The second: opening the port resets the board mid-move.
     let log = printcore_run(&mut bridge, &mut vm, &again, |_| false);
-    assert_eq!(bridge.auto_resets, 2, "{log}");
+    assert!(bridge.auto_resets > first, "{log}");
     let reset = *vm.resets().last().unwrap();
     assert_eq!(reset.kind, sim::ResetKind::External);
     for _ in 0..250 {

@@ -25,6 +25,11 @@ pub const BOOT_START: u32 = 0x3E000;
 pub const STOCK_FUSES: [u8; 3] = [0xFF, 0xD8, 0xFD];
 /// Lock byte of a board as sold.
 pub const STOCK_LOCK: u8 = 0xCF;
+/// Start-up delay after every reset with the stock fuses (low fuse 0xFF:
+/// full-swing crystal, SUT = 11): 16K clock cycles plus 65 ms (datasheet
+/// §10.4, "Start-up Times"). The chip is held in reset meanwhile: bytes on
+/// its RX pin are lost.
+pub const STOCK_STARTUP_S: f64 = 0.065 + 16_384.0 / 16_000_000.0;
 /// Where the stock bootloader starts the application after a watchdog reset
 /// (it calls address 0 with `eicall` and EIND = 1: byte 0x20000).
 pub const WATCHDOG_ENTRY: u32 = 0x20000;

@@ -34,7 +34,9 @@
 //! it, which is what avrdude, pyserial and node-serialport all do) and
 //! resets the virtual machine with [`Vm::reset`], as the pulse would:
 //! bytes still waiting for the UART and output not yet read are lost, the
-//! firmware starts again (through the bootloader if the VM has one). With
+//! firmware starts again (through the bootloader if the VM has one; a board
+//! with the stock fuses is held in reset for its 66 ms start-up delay
+//! first, and the sender's bytes in that time are lost too). With
 //! [`PtyBridge::auto_reset`] off the port never resets the board, as on a
 //! board whose RESET-EN jumper is cut.
 //!
@@ -94,6 +96,11 @@ pub struct PtyBridge {
     opens: Option<OwnedFd>,
     /// Resets caused by a sender opening the port.
     pub auto_resets: u64,
+    /// Until this VM cycle the chip is held in reset (its start-up delay):
+    /// the sender's bytes are lost.
+    deaf_until: u64,
+    /// Sender bytes lost that way.
+    pub lost_in_reset: u64,
     slave_path: PathBuf,
     link: Option<PathBuf>,
     /// Firmware output already passed to the master.
@@ -170,6 +177,8 @@ impl PtyBridge {
                 _slave: slave,
                 opens: Some(opens),
                 auto_resets: 0,
+                deaf_until: 0,
+                lost_in_reset: 0,
                 slave_path,
                 link: link.map(Path::to_path_buf),
                 out_sent: vm.output_bytes().len(),
@@ -256,6 +265,10 @@ impl PtyBridge {
             }
             act.host_bytes += n as usize;
             self.bytes_in += n as u64;
+            if vm.cycles() < self.deaf_until {
+                self.lost_in_reset += n as u64;
+                continue;
+            }
             for &b in &buf[..n as usize] {
                 self.from_sender(vm, b);
             }
@@ -318,6 +331,7 @@ impl PtyBridge {
         self.at_line_start = true;
         vm.clear_tx();
         vm.reset();
+        self.deaf_until = vm.cycles() + vm.startup_cycles();
         self.out_sent = vm.output_bytes().len();
     }
 

@@ -605,6 +605,18 @@ unsafe extern "C" fn stop_timer(_avr: *mut ffi::avr_t, _when: ffi::avr_cycle_cou
     0
 }
 
+/// The start-up delay after a reset is over: the core runs (see
+/// `Vm::hold_in_reset`).
+// SAFETY (contract): only simavr calls this, from inside `avr_run`.
+unsafe extern "C" fn startup_done(avr: *mut ffi::avr_t, _when: ffi::avr_cycle_count_t, _param: *mut c_void) -> u64 {
+    // SAFETY: avr is the live instance that runs this timer.
+    unsafe {
+        (*avr).sreg[7] = 0; // I flag
+        (*avr).state = ffi::cpu_Running as c_int;
+    }
+    0
+}
+
 /// Timer2 or PB4 changed: recompute the spindle duty.
 // SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
 // with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
@@ -1209,6 +1221,33 @@ impl Vm {
         set_coolant(inner, false);
         inner.host.feeding = false;
         self.kick_feeder();
+        if self.config.bootloader.is_some() {
+            self.hold_in_reset();
+        }
+    }
+
+    /// A board as sold waits [`boot::STOCK_STARTUP_S`] after a reset
+    /// before the core runs: the core sleeps (with the I flag set, so that
+    /// simavr lets time pass; nothing can interrupt, every source is off
+    /// after a reset) until a cycle timer wakes it.
+    fn hold_in_reset(&mut self) {
+        let cycles = (boot::STOCK_STARTUP_S * self.config.frequency_hz as f64) as u64;
+        // SAFETY: avr is live and not running; the timer has no param.
+        unsafe {
+            (*self.avr).sreg[7] = 1; // I flag
+            (*self.avr).state = ffi::cpu_Sleeping as c_int;
+            ffi::avr_cycle_timer_register(self.avr, cycles, Some(startup_done), std::ptr::null_mut());
+        }
+    }
+
+    /// Cycles from a reset until the core runs: the stock fuses' start-up
+    /// delay with a bootloader, else 0.
+    pub fn startup_cycles(&self) -> u64 {
+        if self.config.bootloader.is_some() {
+            (boot::STOCK_STARTUP_S * self.config.frequency_hz as f64) as u64
+        } else {
+            0
+        }
     }
 
     /// Runs `n` cycles.
