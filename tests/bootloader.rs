@@ -3,9 +3,9 @@
 //! avrdude through `tools/flash` over the pty, reset by the port.
 //!
 //! - `tools/flash` writes the firmware, verifies it, and the board boots
-//!   the flashed image; the same for an image of the whole 253,952-byte
-//!   application space (tests run in parallel threads: the two avrdude
-//!   sessions overlap).
+//!   the flashed image, also after a watchdog reset; the same for an image
+//!   of the whole 253,952-byte application space (tests run in parallel
+//!   threads: the two avrdude sessions overlap).
 //! - A watchdog reset goes through the bootloader, which starts the
 //!   application at byte 0x20000 (EIND = 1): the landing pad there
 //!   (src/board/bootloader.rs) brings it to the banner with `reset cause:
@@ -160,6 +160,13 @@ fn tools_flash_writes_and_verifies_the_firmware_and_the_board_boots_it() {
     // A first start after flashing: nothing of the firmware's was in SRAM.
     assert!(lines.iter().any(|l| l == "echo:reset cause: power-on"), "{lines:?}");
     assert!(common::ok(&mut vm, "M115").iter().any(|l| l.contains("FIRMWARE_NAME")));
+    // The flashed image through a watchdog reset: the bootloader starts it
+    // at 0x20000, the landing pad brings it to the banner.
+    let from = vm.output_bytes().len();
+    assert!(vm.hang());
+    let _ = vm.run_until(|vm| lines_after(vm, from).iter().any(|l| l.starts_with("echo:reset cause")), 5.0);
+    let lines = lines_after(&vm, from);
+    assert!(lines.iter().any(|l| l == "echo:reset cause: watchdog"), "{lines:?}");
 }
 
 #[test]

@@ -16,8 +16,8 @@
 //!
 //! [`recovered_mcusr`] rebuilds what can be known when MCUSR reads 0:
 //! watchdog from the landing pad's mark (GPIOR0 is 0 after every reset, and
-//! only the pad writes it), then whether SRAM kept [`RAM_MARK`] through the
-//! reset (it does through every reset but a power loss: external, reset
+//! only the pad writes it), then whether SRAM kept the firmware's mark
+//! (`__mill_ram_mark`, 2 bytes of `.noinit`) through the reset (it does through every reset but a power loss: external, reset
 //! button, DTR, and usually brown-out) or came up as power-on noise.
 //! External and brown-out cannot be told apart this way, nor JTAG.
 
@@ -25,9 +25,9 @@
 const GPIOR0_IO: u8 = 0x1E;
 /// The landing pad's mark in GPIOR0.
 const LANDED: u8 = 0xA5;
-/// What the firmware leaves in [`RAM_MARK`] once it runs: still there after
-/// a reset that kept SRAM, noise after a power loss (1 in 65,536 chance to
-/// match).
+/// What the firmware leaves in `__mill_ram_mark` once it runs: still there
+/// after a reset that kept SRAM, noise after a power loss (which matches it
+/// 1 time in 65,536: that power-on then reads as external).
 const RUNNING: u16 = 0x4D31;
 
 /// Byte address where the stock bootloader starts the application after a
