@@ -265,7 +265,7 @@ fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
         }
     };
     let bridge = match sim::pty::PtyBridge::open(&vm, link.as_deref()) {
-        Ok(b) => b.realtime(true).auto_reset(!args.no_auto_reset),
+        Ok(b) => b.realtime(true).fast_while_busy(true).auto_reset(!args.no_auto_reset),
         Err(e) => {
             eprintln!("cannot open a pty: {e}");
             return ExitCode::from(2);

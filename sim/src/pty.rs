@@ -224,13 +224,13 @@ impl PtyBridge {
         self
     }
 
-    /// With [`PtyBridge::realtime`]: let simulated time run as fast as it
-    /// can while bytes flow either way, and keep it in step with the wall
-    /// clock only while the line is quiet. Simulated timing is unchanged;
-    /// only the wall-clock time of a transfer shrinks. Every wait a sender
-    /// or the firmware times (a reply that does not come, a bootloader's
-    /// timeout) happens on a quiet line, at the wall clock's pace. For
-    /// avrdude through the bootloader.
+    /// With [`PtyBridge::realtime`]: while the bootloader runs and bytes
+    /// flow either way, let simulated time run as fast as it can; keep it
+    /// in step with the wall clock while the line is quiet and whenever the
+    /// firmware runs. Simulated timing is unchanged; only the wall-clock
+    /// time of a transfer shrinks. Every wait avrdude or the bootloader
+    /// times (a reply that does not come, the bootloader's timeout) happens
+    /// on a quiet line, at the wall clock's pace. For avrdude.
     pub fn fast_while_busy(mut self, on: bool) -> Self {
         self.fast_while_busy = on;
         self
@@ -284,7 +284,8 @@ impl PtyBridge {
                 self.bytes_out += n as u64;
             }
         }
-        let busy = act.host_bytes > 0 || !self.pending.is_empty() || vm.tx_pending() > 0 || self.was_busy;
+        let busy = vm.pc() >= crate::boot::BOOT_START
+            && (act.host_bytes > 0 || !self.pending.is_empty() || vm.tx_pending() > 0 || self.was_busy);
         if self.realtime && self.fast_while_busy && busy {
             // In step with the wall clock from here.
             self.started = Instant::now();
