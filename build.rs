@@ -8,6 +8,8 @@ use std::process::Command;
 fn main() {
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
+    // The linker (.cargo/config.toml): a change must relink.
+    println!("cargo:rerun-if-changed=tools/link-firmware");
     if env::var("CARGO_CFG_TARGET_ARCH").as_deref() != Ok("avr") {
         return;
     }

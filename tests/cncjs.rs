@@ -22,7 +22,7 @@
 mod common;
 use common::*;
 use sim::pty::PtyBridge;
-use sim::{Axis, Vm};
+use sim::{Axis, ResetKind, Vm};
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::io::{BufRead, BufReader, Write};
@@ -164,6 +164,11 @@ impl Session {
         vm.recorder().trace().iter().filter(|t| t.cycle as f64 / f > a && t.cycle as f64 / f <= b).count()
     }
 
+    /// Firmware lines from `t_s` (simulated seconds) on.
+    fn fw_lines_after(&self, t_s: f64) -> Vec<String> {
+        self.fw_lines.iter().filter(|(t, _)| *t >= t_s).map(|(_, l)| l.clone()).collect()
+    }
+
     /// Firmware lines that are errors (Marlin's `Error:`, grbl's `error:`).
     fn errors(&self) -> Vec<String> {
         self.fw_lines
@@ -202,7 +207,7 @@ fn run_session(controller: &str) -> (Vm, Session, Jobs) {
     std::fs::create_dir_all(&home).unwrap();
     let jobs = write_jobs(&work.join("jobs"));
 
-    let mut vm = boot();
+    let mut vm = boot_with(board_as_sold());
     let mut bridge = PtyBridge::open(&vm, None).expect("pty");
     let port_path = bridge.port().to_string_lossy().into_owned();
 
@@ -350,6 +355,11 @@ fn run_session(controller: &str) -> (Vm, Session, Jobs) {
     (vm, s, jobs)
 }
 
+/// The time of an [`Session::errors`] entry (`[t] line`).
+fn e_time(e: &str) -> f64 {
+    e.trim_start_matches('[').split(']').next().and_then(|t| t.trim().parse().ok()).unwrap_or(0.0)
+}
+
 /// The checks common to both controllers.
 fn check_session(controller: &str, vm: &Vm, s: &Session, jobs: &Jobs) {
     let start = vm.config().machine.initial_position;
@@ -407,11 +417,32 @@ fn check_session(controller: &str, vm: &Vm, s: &Session, jobs: &Jobs) {
         }
         _ => check(false, "job D after the Stop did not run".into()),
     }
+    // E: reopening the port mid-job reset the board (auto-reset): nothing
+    // moved after the reset, the job stopped short, the firmware restarted
+    // with its position lost and refused a move before homing.
+    match (s.marks.get("e_close"), s.marks.get("e_reopened"), s.marks.get("e_end")) {
+        (Some(close), Some(reopened), Some(_)) => {
+            let f = vm.frequency() as f64;
+            let reset = vm.resets().iter().find(|r| r.cycle as f64 / f >= close.seconds).copied();
+            check(reset.map(|r| r.kind) == Some(ResetKind::External), format!("reopening the port reset the board: {reset:?}"));
+            if let Some(r) = reset {
+                let after = vm.recorder().trace().iter().filter(|t| t.cycle > r.cycle).count();
+                check(after == 0, format!("after the reset: {after} steps"));
+            }
+            check(at(reopened) != jobs.a_end, format!("job E stopped at {:?}, short of its end", at(reopened)));
+            let lines = s.fw_lines_after(reopened.seconds - 2.0);
+            check(lines.iter().any(|l| l == "echo:reset cause: external"), "the banner says reset cause: external".into());
+            check(lines.iter().any(|l| l.starts_with("Error:not homed")), "a move is refused until homed".into());
+        }
+        _ => check(false, "job E: the driver did not reach the reconnect".into()),
+    }
     for c in &s.driver_checks {
         check(false, c.clone());
     }
     check(s.failure.is_none(), format!("the driver finished: {:?}", s.failure));
-    let errors = s.errors();
+    // (The refusal of job E's move is asked for.)
+    let asked = s.marks.get("e_reopened").map_or(f64::MAX, |m| m.seconds);
+    let errors: Vec<String> = s.errors().into_iter().filter(|e| !e.contains("Error:not homed") || e_time(e) < asked).collect();
     check(errors.is_empty(), format!("no error from the firmware to what cncjs sends: {errors:?}"));
     check(vm.position(Axis::Z) == start[2], "Z never moved".into());
     check(vm.violations().is_empty(), format!("no timing violation: {:?}", vm.violations()));

@@ -8,7 +8,10 @@
 //! profile's 13 tools that README "OctoPrint" asks for), starts the server on
 //! 127.0.0.1 and, through the REST API, connects, runs the demo job to its end,
 //! pauses and resumes a second job that changes to T12, cancels a third with the
-//! spindle on, and asks `M114` from the terminal. At each `CHECK <name>` it
+//! spindle on, and asks `M114` from the terminal; then, in the middle of a
+//! fourth job, disconnects and connects again: opening the port resets the
+//! board (auto-reset, as on a Mega2560), so the job is gone, `M114` says 0
+//! and a move is refused until homed. At each `CHECK <name>` it
 //! prints, this test reads the board's state (recorded steps, spindle, tool
 //! changer, the firmware's output) and answers. Every failed check is collected
 //! and listed at the end, with OctoPrint's logs kept in `target/tmp/octoprint/`.
@@ -16,7 +19,7 @@
 mod common;
 use common::*;
 use sim::pty::PtyBridge;
-use sim::{Axis, VmConfig};
+use sim::Axis;
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::process::CommandExt;
 use std::path::PathBuf;
@@ -92,7 +95,8 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     let py = octoprint_python();
     // The machine `sim --pty` simulates: the changer loaded (tool n is
     // 18 + 1.5 n mm long, 1 + 0.5 n mm across) and the optical setter beam.
-    let mut cfg = VmConfig::default();
+    // A board as sold: the stock bootloader in front of the firmware.
+    let mut cfg = board_as_sold();
     cfg.machine.tool_setter = sim::ToolSetter::Optical(sim::OpticalBeam::demo());
     let mut vm = boot_with(cfg);
 
@@ -104,6 +108,9 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     let (cancel, cancel_end) = cancel_job();
     std::fs::write(dir.join("pause.gcode"), &pause).unwrap();
     std::fs::write(dir.join("cancel.gcode"), &cancel).unwrap();
+    // Long moves, so that the reconnect comes in the middle of one.
+    let reconnect = "M999\nG90\nG1 X30 Y30 F300\nG1 X5 Y5 F300\nG1 X30 Y30 F300\nM400\n";
+    std::fs::write(dir.join("reconnect.gcode"), reconnect).unwrap();
 
     let mut bridge = PtyBridge::open(&vm, Some(&dir.join("millsim"))).expect("pty").realtime(true);
     // The host runs niced: on a real machine the board has a CPU of its own,
@@ -126,6 +133,8 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
         .arg(dir.join("pause.gcode"))
         .arg("--cancel")
         .arg(dir.join("cancel.gcode"))
+        .arg("--reconnect")
+        .arg(dir.join("reconnect.gcode"))
         // OctoPrint's ToolChange events: the demo's T1, T2, T0, then T12, T3.
         .args(["--expect-tools", "1,2,0,12,3"])
         .stdin(Stdio::piped())
@@ -158,7 +167,8 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     let mut transcript: Vec<String> = Vec::new();
     let mut result = None;
     let mut at_pause = None;
-    let mut at_cancel = None;
+    let mut at_reconnect: Option<u64> = None;
+    let mut at_reconnected = None;
     let started = Instant::now();
     let fw_lines = |vm: &sim::Vm| vm.line_log().iter().map(|(_, l)| l.clone()).collect::<Vec<_>>();
     loop {
@@ -247,7 +257,25 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
                     if vm.atc().spindle.map(|t| t.id) != Some(3) {
                         bad.push(format!("cancelled: spindle holds {:?}, expected T3", vm.atc().spindle.map(|t| t.id)));
                     }
-                    at_cancel = Some(pos);
+                }
+                "reconnect-before" => at_reconnect = Some(vm.cycles()),
+                "reconnected" => {
+                    // Opening the port again reset the board: nothing moved
+                    // after the reset, the job stopped short of its end.
+                    let reset = vm.resets().iter().find(|r| Some(r.cycle) > at_reconnect).copied();
+                    match reset {
+                        Some(r) if r.kind == sim::ResetKind::External => {
+                            let after = vm.recorder().trace().iter().filter(|t| t.cycle > r.cycle).count();
+                            if after > 0 {
+                                bad.push(format!("reconnected: {after} steps after the reset"));
+                            }
+                        }
+                        other => bad.push(format!("reconnected: no reset from reopening the port ({other:?})")),
+                    }
+                    if !fw.iter().any(|l| l == "echo:reset cause: external") {
+                        bad.push("reconnected: no `reset cause: external` banner".into());
+                    }
+                    at_reconnected = Some(pos);
                 }
                 other => bad.push(format!("unknown checkpoint {other}")),
             }
@@ -282,13 +310,14 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
             break;
         }
     }
-    // One more second: nothing moves after the cancel and the disconnect.
+    // One more second: nothing moves after the reconnect (the move sent
+    // then is refused) and the disconnect.
     for _ in 0..500 {
         bridge.pump(&mut vm, 0.002).unwrap();
     }
-    if let Some(p) = at_cancel {
+    if let Some(p) = at_reconnected {
         if vm.positions() != p {
-            problems.push(format!("after the cancel the machine moved from {p:?} to {:?}", vm.positions()));
+            problems.push(format!("after the reconnect the machine moved from {p:?} to {:?}", vm.positions()));
         }
     }
     if vm.spindle_on() {
@@ -300,8 +329,10 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     if !vm.atc().collisions.is_empty() {
         problems.push(format!("tool changer collisions: {:?}", vm.atc().collisions));
     }
-    if !vm.resets().iter().all(|r| r.kind == sim::ResetKind::PowerOn) {
-        problems.push(format!("the firmware reset: {:?}", vm.resets()));
+    // Power-on, then one reset per connect (auto-reset): nothing else.
+    let kinds: Vec<sim::ResetKind> = vm.resets().iter().map(|r| r.kind).collect();
+    if kinds != [sim::ResetKind::PowerOn, sim::ResetKind::External, sim::ResetKind::External] || bridge.auto_resets != 2 {
+        problems.push(format!("resets {:?}, {} from opening the port: expected power-on and one per connect (2)", vm.resets(), bridge.auto_resets));
     }
     for l in transcript.iter().filter(|l| l.starts_with("FAIL ")) {
         problems.push(format!("octoprint: {}", &l[5..]));

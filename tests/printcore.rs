@@ -3,7 +3,9 @@
 //! streams a job through the pty bridge (`sim::pty`) with line numbers and
 //! checksums. The bridge corrupts one line's checksum in transit; the firmware
 //! must ask for it again and printcore must recover. The recorded steps must
-//! end exactly at the job's final point.
+//! end exactly at the job's final point. Opening the port resets the board
+//! (auto-reset, as on a Mega2560), also when printcore reconnects mid-job;
+//! the board runs the stock bootloader, as one bought does.
 
 mod common;
 use common::*;
@@ -12,6 +14,11 @@ use sim::Axis;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// printcore opens the port, closes it and opens it again when it
+/// connects (Printrun 2.2's workaround for a parity bug), and each open
+/// resets the board.
+const OPENS_PER_CONNECT: u64 = 2;
 
 fn printcore_python() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -24,7 +31,7 @@ fn printcore_python() -> PathBuf {
 
 #[test]
 fn printcore_streams_a_job_with_checksums_and_recovers_a_corrupted_line() {
-    let mut vm = boot();
+    let mut vm = boot_with(board_as_sold());
     // A square with a rounded corner and a diagonal back, in mm from the
     // power-on position (the firmware's 0 until homed).
     let job = "\
@@ -107,5 +114,79 @@ M400
     assert_eq!(vm.position(Axis::Y), start[1] + 225);
     assert_eq!(vm.position(Axis::Z), start[2]);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
-    assert!(vm.resets().iter().all(|r| r.kind == sim::ResetKind::PowerOn));
+    // printcore opens the port twice to connect (open, close, open: its
+    // parity workaround); each open resets the board (two opens between two
+    // looks of the bridge are one reset), all before the job.
+    assert!((1..=OPENS_PER_CONNECT).contains(&bridge.auto_resets), "{} resets", bridge.auto_resets);
+    let external = vm.resets().iter().filter(|r| r.kind == sim::ResetKind::External).count() as u64;
+    assert_eq!(external, bridge.auto_resets);
+}
+
+/// Runs printcore on `job` through `bridge` until it exits or `stop` says
+/// so (then it is killed, as a sender closed mid-job). Returns its output.
+fn printcore_run(bridge: &mut PtyBridge, vm: &mut sim::Vm, job: &std::path::Path, mut stop: impl FnMut(&sim::Vm) -> bool) -> String {
+    let printcore = printcore_python().with_file_name("printcore.py");
+    let mut child = Command::new(printcore_python())
+        .arg(&printcore)
+        .args(["-v", "-b", "250000"])
+        .arg(bridge.port())
+        .arg(job)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start printcore");
+    let started = Instant::now();
+    loop {
+        bridge.pump(vm, 0.002).expect("virtual machine");
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        if stop(vm) {
+            child.kill().unwrap();
+            break;
+        }
+        assert!(started.elapsed() < Duration::from_secs(90), "printcore did not finish");
+    }
+    let out = child.wait_with_output().unwrap();
+    format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr))
+}
+
+/// A sender that reconnects in the middle of a job, as on a real board with
+/// auto-reset: the new connection resets the board, so the job stops where
+/// it was, the firmware's position starts again from 0 and motion is
+/// refused until the machine is homed or unlocked.
+#[test]
+fn a_sender_that_reconnects_mid_job_resets_the_board_and_the_job_is_gone() {
+    let mut vm = boot_with(board_as_sold());
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/tmp");
+    std::fs::create_dir_all(&dir).unwrap();
+    let long = dir.join("printcore-long.gcode");
+    std::fs::write(&long, "M999\nG21 G90\nG1 X40 F600\nG1 Y40\nG1 X0\nM400\n").unwrap();
+    let again = dir.join("printcore-again.gcode");
+    std::fs::write(&again, "M114\nG1 X1 F600\nM114\n").unwrap();
+    let start = vm.config().machine.initial_position;
+    let mut bridge = PtyBridge::open(&vm, None).expect("pty").realtime(true);
+    // The first connection: the job runs until X has gone 5 mm.
+    printcore_run(&mut bridge, &mut vm, &long, |vm| vm.position(Axis::X) >= start[0] + 500);
+    let first = bridge.auto_resets;
+    assert!((1..=OPENS_PER_CONNECT).contains(&first), "{first} resets");
+    // The second: opening the port resets the board mid-move.
+    let log = printcore_run(&mut bridge, &mut vm, &again, |_| false);
+    assert!(bridge.auto_resets > first, "{log}");
+    let reset = *vm.resets().last().unwrap();
+    assert_eq!(reset.kind, sim::ResetKind::External);
+    for _ in 0..250 {
+        bridge.pump(&mut vm, 0.002).unwrap();
+    }
+    // Stopped at the reset: no step after it.
+    let after = vm.recorder().trace().iter().filter(|t| t.cycle > reset.cycle).count();
+    assert_eq!(after, 0, "{after} steps after the reset");
+    let x = vm.position(Axis::X);
+    assert!(x > start[0] + 500 && x < start[0] + 4000, "X at {x}");
+    let fw: Vec<String> = vm.line_log().iter().filter(|(c, _)| *c > reset.cycle).map(|(_, l)| l.clone()).collect();
+    assert!(fw.iter().any(|l| l == "echo:reset cause: external"), "{fw:?}");
+    // The position is gone (0 where the machine stands), the queue too, and
+    // the G1 is refused: the machine must be homed first.
+    assert!(fw.iter().any(|l| l.starts_with("X:0.000 Y:0.000")), "{fw:?}");
+    assert!(fw.iter().any(|l| l.starts_with("Error:not homed")), "{fw:?}");
 }

@@ -2,7 +2,8 @@
 //! (issue 14, item 9): motion and firmware output count as activity for
 //! `--idle-exit`; realtime commands pass bytes still waiting for the UART;
 //! a sender that closes the port and opens it again finds it working, with
-//! no stale output.
+//! no stale output: the board resets on every open (auto-reset) unless
+//! that is turned off, as on a board with its reset jumper cut.
 
 mod common;
 use common::*;
@@ -12,6 +13,9 @@ use std::fs::{File, OpenOptions};
 use std::io::{Read, Write};
 use std::os::unix::fs::OpenOptionsExt;
 use std::time::{Duration, Instant};
+
+/// The last line of the boot banner (the homing lock is on by default).
+const BANNER_END: &str = "echo:home (G28) before moving";
 
 /// A sender on the pty's slave side (non-blocking reads).
 struct Host {
@@ -42,6 +46,13 @@ impl Host {
             }
             self.got.push_str(&String::from_utf8_lossy(&buf[..n]));
         }
+    }
+
+    /// Opening the port reset the board (auto-reset): pump until the
+    /// sender has read the fresh banner, then forget what it read.
+    fn after_reset(&mut self, bridge: &mut PtyBridge, vm: &mut Vm) {
+        self.until(bridge, vm, |l| l.starts_with(BANNER_END));
+        self.got.clear();
     }
 
     /// Pump until the sender has read a line matching `pred` (up to 20 s of
@@ -98,6 +109,8 @@ fn realtime_bytes_pass_lines_still_waiting_for_the_uart() {
     let mut vm = boot();
     let mut bridge = PtyBridge::open(&vm, None).unwrap();
     let mut host = Host::open(&bridge);
+    host.after_reset(&mut bridge, &mut vm);
+    assert_eq!(bridge.auto_resets, 1);
     ok(&mut vm, "M999");
     // 120 short lines (480 bytes, ~19 ms of line time) then `?` at a line
     // start: the status report comes back while most lines still wait.
@@ -148,17 +161,43 @@ fn a_sender_that_reconnects_finds_the_port_working_without_stale_output() {
         bridge.pump(&mut vm, 0.002).unwrap();
     }
     assert!(bridge.stale_dropped > 0, "nothing was left unread");
-    // A new sender: the port opens, and the first thing it reads is the
-    // answer to its own command.
+    // A new sender: opening the port resets the board, and the first thing
+    // it reads is the fresh banner, then the answer to its own command.
+    let mut host = Host::open(&bridge);
+    host.until(&mut bridge, &mut vm, |l| l.starts_with(BANNER_END));
+    let first = host.got.lines().next().unwrap_or("");
+    assert_eq!(first, "start", "stale output reached the new sender: {:?}", host.got);
+    host.got.clear();
+    host.write(b"M114\n");
+    host.until(&mut bridge, &mut vm, |l| l == "ok");
+    assert!(host.got.lines().next().unwrap_or("").starts_with("X:"), "{:?}", host.got);
+    // And once more, closing and opening again at once.
+    drop(host);
+    let mut host = Host::open(&bridge);
+    host.until(&mut bridge, &mut vm, |l| l.starts_with("echo:reset cause"));
+    assert_eq!(host.got.lines().next().unwrap_or(""), "start", "{:?}", host.got);
+    assert_eq!(bridge.auto_resets, 3);
+}
+
+#[test]
+fn without_auto_reset_a_reconnecting_sender_finds_the_board_as_it_left_it() {
+    let mut vm = boot();
+    let mut bridge = PtyBridge::open(&vm, None).unwrap().auto_reset(false);
+    let mut host = Host::open(&bridge);
+    host.write(b"M999\nG1 X1 F600\nM400\nM114\n");
+    host.until(&mut bridge, &mut vm, |l| l.starts_with("X:"));
+    drop(host);
+    // The first thing the next sender reads is the answer to its own
+    // command: no banner, no stale output, the position kept.
+    let t = Instant::now();
+    while t.elapsed() < sim::pty::STALE_OUTPUT + Duration::from_millis(700) {
+        bridge.pump(&mut vm, 0.002).unwrap();
+    }
     let mut host = Host::open(&bridge);
     host.write(b"M114\n");
     host.until(&mut bridge, &mut vm, |l| l == "ok");
     let first = host.got.lines().next().unwrap_or("");
-    assert!(first.starts_with("X:"), "stale output reached the new sender: {:?}", host.got);
-    // And once more, closing and opening again at once.
-    drop(host);
-    let mut host = Host::open(&bridge);
-    host.write(b"M114\n");
-    host.until(&mut bridge, &mut vm, |l| l == "ok");
-    assert!(host.got.lines().next().unwrap_or("").starts_with("X:"), "{:?}", host.got);
+    assert!(first.starts_with("X:1.000"), "{:?}", host.got);
+    assert_eq!(bridge.auto_resets, 0);
+    assert_eq!(vm.resets().len(), 1);
 }

@@ -19,7 +19,9 @@
 //! - [`elf`]: ELF symbols (RAM addresses, `__heap_start`).
 //! - [`report`]: JSON report and CSV step trace.
 //! - [`pins`]: the RAMPS pin map, the only place `sim/` knows pins.
-//! - [`pty`]: UART0 as a pseudo-terminal for real G-code senders.
+//! - [`pty`]: UART0 as a pseudo-terminal for real G-code senders and avrdude.
+//! - [`boot`]: the stock Mega2560 bootloader (where it is installed, the
+//!   fuses of a board as sold) and Intel hex files.
 //! - [`plot`]: the toolpath PNG, commanded against recorded.
 //!
 //! ```no_run
@@ -42,6 +44,7 @@
 //! ```
 
 pub mod atc;
+pub mod boot;
 pub mod circle;
 pub mod elf;
 pub mod host;

@@ -4,7 +4,8 @@
 //! cargo run -p sim --release -- [--elf PATH] [--json out/report.json] [--csv out/trace.csv] [--png out/toolpath.png] [--oled out/oled.png]
 //!                               [--checksums] [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]
 //! cargo run -p sim --release -- --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]
-//! either with [--switches ideal|HYSTERESIS_MM,BOUNCE_MS]
+//!                               [--blank] [--no-auto-reset]
+//! either with [--switches ideal|HYSTERESIS_MM,BOUNCE_MS] [--bootloader [HEX]]
 //! ```
 //!
 //! With `--pty`, no job is streamed: UART0 becomes a pseudo-terminal (its path
@@ -12,6 +13,12 @@
 //! sender connects to it at any baud rate. The machine runs in real time until
 //! Ctrl-C, or until nothing happened for `--idle-exit` seconds (no byte either
 //! way, no firmware output, no step); then the report is printed as for a job.
+//! Opening the port resets the board, as the Mega2560's DTR auto-reset
+//! does (`--no-auto-reset`: a board whose RESET-EN jumper is cut).
+//! `--bootloader` runs the stock Mega2560 bootloader (`sim::boot`: Debian's
+//! `arduino-core-avr` hex, or HEX) in front of the firmware, as on a board
+//! as sold: avrdude (`tools/flash PORT`) can then flash the virtual board
+//! through the port; `--blank` starts with only the bootloader in flash.
 //!
 //! `--switches` sets the home switches: `ideal`, or hysteresis (mm) and
 //! contact bounce (ms), e.g. `0.1,5`. Default: `sim::SwitchConfig::default()`
@@ -42,12 +49,19 @@ struct Args {
     pty: Option<Option<PathBuf>>,
     idle_exit_s: Option<f64>,
     switches: sim::SwitchConfig,
+    /// `--bootloader [HEX]`: Some(None) for the default hex.
+    bootloader: Option<Option<PathBuf>>,
+    /// `--blank`: only the bootloader in flash.
+    blank: bool,
+    /// `--no-auto-reset`: opening the port does not reset the board.
+    no_auto_reset: bool,
 }
 
 const USAGE: &str = "usage: sim [--elf PATH] [--json FILE] [--csv FILE] [--png FILE] [--oled FILE] [--checksums] \
 [--flow pingpong|count:N] [--timeout SECONDS] [JOB.gcode]\n       \
 sim --pty [LINK] [--idle-exit SECONDS] [--elf PATH] [--json FILE] [--csv FILE]\n       \
-either with [--switches ideal|HYSTERESIS_MM,BOUNCE_MS]";
+    [--blank] [--no-auto-reset]\n       \
+either with [--switches ideal|HYSTERESIS_MM,BOUNCE_MS] [--bootloader [HEX]]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -63,6 +77,9 @@ fn parse_args() -> Result<Args, String> {
         pty: None,
         idle_exit_s: None,
         switches: sim::SwitchConfig::default(),
+        bootloader: None,
+        blank: false,
+        no_auto_reset: false,
     };
     let mut it = std::env::args().skip(1).peekable();
     while let Some(arg) = it.next() {
@@ -86,6 +103,9 @@ fn parse_args() -> Result<Args, String> {
                 a.idle_exit_s = Some(value("--idle-exit")?.parse().map_err(|e| format!("--idle-exit: {e}"))?);
             }
             "--switches" => a.switches = parse_switches(&value("--switches")?)?,
+            "--bootloader" => a.bootloader = Some(it.next_if(|v| v.ends_with(".hex")).map(PathBuf::from)),
+            "--blank" => a.blank = true,
+            "--no-auto-reset" => a.no_auto_reset = true,
             "-h" | "--help" => return Err(USAGE.to_string()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
             s => a.job = PathBuf::from(s),
@@ -132,6 +152,9 @@ fn main() -> ExitCode {
     config.machine.switches = args.switches;
     if let Some(elf) = args.elf {
         config.elf = elf;
+    }
+    if let Some(hex) = &args.bootloader {
+        config.bootloader = Some(hex.clone().unwrap_or_else(sim::boot::default_hex_path));
     }
     let mut vm = match Vm::new(config) {
         Ok(vm) => vm,
@@ -230,6 +253,10 @@ fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
     if let Some(elf) = &args.elf {
         config.elf = elf.clone();
     }
+    if let Some(hex) = &args.bootloader {
+        config.bootloader = Some(hex.clone().unwrap_or_else(sim::boot::default_hex_path));
+    }
+    config.blank_application = args.blank;
     let mut vm = match Vm::new(config) {
         Ok(vm) => vm,
         Err(e) => {
@@ -238,7 +265,7 @@ fn run_pty(args: &Args, link: Option<PathBuf>) -> ExitCode {
         }
     };
     let bridge = match sim::pty::PtyBridge::open(&vm, link.as_deref()) {
-        Ok(b) => b.realtime(true),
+        Ok(b) => b.realtime(true).fast_while_busy(true).auto_reset(!args.no_auto_reset),
         Err(e) => {
             eprintln!("cannot open a pty: {e}");
             return ExitCode::from(2);

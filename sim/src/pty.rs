@@ -23,7 +23,22 @@
 //! `?`, `!`, `~` at the start of a line (inside a line they are text: a
 //! comment, or a checksummed line the checksum covers), Ctrl-X (0x18)
 //! wherever it is, and a whole `M112` line (the RX interrupt's emergency
-//! scanner then sees it at once).
+//! scanner then sees it at once). While the chip runs its bootloader
+//! (the program counter in the boot section, see [`crate::boot`]) every
+//! byte goes in order: avrdude's messages are binary.
+//!
+//! Auto-reset: on a Mega2560 the USB chip's DTR line drives RESET through
+//! a capacitor, and Linux raises DTR whenever a program opens the port, so
+//! every open resets the board (Arduino Mega2560 schematic, "RESET-EN"
+//! jumper). The bridge sees every open of the slave (inotify `IN_OPEN` on
+//! it, which is what avrdude, pyserial and node-serialport all do) and
+//! resets the virtual machine with [`Vm::reset`], as the pulse would:
+//! bytes still waiting for the UART and output not yet read are lost, the
+//! firmware starts again (through the bootloader if the VM has one; a board
+//! with the stock fuses is held in reset for its 66 ms start-up delay
+//! first, and the sender's bytes in that time are lost too). With
+//! [`PtyBridge::auto_reset`] off the port never resets the board, as on a
+//! board whose RESET-EN jumper is cut.
 //!
 //! Reconnecting: a sender may close the port and open it again. Output
 //! nobody reads (no sender, or a gone one) would wait in the pty and reach
@@ -77,6 +92,15 @@ fn total_steps(vm: &Vm) -> u64 {
 pub struct PtyBridge {
     master: OwnedFd,
     _slave: OwnedFd,
+    /// inotify instance watching the slave for opens (None: auto-reset off).
+    opens: Option<OwnedFd>,
+    /// Resets caused by a sender opening the port.
+    pub auto_resets: u64,
+    /// Until this VM cycle the chip is held in reset (its start-up delay):
+    /// the sender's bytes are lost.
+    deaf_until: u64,
+    /// Sender bytes lost that way.
+    pub lost_in_reset: u64,
     slave_path: PathBuf,
     link: Option<PathBuf>,
     /// Firmware output already passed to the master.
@@ -102,6 +126,10 @@ pub struct PtyBridge {
     pub bytes_in: u64,
     pub bytes_out: u64,
     realtime: bool,
+    /// With `realtime`: run unpaced while bytes flow (see `fast_while_busy`).
+    fast_while_busy: bool,
+    /// Bytes moved either way in the last pump.
+    was_busy: bool,
     started: Instant,
     sim_start_s: f64,
 }
@@ -143,9 +171,14 @@ impl PtyBridge {
                 let _ = std::fs::remove_file(l);
                 std::os::unix::fs::symlink(&slave_path, l)?;
             }
+            let opens = watch_opens(&slave_path)?;
             Ok(PtyBridge {
                 master,
                 _slave: slave,
+                opens: Some(opens),
+                auto_resets: 0,
+                deaf_until: 0,
+                lost_in_reset: 0,
                 slave_path,
                 link: link.map(Path::to_path_buf),
                 out_sent: vm.output_bytes().len(),
@@ -160,6 +193,8 @@ impl PtyBridge {
                 bytes_in: 0,
                 bytes_out: 0,
                 realtime: false,
+                fast_while_busy: false,
+                was_busy: false,
                 started: Instant::now(),
                 sim_start_s: vm.seconds(),
             })
@@ -171,10 +206,33 @@ impl PtyBridge {
         self.link.as_deref().unwrap_or(&self.slave_path)
     }
 
+    /// Reset the board when a sender opens the port (default on; off: a
+    /// board whose auto-reset jumper is cut).
+    pub fn auto_reset(mut self, on: bool) -> Self {
+        if !on {
+            self.opens = None;
+        } else if self.opens.is_none() {
+            self.opens = watch_opens(&self.slave_path).ok();
+        }
+        self
+    }
+
     /// Keep simulated time from running ahead of the wall clock.
     pub fn realtime(mut self, on: bool) -> Self {
         self.realtime = on;
         self.started = Instant::now();
+        self
+    }
+
+    /// With [`PtyBridge::realtime`]: while the bootloader runs and bytes
+    /// flow either way, let simulated time run as fast as it can; keep it
+    /// in step with the wall clock while the line is quiet and whenever the
+    /// firmware runs. Simulated timing is unchanged; only the wall-clock
+    /// time of a transfer shrinks. Every wait avrdude or the bootloader
+    /// times (a reply that does not come, the bootloader's timeout) happens
+    /// on a quiet line, at the wall clock's pace. For avrdude.
+    pub fn fast_while_busy(mut self, on: bool) -> Self {
+        self.fast_while_busy = on;
         self
     }
 
@@ -195,6 +253,9 @@ impl PtyBridge {
     /// firmware output and steps (what `--idle-exit` counts as activity).
     pub fn pump_activity(&mut self, vm: &mut Vm, slice_s: f64) -> Result<Activity, VmError> {
         let mut act = Activity::default();
+        if self.port_opened() {
+            self.reset_board(vm);
+        }
         let mut buf = [0u8; 512];
         loop {
             // SAFETY: reading into our own buffer from a non-blocking fd.
@@ -204,6 +265,10 @@ impl PtyBridge {
             }
             act.host_bytes += n as usize;
             self.bytes_in += n as u64;
+            if vm.cycles() < self.deaf_until {
+                self.lost_in_reset += n as u64;
+                continue;
+            }
             for &b in &buf[..n as usize] {
                 self.from_sender(vm, b);
             }
@@ -219,7 +284,13 @@ impl PtyBridge {
                 self.bytes_out += n as u64;
             }
         }
-        if self.realtime {
+        let busy = vm.pc() >= crate::boot::BOOT_START
+            && (act.host_bytes > 0 || !self.pending.is_empty() || vm.tx_pending() > 0 || self.was_busy);
+        if self.realtime && self.fast_while_busy && busy {
+            // In step with the wall clock from here.
+            self.started = Instant::now();
+            self.sim_start_s = vm.seconds();
+        } else if self.realtime {
             let ahead = (vm.seconds() - self.sim_start_s) - self.started.elapsed().as_secs_f64();
             if ahead > 0.0 {
                 std::thread::sleep(Duration::from_secs_f64(ahead.min(0.05)));
@@ -235,7 +306,34 @@ impl PtyBridge {
         }
         act.steps = total_steps(vm) - steps;
         act.output_bytes = vm.output_bytes().len() - out_len;
+        self.was_busy = act.host_bytes > 0 || act.output_bytes > 0;
         Ok(act)
+    }
+
+    /// Has a sender opened the port since the last look? (Reads every
+    /// pending inotify event.)
+    fn port_opened(&mut self) -> bool {
+        let Some(fd) = &self.opens else { return false };
+        let mut buf = [0u8; 256];
+        let mut opened = false;
+        // SAFETY: reading events into our own buffer from a non-blocking fd.
+        while unsafe { libc::read(fd.as_raw_fd(), buf.as_mut_ptr().cast(), buf.len()) } > 0 {
+            opened = true;
+        }
+        opened
+    }
+
+    /// The DTR pulse: the chip resets; what waited for it or for the old
+    /// sender is gone.
+    fn reset_board(&mut self, vm: &mut Vm) {
+        self.auto_resets += 1;
+        self.pending.clear();
+        self.line_start = Some(0);
+        self.at_line_start = true;
+        vm.clear_tx();
+        vm.reset();
+        self.deaf_until = vm.cycles() + vm.startup_cycles();
+        self.out_sent = vm.output_bytes().len();
     }
 
     /// Bytes still waiting in the bridge for the UART.
@@ -267,6 +365,12 @@ impl PtyBridge {
 
     /// One byte from the sender (see the module doc for what passes ahead).
     fn from_sender(&mut self, vm: &mut Vm, b: u8) {
+        if vm.pc() >= crate::boot::BOOT_START {
+            // The bootloader runs (avrdude's binary STK500 messages): every
+            // byte in order, none of them is a realtime command.
+            self.pending.push_back(b);
+            return;
+        }
         if b == 0x18 || (self.at_line_start && matches!(b, b'?' | b'!' | b'~')) {
             self.urgent(vm, &[b]);
             return;
@@ -312,13 +416,27 @@ impl PtyBridge {
         } else if n > self.unread.0 && self.unread.0 == 0 {
             self.unread = (n, Instant::now());
         } else if self.unread.1.elapsed() >= STALE_OUTPUT {
-            // SAFETY: flushing the input queue of our own slave fd.
-            unsafe { libc::tcflush(self._slave.as_raw_fd(), libc::TCIFLUSH) };
+            let mut sink = vec![0u8; n];
+            // SAFETY: reading the `n` bytes FIONREAD reported from our own
+            // slave fd (a read, not a flush: no sender is there to see it).
+            unsafe { libc::read(self._slave.as_raw_fd(), sink.as_mut_ptr().cast(), n) };
             self.stale_dropped += n as u64;
             self.unread = (0, Instant::now());
         } else {
             self.unread.0 = n;
         }
+    }
+}
+
+/// An inotify instance that reports every open of `path` (non-blocking).
+fn watch_opens(path: &Path) -> io::Result<OwnedFd> {
+    let cpath = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).expect("pts path");
+    // SAFETY: plain libc calls; the fd is owned from here on.
+    unsafe {
+        let fd = check(libc::inotify_init1(libc::IN_NONBLOCK | libc::IN_CLOEXEC), "inotify_init1")?;
+        let fd = OwnedFd::from_raw_fd(fd);
+        check(libc::inotify_add_watch(fd.as_raw_fd(), cpath.as_ptr(), libc::IN_OPEN), "inotify_add_watch")?;
+        Ok(fd)
     }
 }
 

@@ -61,6 +61,7 @@
 //!   (simavr waits for the next event); a low level on an INTn pin sets its
 //!   flag even while that interrupt is disabled (clear EIFR before enabling).
 
+use crate::boot;
 use crate::elf::ElfSymbols;
 use crate::host::{is_reply_end, StreamOptions, StreamReport, Streamer};
 use crate::isr::{IsrStats, IsrTracker, STEPPER_VECTOR};
@@ -180,6 +181,15 @@ pub struct VmConfig {
     pub command_timeout_s: f64,
     /// Keep TCNTn across clock stop/start like the hardware (module docs). Default true.
     pub fix_tcnt_on_clock_start: bool,
+    /// The stock bootloader (Intel hex), loaded at the boot section with
+    /// BOOTRST and the fuses of a board as sold ([`crate::boot`]): every
+    /// reset starts it, and it starts the application. Default None: the
+    /// chip starts at the application's reset vector.
+    pub bootloader: Option<PathBuf>,
+    /// Leave the application space erased (0xFF) instead of loading the
+    /// ELF's image: a board with only the bootloader, to flash through it.
+    /// The ELF is still read for its symbols. Default false.
+    pub blank_application: bool,
 }
 
 impl VmConfig {
@@ -211,6 +221,8 @@ impl Default for VmConfig {
             stop_on_bad_opcode: true,
             command_timeout_s: 60.0,
             fix_tcnt_on_clock_start: true,
+            bootloader: None,
+            blank_application: false,
         }
     }
 }
@@ -578,6 +590,18 @@ unsafe extern "C" fn stop_timer(_avr: *mut ffi::avr_t, _when: ffi::avr_cycle_cou
     0
 }
 
+/// The start-up delay after a reset is over: the core runs (see
+/// `Vm::hold_in_reset`).
+// SAFETY (contract): only simavr calls this, from inside `avr_run`.
+unsafe extern "C" fn startup_done(avr: *mut ffi::avr_t, _when: ffi::avr_cycle_count_t, _param: *mut c_void) -> u64 {
+    // SAFETY: avr is the live instance that runs this timer.
+    unsafe {
+        (*avr).sreg[7] = 0; // I flag
+        (*avr).state = ffi::cpu_Running as c_int;
+    }
+    0
+}
+
 /// Timer2 or PB4 changed: recompute the spindle duty.
 // SAFETY (contract): only simavr calls this, from inside `avr_run`/`avr_raise_irq` on the VM's thread,
 // with the `param` registered in `Vm::new` (our `Inner`, or a `PinHook` for pin_notify).
@@ -857,6 +881,15 @@ impl Vm {
             }
         }
         drop(_guard);
+        // SAFETY: avr is ours, initialised and not running.
+        if let Err(e) = unsafe { load_boot_section(avr, &config) } {
+            // SAFETY: avr is ours and not yet shared.
+            unsafe {
+                ffi::avr_terminate(avr);
+                free(avr as *mut c_void);
+            }
+            return Err(VmError::Load(e));
+        }
 
         let recorder = Recorder::new(config.recorder.clone(), &config.machine);
         let mut physics = Physics::new(config.machine.clone());
@@ -1173,6 +1206,33 @@ impl Vm {
         set_coolant(inner, false);
         inner.host.feeding = false;
         self.kick_feeder();
+        if self.config.bootloader.is_some() {
+            self.hold_in_reset();
+        }
+    }
+
+    /// A board as sold waits [`boot::STOCK_STARTUP_S`] after a reset
+    /// before the core runs: the core sleeps (with the I flag set, so that
+    /// simavr lets time pass; nothing can interrupt, every source is off
+    /// after a reset) until a cycle timer wakes it.
+    fn hold_in_reset(&mut self) {
+        let cycles = (boot::STOCK_STARTUP_S * self.config.frequency_hz as f64) as u64;
+        // SAFETY: avr is live and not running; the timer has no param.
+        unsafe {
+            (*self.avr).sreg[7] = 1; // I flag
+            (*self.avr).state = ffi::cpu_Sleeping as c_int;
+            ffi::avr_cycle_timer_register(self.avr, cycles, Some(startup_done), std::ptr::null_mut());
+        }
+    }
+
+    /// Cycles from a reset until the core runs: the stock fuses' start-up
+    /// delay with a bootloader, else 0.
+    pub fn startup_cycles(&self) -> u64 {
+        if self.config.bootloader.is_some() {
+            (boot::STOCK_STARTUP_S * self.config.frequency_hz as f64) as u64
+        } else {
+            0
+        }
     }
 
     /// Runs `n` cycles.
@@ -1201,26 +1261,33 @@ impl Vm {
         }
     }
 
-    /// External reset (RESET pin): RAM cleared, EEPROM kept, EXTRF set,
+    /// External reset (RESET pin: the reset button, or the USB port's DTR
+    /// on a board with auto-reset): SRAM and EEPROM kept (datasheet §12:
+    /// only a power loss loses SRAM), I/O registers reset, EXTRF set,
     /// inputs re-applied. Clears a fatal error, so a stopped VM can go on.
     pub fn reset(&mut self) {
         self.hard_reset(ResetKind::External);
     }
 
-    /// Power cycle: like [`Vm::reset`] but MCUSR = PORF only. The machine
-    /// (positions) and the EEPROM are unchanged.
+    /// Power cycle: like [`Vm::reset`] but MCUSR = PORF only, and SRAM
+    /// comes up holding noise (a fixed pseudo-random pattern, different on
+    /// each power cycle). The machine (positions) and the EEPROM are
+    /// unchanged.
     pub fn power_cycle(&mut self) {
         self.hard_reset(ResetKind::PowerOn);
     }
 
     fn hard_reset(&mut self, kind: ResetKind) {
         let avr = self.avr;
+        let seed = self.resets().len() as u64;
         // SAFETY: avr is live and not running; indices are within the data array.
         unsafe {
             let data = (*avr).data;
-            let ioend = (*avr).ioend as usize;
-            let ramend = (*avr).ramend as usize;
-            std::ptr::write_bytes(data.add(ioend + 1), 0, ramend - ioend);
+            if kind == ResetKind::PowerOn {
+                let ioend = (*avr).ioend as usize;
+                let ramend = (*avr).ramend as usize;
+                power_on_noise(std::slice::from_raw_parts_mut(data.add(ioend + 1), ramend - ioend), seed);
+            }
             match kind {
                 ResetKind::PowerOn => *data.add(MCUSR) = 0x01,
                 _ => *data.add(MCUSR) |= 0x02,
@@ -1234,6 +1301,33 @@ impl Vm {
     /// Every reset so far (the first is power-on at cycle 0).
     pub fn resets(&self) -> &[ResetRecord] {
         &self.inner().resets
+    }
+
+    /// Hangs the firmware as a main loop stuck with interrupts off would:
+    /// global interrupts cleared and the program counter on the ELF's
+    /// `__stop_program` (avr-libc's endless `rjmp` after `exit`). Nothing
+    /// feeds the watchdog from then on, so an enabled watchdog resets the
+    /// chip when it expires (simavr's own watchdog timer). False if the ELF
+    /// has no `__stop_program`.
+    pub fn hang(&mut self) -> bool {
+        let Some(pc) = self.symbol_addr("__stop_program") else { return false };
+        // SAFETY: avr is live and not running; SREG's I bit is sreg[7].
+        unsafe {
+            (*self.avr).sreg[7] = 0;
+            (*self.avr).pc = pc;
+        }
+        true
+    }
+
+    /// Program memory: `len` bytes from byte address `addr` (clipped to
+    /// the chip's 256 KiB).
+    pub fn read_flash(&self, addr: u32, len: usize) -> Vec<u8> {
+        // SAFETY: avr is live; flash has flashend + 1 bytes.
+        unsafe {
+            let end = ((*self.avr).flashend as usize + 1).min(addr as usize + len);
+            let start = (addr as usize).min(end);
+            std::slice::from_raw_parts((*self.avr).flash.add(start), end - start).to_vec()
+        }
     }
 
     // ---------------------------------------------------------- memory
@@ -1832,6 +1926,43 @@ impl Vm {
     pub fn write_trace_csv(&self, path: impl AsRef<Path>) -> std::io::Result<()> {
         crate::report::write_trace_csv(path, self.recorder().trace(), self.config.frequency_hz)
     }
+}
+
+/// SRAM at power-on: noise, from a fixed seed per power cycle.
+fn power_on_noise(sram: &mut [u8], seed: u64) {
+    let mut rng = fastrand::Rng::with_seed(0x5EED_0000 + seed);
+    rng.fill(sram);
+}
+
+/// Erases the application space if asked, then loads the bootloader with
+/// the fuses and lock byte of a board as sold and points the reset vector
+/// (BOOTRST) at it.
+///
+/// SAFETY: `avr` must be a live, initialised instance that is not running.
+unsafe fn load_boot_section(avr: *mut ffi::avr_t, config: &VmConfig) -> Result<(), String> {
+    // SAFETY: flash has flashend + 1 bytes; the caller owns the instance.
+    unsafe {
+        let flash = std::slice::from_raw_parts_mut((*avr).flash, (*avr).flashend as usize + 1);
+        if config.blank_application {
+            flash[..boot::BOOT_START as usize].fill(0xFF);
+        }
+        let Some(hex) = &config.bootloader else { return Ok(()) };
+        for chunk in boot::read_ihex(hex)? {
+            let (a, n) = (chunk.addr as usize, chunk.bytes.len());
+            if a < boot::BOOT_START as usize || a + n > flash.len() {
+                return Err(format!("{}: bytes at 0x{a:05x} outside the boot section", hex.display()));
+            }
+            flash[a..a + n].copy_from_slice(&chunk.bytes);
+        }
+        (*avr).codeend = (*avr).flashend;
+        (*avr).reset_pc = boot::BOOT_START;
+        (*avr).pc = boot::BOOT_START;
+        for (i, &f) in boot::STOCK_FUSES.iter().enumerate() {
+            (*avr).fuse[i] = f;
+        }
+        (*avr).lockbits = boot::STOCK_LOCK;
+    }
+    Ok(())
 }
 
 /// Finds UART0's `avr_uart_t` in the instance's I/O module list.

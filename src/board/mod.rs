@@ -9,12 +9,15 @@
 //! - [`twi`] and [`spi`]: bus masters implementing the `embedded-hal` 1.0 traits;
 //! - [`oled`]: the SH1106 display on the TWI (its command set, page writes);
 //! - [`eeprom`] and [`wdt`];
+//! - [`bootloader`]: the stock bootloader's watchdog entry (the landing
+//!   pad at 0x20000) and the reset cause it clears;
 //! - [`halt`]: where every panic and `abort` ends (the M112 state, then halt);
 //! - `mem`: faster `memcpy` and `memset` than avr-libc's (not registers,
 //!   but AVR-only assembly like the rest).
 //!
 //! Everything above this layer (the `mill` library) sees values, never pins.
 
+pub mod bootloader;
 pub mod eeprom;
 pub mod halt;
 mod mem;
@@ -347,7 +350,7 @@ pub fn init(dp: &Peripherals) {
     pins::ENC_B.make_input_pullup();
     pins::ENC_BUTTON.make_input_pullup();
     pins::SD_DETECT.make_input_pullup();
-    serial::init(&dp.USART0, serial::Baud::B250000);
+    serial::init(&dp.USART0, serial::BUILD_BAUD);
     clock_init(&dp.TC0);
     spindle_init(&dp.TC2);
     stepper::init(&dp.TC1);

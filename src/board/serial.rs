@@ -112,11 +112,38 @@ static mut RX_IN_LOST: u8 = 0;
 /// Run while waiting for TX space (set by main).
 static mut TX_WAIT_HOOK: fn() = || {};
 
-/// Baud rates the firmware offers. 250000 is the default (Repetier's).
+/// Baud rates the firmware offers. 250000 is the default (Repetier's);
+/// [`BUILD_BAUD`] picks one at build time.
 #[derive(Clone, Copy)]
 pub enum Baud {
     B250000,
     B115200,
+}
+
+/// The host baud rate of this build: `MILL_BAUD` at build time
+/// (`MILL_BAUD=115200 tools/build-firmware`), 250000 if unset; any other
+/// value fails the build.
+pub const BUILD_BAUD: Baud = match option_env!("MILL_BAUD") {
+    None => Baud::B250000,
+    Some(v) if same(v, "250000") => Baud::B250000,
+    Some(v) if same(v, "115200") => Baud::B115200,
+    Some(_) => panic!("MILL_BAUD must be 250000 or 115200"),
+};
+
+/// `a == b` for the const above.
+const fn same(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
 }
 
 /// Set up USART0 (8N1, U2X) and the rings. Call once, interrupts off.

@@ -36,8 +36,8 @@ pub enum ResetCause {
     Watchdog,
     /// A JTAG reset (JTRF).
     Jtag,
-    /// No flag set: MCUSR was already cleared (for example by a bootloader),
-    /// or the program jumped to address 0.
+    /// No flag set. Not reported at boot: when the bootloader cleared
+    /// MCUSR, [`super::bootloader`] recovers watchdog, external or power-on.
     Unknown,
 }
 
@@ -96,7 +96,8 @@ fn wdt() -> &'static RegisterBlock {
     unsafe { &*WDT::ptr() }
 }
 
-/// MCUSR at boot: read and cleared on the first call, latched for later calls.
+/// MCUSR at boot: read and cleared on the first call, latched for later calls
+/// (when the bootloader left it 0, the flags [`super::bootloader`] recovers).
 /// Clearing WDRF is also what lets WDE be cleared afterwards.
 fn boot_mcusr(cs: CriticalSection<'_>) -> u8 {
     let latched = BOOT_MCUSR.borrow(cs);
@@ -111,6 +112,14 @@ fn boot_mcusr(cs: CriticalSection<'_>) -> u8 {
         w.porf().clear_bit().extrf().clear_bit().borf().clear_bit();
         w.wdrf().clear_bit().jtrf().clear_bit()
     });
+    // The stock bootloader clears MCUSR before starting the application:
+    // rebuild what can be known (super::bootloader).
+    let flags = if flags == 0 {
+        super::bootloader::recovered_mcusr()
+    } else {
+        super::bootloader::set_ram_mark();
+        flags
+    };
     latched.set(Some(flags));
     flags
 }

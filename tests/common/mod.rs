@@ -18,6 +18,15 @@ pub fn boot_with(cfg: VmConfig) -> Vm {
     vm
 }
 
+/// A board as sold: the stock Mega2560 bootloader in front of the firmware
+/// (Debian's `arduino-core-avr`, installed by `tools/setup`), as the real
+/// hosts meet it.
+pub fn board_as_sold() -> VmConfig {
+    let hex = sim::boot::default_hex_path();
+    assert!(hex.exists(), "{} missing: tools/setup installs Debian's arduino-core-avr", hex.display());
+    VmConfig { bootloader: Some(hex), ..VmConfig::default() }
+}
+
 /// Send a command and return its reply lines, asserting it ends with `ok`
 /// and carries no error.
 pub fn ok(vm: &mut Vm, line: &str) -> Vec<String> {

@@ -7,7 +7,8 @@
 //   open the port (controllerType, 250000 baud) -> unlock -> job A to the end
 //   -> job B with Pause/Resume (and in Grbl mode Feed hold/Cycle start)
 //   -> job C stopped with the Stop button (gcode:stop {force: true}), then
-//      Cycle start and a raw `~`, then a question to the machine -> job D.
+//      Cycle start and a raw `~`, then a question to the machine -> job D
+//   -> job E, during which the port is closed and opened again (auto-reset).
 //
 // Usage: node cncjs_drive.js URL SECRET PORT Grbl|Marlin JOBDIR
 // Needs socket.io-client 2.2 (the major version of cncjs 1.11's server) on
@@ -265,6 +266,31 @@ async function main() {
   await runToEnd('job D', 60000);
   await waitStill(0.3, 10);
   await mark('d_end');
+
+  // E: the port closed and opened again in the middle of a job (cncjs
+  // restarted, the user reconnecting): opening the port resets the board
+  // (auto-reset). The job is gone and a move is refused until homed.
+  await load('a.nc');
+  await mark('e_start');
+  command('gcode:start');
+  await until(() => workflow === 'running', 5000, 'job E: workflow running');
+  await waitMoved('e_start', 150, 20);
+  await mark('e_close');
+  await new Promise((resolve) => socket.emit('close', port, () => resolve()));
+  log('closed the port mid-job');
+  n = reads.length;
+  await new Promise((resolve, reject) => {
+    socket.emit('open', port, { controllerType, baudrate: 250000 }, (err) => (err ? reject(new Error(`reopen: ${err}`)) : resolve()));
+  });
+  log(`opened ${port} again`);
+  await until(() => readsSince(n).some((l) => l.startsWith('echo:reset cause')), 15000, 'the banner after reopening');
+  await sleep(1000);
+  await mark('e_reopened');
+  n = reads.length;
+  writeln('G91 G1 X1 F600');
+  await until(() => readsSince(n).some((l) => l.startsWith('Error:not homed')), 5000, 'a move refused before homing');
+  await sleep(1000);
+  await mark('e_end');
 
   await new Promise((resolve) => socket.emit('close', port, () => resolve()));
   log('closed the port');

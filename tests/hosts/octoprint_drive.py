@@ -154,6 +154,8 @@ class OctoPrint:
         self.state = {}
         self.lock = threading.Lock()
         self.disconnect_at = None  # index of the first event after our own disconnect
+        self.terminal_at = None  # terminal lines before the disconnect mid-job (step 4)
+        self.oplog_at = None  # octoprint.log bytes before it
 
     def get(self, path):
         r = self.http.get(self.url + path, timeout=10)
@@ -436,7 +438,50 @@ def run(args):
         st = op.connection_state()
         if st != "Operational":
             fail(f"after cancel and M114: state {st!r}")
+
+        # 4. Disconnect and connect again in the middle of a job (a second
+        # OctoPrint, a restart): opening the port resets the board
+        # (auto-reset). The job is gone, the position too, and a move is
+        # refused until the machine is homed. From here OctoPrint's own
+        # complaints about the lost print are expected (scan stops here).
+        name = upload(op, args.reconnect)
+        since = start_job(op, name)
+        if since is None:
+            return
+        if wait_filepos(op, 20, args.job_timeout) is None:
+            fail(f"{name}: never started sending ({op.get('/api/job')})")
+            return
+        time.sleep(2)
+        checkpoint("reconnect-before")
         op.disconnect_at = op.event_count()
+        op.terminal_at = op.terminal_len()
+        oplog = os.path.join(base, "logs", "octoprint.log")
+        op.oplog_at = os.path.getsize(oplog) if os.path.exists(oplog) else None
+        op.post("/api/connection", {"command": "disconnect"})
+        op.wait_state(("Offline", "Closed"), 20)
+        op.post("/api/connection", {"command": "connect", "port": args.port, "baudrate": 250000,
+                                    "printerProfile": "mill"})
+        st = op.wait_state(("Operational", "Error", "Offline", "Offline after error"), 60)
+        log(f"reconnect: state {st}")
+        if st != "Operational":
+            fail(f"reconnect: state {st!r}, not Operational")
+            return
+        time.sleep(args.settle)
+        checkpoint("reconnected")
+        i = op.terminal_len()
+        op.post("/api/printer/command", {"commands": ["M114", "G91", "G1 X1 F600", "G90"]})
+        end = time.time() + 15
+        seen = []
+        while time.time() < end and not (any(l.startswith("Recv: X:0.000") for l in seen)
+                                         and any(l.startswith("Recv: Error:not homed") for l in seen)):
+            seen = op.terminal_since(i)
+            time.sleep(0.2)
+        if not any(l.startswith("Recv: X:0.000") for l in seen):
+            fail(f"reconnected: M114 does not say X:0.000: {seen}")
+        if not any(l.startswith("Recv: Error:not homed") for l in seen):
+            fail(f"reconnected: the move was not refused: {seen}")
+        else:
+            log("reconnected: position 0, a move refused until homed")
         op.post("/api/connection", {"command": "disconnect"})
         op.wait_state(("Offline", "Closed"), 20)
     finally:
@@ -451,13 +496,15 @@ def scan(op, base, expect_tools):
         for kind, payload in op.events:
             f.write(f"{kind} {json.dumps(payload)}\n")
     oplog = os.path.join(base, "logs", "octoprint.log")
-    text = open(oplog, errors="replace").read() if os.path.exists(oplog) else ""
+    raw = open(oplog, "rb").read() if os.path.exists(oplog) else b""
+    # Up to the deliberate disconnect mid-job (step 4).
+    text = raw[: op.oplog_at].decode(errors="replace")
     for line in text.splitlines():
         if re.search(r" - (ERROR|CRITICAL) - ", line) or " octoprint.util.comm - WARNING - " in line:
             fail("octoprint.log: " + line)
         elif "M112" in line:
             fail("octoprint.log mentions M112: " + line)
-    for line in op.terminal:
+    for line in op.terminal[: op.terminal_at]:
         body = line.split(":", 1)[1].strip() if ":" in line else line
         if line.startswith("Send:") and re.search(r"\bM112\b", body):
             fail("terminal: " + line)
@@ -485,6 +532,7 @@ def main():
     p.add_argument("--run", required=True, help="job run to its end")
     p.add_argument("--pause", required=True, help="job paused and resumed")
     p.add_argument("--cancel", required=True, help="job cancelled")
+    p.add_argument("--reconnect", required=True, help="job during which OctoPrint disconnects and connects again")
     p.add_argument("--tools", type=int, default=13, help="printer profile extruder count")
     p.add_argument("--settle", type=float, default=5)
     p.add_argument("--drain", type=float, default=4, help="seconds for queued moves to drain")
