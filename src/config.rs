@@ -10,7 +10,7 @@
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
-pub const SETTINGS_VERSION: u8 = 3;
+pub const SETTINGS_VERSION: u8 = 4;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -57,6 +57,9 @@ pub struct Settings {
     pub immediate_tool_change: bool,
     /// M1 pauses (optional stop on); off: M1 is skipped.
     pub optional_stop: bool,
+    /// Card pulled mid-job: Z retracts to this far below its home switch
+    /// (machine Z −this), mm, before the spindle stops (`$160`).
+    pub card_out_retract_mm: f32,
     /// Work coordinate offsets G54..G59, X/Y/Z, mm.
     pub wcs_mm: [[f32; 3]; N_WCS],
 }
@@ -97,11 +100,12 @@ impl Settings {
         homing_lock: true,
         immediate_tool_change: false,
         optional_stop: false,
+        card_out_retract_mm: 2.0,
         wcs_mm: [[0.0; 3]; N_WCS],
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 6 + 1;
+    pub const IMAGE_LEN: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 6 + 4 + 1;
 
     /// The f32 fields in EEPROM image order.
     fn f32_fields(&self) -> [&[f32]; 12] {
@@ -158,6 +162,7 @@ impl Settings {
         w.u8(self.homing_lock as u8);
         w.u8(self.immediate_tool_change as u8);
         w.u8(self.optional_stop as u8);
+        w.f32(self.card_out_retract_mm);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -195,6 +200,7 @@ impl Settings {
         self.homing_lock = r.u8() != 0;
         self.immediate_tool_change = r.u8() != 0;
         self.optional_stop = r.u8() != 0;
+        self.card_out_retract_mm = r.f32();
         self.is_sane()
     }
 
@@ -217,6 +223,7 @@ impl Settings {
             && all_within(&singles_pos, 0.0, false, MAX)
             && all_within(&self.backlash_mm, 0.0, true, 5.0)
             && all_within(&[self.homing_pulloff_mm], 0.0, true, MAX)
+            && all_within(&[self.card_out_retract_mm], 0.0, true, MAX)
             && all_within(self.wcs_mm.as_flattened(), f32::NEG_INFINITY, true, MAX)
     }
 

@@ -89,6 +89,9 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.out(F!(", hard limits "));
     d.out(on_off(s.hard_limits));
     d.text("\n");
+    d.out(F!("echo:Card pulled mid-job, Z retract (mm below its home switch):\n$160="));
+    d.num(s.card_out_retract_mm);
+    d.text("\n");
 }
 
 /// ` X` … ` E`: short, so plain RAM strings.
