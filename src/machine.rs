@@ -1047,6 +1047,8 @@ impl Machine {
     /// spindle and coolant off. Without a known Z (not homed) nothing moves.
     #[inline(never)]
     pub fn retract_and_stop_spindle(&mut self, io: &mut impl Io) -> CmdResult {
+        // The job's abort is over: this move's wait must not fail on it.
+        self.line_aborts = self.aborts;
         let r = self.retract_z(io);
         self.spindle_off(io);
         r
