@@ -372,29 +372,31 @@ fn pause_resume_and_abort_from_the_menu() {
     ok(&mut vm, "G1 X10 F600");
 }
 
+/// Not homed (unlocked): the job ends, nothing is retracted (Z is not
+/// known), the spindle stops.
 #[test]
-fn pulling_the_card_mid_job_holds_the_machine_and_says_so() {
+fn pulling_the_card_mid_job_unhomed_ends_the_job_with_the_spindle_off() {
     let mut vm = boot_with_card(&[("LONG.NC", long_job(60).as_bytes())]);
     ok(&mut vm, "M23 LONG.NC");
     ok(&mut vm, "M24");
     vm.run_for(1.0).unwrap();
+    let z = vm.position(Axis::Z);
     vm.pull_sd();
-    wait_for(&mut vm, |l| l.contains("SD card removed"), 1.0);
-    vm.run_for(0.5).unwrap();
-    let held = steps(&vm);
-    vm.run_for(1.0).unwrap();
-    assert_eq!(steps(&vm), held, "held: nothing moves, no garbage runs");
-    settle(&mut vm);
-    let s = screen(&vm);
-    assert_eq!(s[0], "[ Hold            T0]", "{s:?}");
-    assert_eq!(s[6], "Card removed!");
-    // M24 cannot go on without the file; abort ends it with the spindle off.
-    let e = refused(&mut vm, "M24");
-    assert!(e.contains("SD card removed"), "{e}");
-    ok(&mut vm, "M524");
-    wait_for(&mut vm, |l| l.contains("SD card removed") || l.contains("aborted"), 2.0);
+    wait_for(&mut vm, |l| l.starts_with("echo:SD card removed: job stopped at line "), 1.0);
+    wait_for(&mut vm, |l| l.starts_with("echo:SD job ended (card removed)"), 2.0);
     vm.run_for(0.3).unwrap();
     assert!(!vm.spindle_on());
+    let held = steps(&vm);
+    vm.run_for(1.0).unwrap();
+    assert_eq!(steps(&vm), held, "nothing moves, no garbage runs");
+    assert_eq!(vm.position(Axis::Z), z);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert!(s[6].starts_with("Card out: line "), "{s:?}");
+    // Nothing to resume: the job is over.
+    let e = refused(&mut vm, "M24");
+    assert!(e.contains("no SD file selected"), "{e}");
     assert_eq!(ok(&mut vm, "M27")[0], "Not SD printing");
 }
 
