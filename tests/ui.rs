@@ -1020,6 +1020,16 @@ fn homed_by_the_menu(vm: &mut Vm) {
     panic!("not homed: {:?}", vm.positions());
 }
 
+/// Static RAM plus the stack's high-water mark so far within the 7 KiB
+/// budget; returns the total.
+fn ram_within_budget(vm: &Vm) -> u32 {
+    let stack = vm.stack_high_water_bytes().unwrap();
+    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
+    println!("static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
+    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
+    statics + stack
+}
+
 /// Sends `?` and returns the next status line.
 fn status(vm: &mut Vm) -> String {
     vm.send(b"?");
@@ -1147,6 +1157,7 @@ fn after_a_hard_limit_the_alarm_menu_jogs_off_the_closed_switch_then_homes() {
     assert_eq!(steps(&vm), [100, 100, 100, 0]);
     println!("hard limit, jogged off the switch then homed: {} encoder actions ({} presses, {} detents)", hands.actions(), hands.presses, hands.detents);
     assert_eq!((hands.presses, hands.detents), (7, 13));
+    ram_within_budget(&vm);
     // X is watched again: the hard limit trips on the switch.
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
@@ -1232,6 +1243,7 @@ fn a_card_pulled_mid_job_stops_retracts_then_stops_the_spindle_and_names_the_lin
     assert_eq!(vm.positions(), still);
     assert_eq!(ok(&mut vm, "M27")[0], "Not SD printing");
     assert_eq!(vm.eeprom(), eeprom, "EEPROM untouched");
+    ram_within_budget(&vm);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 
