@@ -1012,7 +1012,7 @@ fn homed_by_the_menu(vm: &mut Vm) {
     for _ in 0..120 {
         vm.run_for(0.5).unwrap();
         let now = vm.positions();
-        if now == last && now == [100, 100, 100, 0] {
+        if now == last && now[..3] == [100, 100, 100] {
             return;
         }
         last = now;
@@ -1257,4 +1257,55 @@ fn the_card_out_retract_height_is_setting_160_saved_with_m500_and_listed_by_m503
     vm.run_for(0.05).unwrap();
     vm.take_lines();
     assert!(ok(&mut vm, "M503").iter().any(|l| l == "$160=7.500"), "{:?}", vm.output());
+}
+
+#[test]
+fn an_emergency_stop_mid_change_is_named_and_the_alarm_menu_confirms_the_spindle_then_homes() {
+    let mut vm = tools_vm();
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X10 Y5 Z-3");
+    ok(&mut vm, "T2 M6");
+    vm.send_line("T5 M6");
+    // M112 after T2 went back into its pocket, before T5 is clamped.
+    vm.run_until(|vm| vm.atc().transfers.len() == 2, 60.0).unwrap();
+    vm.run_for(0.3).unwrap();
+    vm.send_line("M112");
+    wait_for(&mut vm, |l| l.starts_with("ALARM:"), 2.0);
+    vm.run_for(0.3).unwrap();
+    assert_eq!(spindle_tool(&vm), 0);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ ALARM           T0]", "{s:?}");
+    assert_eq!(s[5..8], ["Emergency stop", "Change interrupted:", "Press to recover"], "{s:?}");
+    golden(&vm, "alarm_estop_change_interrupted");
+    // Encoder only: Alarm menu, Confirm spindle, T0 (the spindle is empty), Yes.
+    let mut hands = Hands::default();
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 4);
+    hands.press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..5], ["[ In spindle now?]", "[ < Back]", " T0 no tool", " T1", " T2 old tool"], "{s:?}");
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    wait_for(&mut vm, |l| l == "echo:tool in spindle: T0", 2.0);
+    let e = vm.eeprom();
+    let j = mill::atc::tools::EEPROM_JOURNAL_ADDR as usize;
+    assert_eq!(mill::atc::Journal::from_bytes(&e[j..j + 5].try_into().unwrap()), None, "journal cleared");
+    // Back to the status screen: no alarm, no interrupted change; then Home all.
+    hands.press(&mut vm);
+    tools_to_status(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[6..8], ["No job", "Press for menu"], "{s:?}");
+    main_menu_entry(&mut vm, 4);
+    press(&mut vm);
+    turn(&mut vm, 1);
+    press(&mut vm);
+    homed_by_the_menu(&mut vm);
+    vm.take_lines();
+    ok(&mut vm, "T5 M6");
+    assert_eq!(spindle_tool(&vm), 5);
+    assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
 }
