@@ -301,7 +301,7 @@ fn card_pulls_at_random_instants_end_the_job_and_run_no_garbage() {
         ok(&mut vm, "M400");
         assert_eq!(xyz_now(&vm)[..2], [1000, 1000], "round {round}");
     }
-    println!("faults injected: {injected} (SD card pulls), moved after the hold: {moved_after_hold}, errors other than the removal: {garbage}, spindle left on: {spindle_left_on}");
+    println!("faults injected: {injected} (SD card pulls), moved after the stop: {moved_after_hold}, errors other than the removal: {garbage}, spindle left on: {spindle_left_on}");
     assert_eq!(moved_after_hold, 0);
     assert_eq!(garbage, 0);
     assert_eq!(spindle_left_on, 0);
