@@ -10,9 +10,9 @@
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
-/// Version 3 (the image before the dwell and G80 flags) still loads, with
-/// those two at their defaults.
-pub const SETTINGS_VERSION: u8 = 4;
+/// Versions 3 (before the dwell and G80 flags) and 4 (before the card-out
+/// retract height) still load, the fields they lack at their defaults.
+pub const SETTINGS_VERSION: u8 = 5;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -59,6 +59,9 @@ pub struct Settings {
     pub immediate_tool_change: bool,
     /// M1 pauses (optional stop on); off: M1 is skipped.
     pub optional_stop: bool,
+    /// Card pulled mid-job: Z retracts to this far below its home switch
+    /// (machine Z −this), mm, before the spindle stops (`$160`).
+    pub card_out_retract_mm: f32,
     /// Work coordinate offsets G54..G59, X/Y/Z, mm.
     pub wcs_mm: [[f32; 3]; N_WCS],
     /// `G4 P` is milliseconds (Mach3 and UCCNC posts, Marlin); off: seconds
@@ -107,13 +110,16 @@ impl Settings {
         homing_lock: true,
         immediate_tool_change: false,
         optional_stop: false,
+        card_out_retract_mm: 2.0,
         wcs_mm: [[0.0; 3]; N_WCS],
         dwell_p_ms: false,
         g80_keeps_motion: true,
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V3 + 2;
+    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V4 + 4;
+    /// Size of a version 4 image: no card-out retract height.
+    const IMAGE_LEN_V4: usize = Self::IMAGE_LEN_V3 + 2;
     /// Size of a version 3 image: no dwell or G80 flag.
     const IMAGE_LEN_V3: usize = 1 + 4 * (4 * 3 + 3 + 1 + 1 + 3 + 3 + 1 + 3 * N_WCS) + 1 + 6 + 1;
 
@@ -174,6 +180,7 @@ impl Settings {
         w.u8(self.optional_stop as u8);
         w.u8(self.dwell_p_ms as u8);
         w.u8(self.g80_keeps_motion as u8);
+        w.f32(self.card_out_retract_mm);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -196,6 +203,7 @@ impl Settings {
     fn read_image(&mut self, b: &[u8]) -> bool {
         let len = match b.first() {
             Some(&SETTINGS_VERSION) => Self::IMAGE_LEN,
+            Some(4) => Self::IMAGE_LEN_V4,
             Some(3) => Self::IMAGE_LEN_V3,
             _ => return false,
         };
@@ -215,9 +223,12 @@ impl Settings {
         self.homing_lock = r.u8() != 0;
         self.immediate_tool_change = r.u8() != 0;
         self.optional_stop = r.u8() != 0;
-        if len == Self::IMAGE_LEN {
+        if len >= Self::IMAGE_LEN_V4 {
             self.dwell_p_ms = r.u8() != 0;
             self.g80_keeps_motion = r.u8() != 0;
+        }
+        if len == Self::IMAGE_LEN {
+            self.card_out_retract_mm = r.f32();
         }
         self.is_sane()
     }
@@ -241,6 +252,7 @@ impl Settings {
             && all_within(&singles_pos, 0.0, false, MAX)
             && all_within(&self.backlash_mm, 0.0, true, 5.0)
             && all_within(&[self.homing_pulloff_mm], 0.0, true, MAX)
+            && all_within(&[self.card_out_retract_mm], 0.0, true, MAX)
             && all_within(self.wcs_mm.as_flattened(), f32::NEG_INFINITY, true, MAX)
     }
 
@@ -351,6 +363,22 @@ mod tests {
         old[5] ^= 1;
         assert_eq!(Settings::from_bytes(&old), None);
         assert_eq!(Settings::from_bytes(&new), Some(s));
+    }
+
+    #[test]
+    fn a_version_4_image_loads_with_the_retract_height_at_its_default() {
+        let mut s = Settings::DEFAULT;
+        s.dwell_p_ms = true;
+        s.card_out_retract_mm = 7.5;
+        let new = s.to_bytes();
+        let n = Settings::IMAGE_LEN_V4;
+        let mut old = [0xFFu8; Settings::IMAGE_LEN];
+        old[0] = 4;
+        old[1..n - 1].copy_from_slice(&new[1..n - 1]);
+        old[n - 1] = checksum(&old[..n - 1]);
+        let loaded = Settings::from_bytes(&old).unwrap();
+        assert!(loaded.dwell_p_ms);
+        assert_eq!(loaded.card_out_retract_mm, Settings::DEFAULT.card_out_retract_mm);
     }
 
     #[test]

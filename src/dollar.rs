@@ -19,7 +19,8 @@
 //! $21, $22, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
 //! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
 //! automatic tool offset, $151 Repetier's immediate T, $152 optional stop,
-//! $153 `G4 P` in milliseconds, $154 G80 keeping the motion mode). The table is a `match`, so it lives in flash.
+//! $153 `G4 P` in milliseconds, $154 G80 keeping the motion mode, $160 the
+//! retract height when the card is pulled mid-job). The table is a `match`, so it lives in flash.
 //!
 //! Called from `Machine::run_raw_line` for lines starting with `$`; pure
 //! parsing and formatting here, host-tested.
@@ -60,6 +61,7 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
         152 => (Flag(&mut s.optional_stop), F!("optional stop: M1 pauses, 0/1")),
         153 => (Flag(&mut s.dwell_p_ms), F!("G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1")),
         154 => (Flag(&mut s.g80_keeps_motion), F!("G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1")),
+        160 => (Num(&mut s.card_out_retract_mm), F!("card pulled mid-job: retract Z to this far below its home switch, mm")),
         _ => return None,
     })
 }
@@ -337,11 +339,12 @@ mod tests {
         s.hard_limits = false;
         list(&s, &mut out);
         let lines: Vec<&str> = out.0.lines().collect();
-        assert_eq!(lines.len(), 33);
+        assert_eq!(lines.len(), 34);
         assert!(lines.contains(&"$153=0 (G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$154=1 (G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$151=0 (T alone changes the tool at once (Repetier), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$152=0 (optional stop: M1 pauses, 0/1)"), "{lines:?}");
+        assert!(lines.contains(&"$160=2.000 (card pulled mid-job: retract Z to this far below its home switch, mm)"), "{lines:?}");
         assert!(lines.contains(&"$100=80.000 (steps/mm (E: steps/pocket))"), "{lines:?}");
         assert!(lines.contains(&"$21=0 (hard limits, 0/1)"));
         assert!(lines.contains(&"$130=45.000 (max travel, mm)"));

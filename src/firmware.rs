@@ -269,6 +269,7 @@ impl Io for Hw {
             home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
             probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
             abort: ui & req::ABORT != 0,
+            abort_keep_spindle: ui & req::KEEP_SPINDLE != 0,
             reset: rt & board::realtime::RESET != 0,
             jog_cancel: rt & board::realtime::JOG_CANCEL != 0,
             reset_moving: rt & board::realtime::RESET_MOVING != 0,
@@ -373,6 +374,13 @@ impl Io for Hw {
 
     #[inline(never)]
     fn background(&mut self, m: &Machine) {
+        // The card pulled mid-job ends the job now, even while one of its
+        // lines waits (a long arc, a full planner, M0): the status screen
+        // says so.
+        if self.job.card_check(board::sd_detected(), m, &mut SerialOut) {
+            self.sd.unmount();
+            self.ui.screen = Screen::Status;
+        }
         let (detents, presses) = board::take_encoder();
         if detents != 0 || presses != 0 {
             let cmd = self.ui.step(detents, presses != 0, &self.view);
@@ -445,6 +453,8 @@ impl Hw {
         v.card_in = board::sd_detected();
         v.files = self.files;
         v.interrupted = m.atc.interrupted;
+        v.alarm = m.alarm;
+        v.limit_axes = m.limit_axes;
         if matches!(self.ui.screen, Screen::Info) {
             v.free_ram = board::free_ram();
         }
@@ -690,6 +700,12 @@ fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
                 m.spindle_off(hw);
                 return;
             }
+            Turn::RetractThenSpindleOff => {
+                if let Err(e) = m.retract_and_stop_spindle(hw) {
+                    m.report_error(hw, e);
+                }
+                return;
+            }
             Turn::Idle => return,
         }
     }
@@ -736,7 +752,17 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             m.jog(hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN)
         }
         Cmd::Home(mask) => mill::machine::home(m, hw, mask),
+        Cmd::Unlock => {
+            if m.alarm.is_some() {
+                m.clear_alarm(hw);
+            }
+            Ok(())
+        }
         Cmd::Tool(op) => {
+            if matches!(op, mill::ui::menu::ToolOp::Confirm(_)) && m.alarm.is_some() {
+                // Confirming the spindle is a way out of the alarm.
+                m.clear_alarm(hw);
+            }
             // The same line as over serial (T<n>, G37 [D1], M61 Q<t>), so
             // the same checks and errors; the reply screen shows the outcome.
             let mut l = Line::blank();

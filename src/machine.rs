@@ -54,6 +54,9 @@ pub struct Realtime {
     pub probe_tripped: bool,
     /// Abort requested (SD job or menu): decelerate, then drop the queue.
     pub abort: bool,
+    /// With `abort`: leave the spindle running (the caller retracts the
+    /// tool first: the SD card pulled mid-job).
+    pub abort_keep_spindle: bool,
     /// 0x18 (Ctrl-X, grbl's soft reset) received; the stepper is halted.
     pub reset: bool,
     /// 0x85 (grbl's jog cancel) received.
@@ -274,6 +277,11 @@ pub const LIMIT_REARM_MS: u16 = 20;
 /// EEPROM address of the settings image.
 pub const EEPROM_SETTINGS_ADDR: u16 = 0;
 
+/// Feed of the retract after the card is pulled mid-job
+/// ([`Machine::retract_and_stop_spindle`]), mm/min: straight up, out of the
+/// cut, at a cutting feed rather than a rapid.
+pub const RETRACT_FEED_MM_PER_MIN: f32 = 600.0;
+
 /// The controller.
 pub struct Machine {
     pub settings: Settings,
@@ -305,6 +313,9 @@ pub struct Machine {
     /// [`LIMIT_REARM_MS`], so the axis can be jogged off it (grbl's limits
     /// are edge-triggered to the same effect).
     limits_held: u8,
+    /// Home switches closed when the last hard limit tripped (bit i = axis
+    /// i): which switch it was, for the display.
+    pub limit_axes: u8,
     /// Low 16 bits of the milliseconds when every held switch last read
     /// closed.
     held_since_ms: u16,
@@ -333,6 +344,9 @@ pub struct Machine {
     job_line: bool,
     /// An abort is decelerating; the queue is dropped once stopped.
     aborting: bool,
+    /// The abort decelerating leaves the spindle on (see
+    /// [`Realtime::abort_keep_spindle`]).
+    abort_keeps_spindle: bool,
     /// Aborts completed so far (wraps); waits fail while it differs from
     /// `line_aborts`, the count when the current line started.
     pub aborts: u8,
@@ -372,6 +386,7 @@ impl Machine {
             unlocked: false,
             limits_held: 0,
             report_count: 0xFF,
+            limit_axes: 0,
             grbl_replies: false,
             held_since_ms: 0,
             holding: false,
@@ -388,6 +403,7 @@ impl Machine {
                 home_tripped: false,
                 probe_tripped: false,
                 abort: false,
+                abort_keep_spindle: false,
                 reset: false,
                 reset_moving: false,
                 jog_cancel: false,
@@ -397,6 +413,7 @@ impl Machine {
             job_start_ms: 0,
             job_line: false,
             aborting: false,
+            abort_keeps_spindle: false,
             aborts: 0,
             line_aborts: 0,
         }
@@ -1146,6 +1163,34 @@ impl Machine {
         self.move_mm(io, &target, feed, false)
     }
 
+    /// The SD card was pulled mid-job and the job's moves are dropped: lift
+    /// Z to `$160` below its home switch at [`RETRACT_FEED_MM_PER_MIN`]
+    /// (only up: a tool above that height stays), wait for it, then the
+    /// spindle and coolant off. Without a known Z (not homed) nothing moves.
+    #[inline(never)]
+    pub fn retract_and_stop_spindle(&mut self, io: &mut impl Io) -> CmdResult {
+        // The job's abort is over: this move's wait must not fail on it.
+        self.line_aborts = self.aborts;
+        let r = self.retract_z(io);
+        self.spindle_off(io);
+        r
+    }
+
+    fn retract_z(&mut self, io: &mut impl Io) -> CmdResult {
+        if self.alarm.is_some() || self.homed & 0b100 == 0 {
+            return Ok(());
+        }
+        let mut target = self.interp.pos_mm;
+        // Internal frame: Z counts down from the switch.
+        let safe = self.settings.card_out_retract_mm;
+        if target[2] > safe {
+            target[2] = safe;
+            self.move_mm(io, &target, RETRACT_FEED_MM_PER_MIN, false)?;
+            self.wait_idle(io)?;
+        }
+        Ok(())
+    }
+
     /// `$J=<words>`: a grbl 1.1 jog (see [`Interp::jog_target`]), only
     /// from Idle or Jog; the soft limits refuse a target beyond the travel
     /// before anything moves. Queued like any move, so a stream of short
@@ -1258,6 +1303,7 @@ impl Machine {
             self.raise(io, Alarm::EmergencyStop);
         }
         if rt.limit && self.alarm.is_none() {
+            self.limit_axes = io.switches().home & 0b111;
             self.raise(io, Alarm::HardLimit);
         }
         if rt.hold && self.alarm.is_none() && !self.holding {
@@ -1289,6 +1335,7 @@ impl Machine {
         }
         if rt.abort && self.alarm.is_none() && !self.aborting {
             self.aborting = true;
+            self.abort_keeps_spindle = rt.abort_keep_spindle;
             if !self.holding {
                 self.holding = true;
                 self.prep.hold();
@@ -1322,8 +1369,9 @@ impl Machine {
         let p = io.stepper().position;
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
-        // A cancelled jog leaves the spindle as it was (grbl).
-        if self.state != State::Jog {
+        // A cancelled jog leaves the spindle as it was (grbl); so does an
+        // abort whose caller retracts the tool first.
+        if self.state != State::Jog && !core::mem::take(&mut self.abort_keeps_spindle) {
             self.spindle_off(io);
         }
         if matches!(self.state, State::Hold | State::Run | State::Jog) {

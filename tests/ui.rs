@@ -7,9 +7,11 @@
 //! fails. `MILL_UPDATE_GOLDEN=1` rewrites them (review before committing).
 
 mod common;
+#[path = "common/motion.rs"]
+mod motion_util;
 use common::*;
 use sim::oled;
-use sim::{AtcConfig, Axis, CardKind, FatKind, Flow, OpticalBeam, SdCard, SdImage, StreamOptions, Tool, ToolSetter, Vm, VmConfig};
+use sim::{AtcConfig, Axis, CardKind, FatKind, Flow, Input, OpticalBeam, SdCard, SdImage, StreamOptions, Tool, ToolSetter, Vm, VmConfig};
 use std::path::PathBuf;
 
 // ------------------------------------------------------------- helpers
@@ -370,29 +372,31 @@ fn pause_resume_and_abort_from_the_menu() {
     ok(&mut vm, "G1 X10 F600");
 }
 
+/// Not homed (unlocked): the job ends, nothing is retracted (Z is not
+/// known), the spindle stops.
 #[test]
-fn pulling_the_card_mid_job_holds_the_machine_and_says_so() {
+fn pulling_the_card_mid_job_unhomed_ends_the_job_with_the_spindle_off() {
     let mut vm = boot_with_card(&[("LONG.NC", long_job(60).as_bytes())]);
     ok(&mut vm, "M23 LONG.NC");
     ok(&mut vm, "M24");
     vm.run_for(1.0).unwrap();
+    let z = vm.position(Axis::Z);
     vm.pull_sd();
-    wait_for(&mut vm, |l| l.contains("SD card removed"), 1.0);
-    vm.run_for(0.5).unwrap();
-    let held = steps(&vm);
-    vm.run_for(1.0).unwrap();
-    assert_eq!(steps(&vm), held, "held: nothing moves, no garbage runs");
-    settle(&mut vm);
-    let s = screen(&vm);
-    assert_eq!(s[0], "[ Hold            T0]", "{s:?}");
-    assert_eq!(s[6], "Card removed!");
-    // M24 cannot go on without the file; abort ends it with the spindle off.
-    let e = refused(&mut vm, "M24");
-    assert!(e.contains("SD card removed"), "{e}");
-    ok(&mut vm, "M524");
-    wait_for(&mut vm, |l| l.contains("SD card removed") || l.contains("aborted"), 2.0);
+    wait_for(&mut vm, |l| l.starts_with("echo:SD card removed: job stopped at line "), 1.0);
+    wait_for(&mut vm, |l| l.starts_with("echo:SD job ended (card removed)"), 2.0);
     vm.run_for(0.3).unwrap();
     assert!(!vm.spindle_on());
+    let held = steps(&vm);
+    vm.run_for(1.0).unwrap();
+    assert_eq!(steps(&vm), held, "nothing moves, no garbage runs");
+    assert_eq!(vm.position(Axis::Z), z);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert!(s[6].starts_with("Card out: line "), "{s:?}");
+    // Nothing to resume: the job is over.
+    let e = refused(&mut vm, "M24");
+    assert!(e.contains("no SD file selected"), "{e}");
     assert_eq!(ok(&mut vm, "M27")[0], "Not SD printing");
 }
 
@@ -997,4 +1001,311 @@ fn tools_menu_shows_the_tool_table_and_measures_the_spindle_tool() {
     assert_eq!(s[0..3], ["[ Measure len+dia]", "", " T      L mm     D mm"], "{s:?}");
     assert_eq!(s[3], format!(" T2*{:>8.3}{:>9.3}", l, d), "{s:?}");
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
+// ------------------------------------- an operator without a PC: recovery
+
+/// Wait (up to 60 s) until the machine rests 1 mm off each switch, where
+/// homing ends.
+fn homed_by_the_menu(vm: &mut Vm) {
+    let mut last = vm.positions();
+    for _ in 0..120 {
+        vm.run_for(0.5).unwrap();
+        let now = vm.positions();
+        if now == last && now[..3] == [100, 100, 100] {
+            return;
+        }
+        last = now;
+    }
+    panic!("not homed: {:?}", vm.positions());
+}
+
+/// Static RAM plus the stack's high-water mark so far within the 7 KiB
+/// budget; returns the total.
+fn ram_within_budget(vm: &Vm) -> u32 {
+    let stack = vm.stack_high_water_bytes().unwrap();
+    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
+    println!("static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
+    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
+    statics + stack
+}
+
+/// Sends `?` and returns the next status line.
+fn status(vm: &mut Vm) -> String {
+    vm.send(b"?");
+    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
+}
+
+/// The operator's hands: every press and detent goes through here and is
+/// counted.
+#[derive(Default)]
+struct Hands {
+    presses: u32,
+    detents: u32,
+}
+
+impl Hands {
+    fn press(&mut self, vm: &mut Vm) {
+        self.presses += 1;
+        press(vm);
+    }
+    fn turn(&mut self, vm: &mut Vm, d: i32) {
+        self.detents += d.unsigned_abs();
+        turn(vm, d);
+    }
+    fn actions(&self) -> u32 {
+        self.presses + self.detents
+    }
+}
+
+/// Homed, soft limits off (`$20=0`, the machine's setup over serial), a
+/// card with a job that drives X into its home switch with the spindle on.
+fn homed_with_crash_job() -> Vm {
+    let mut vm = motion_util::boot_homed();
+    ok(&mut vm, "$20=0");
+    vm.insert_sd(card(&[("CRASH.NC", b"G21 G90\nM3 S6000\nG1 X10 Y20 F1200\nG1 X-5 F300\nM5\nM2\n")], FatKind::Fat16));
+    vm.take_lines();
+    vm
+}
+
+/// Run the first file on the card from the menu (Run from SD, the file, Yes).
+fn run_first_file(vm: &mut Vm, hands: &mut Hands) {
+    hands.press(vm);
+    hands.turn(vm, 1);
+    hands.press(vm);
+    hands.turn(vm, 1);
+    hands.press(vm);
+    hands.turn(vm, 1);
+    hands.press(vm);
+}
+
+/// Run the crash job from the menu until the hard limit; checks what the
+/// machine did and what the screen says.
+fn crash_into_the_x_switch(vm: &mut Vm) {
+    run_first_file(vm, &mut Hands::default());
+    wait_for(vm, |l| l == "ALARM:hard limit", 10.0);
+    vm.run_for(0.3).unwrap();
+    assert!(!vm.spindle_on(), "spindle off at the alarm");
+    assert!(vm.position(Axis::X) <= 5, "stopped at the switch: X {}", vm.position(Axis::X));
+    assert!(vm.input_active(Input::HomeX), "the X switch is still closed");
+    let held = vm.positions();
+    settle(vm);
+    let s = screen(vm);
+    assert_eq!(s[0], "[ ALARM           T0]", "{s:?}");
+    assert_eq!(s[5], "Hard limit X", "{s:?}");
+    assert_eq!(s[6], "Aborted", "{s:?}");
+    assert_eq!(s[7], "Press to recover", "{s:?}");
+    assert_eq!(vm.positions(), held, "nothing moves in the alarm");
+}
+
+#[test]
+fn a_hard_limit_is_named_on_the_screen_and_home_all_from_the_alarm_menu_recovers() {
+    let mut vm = homed_with_crash_job();
+    let eeprom = vm.eeprom();
+    crash_into_the_x_switch(&mut vm);
+    golden(&vm, "alarm_hard_limit_x");
+    // Recovery with the encoder alone: press, two detents to Home all, press.
+    let mut hands = Hands::default();
+    hands.press(&mut vm);
+    assert_eq!(screen(&vm)[..6], ["[ Alarm]", "[ Status]", " Unlock", " Home all", " Jog", " Confirm spindle"]);
+    golden(&vm, "alarm_menu");
+    hands.turn(&mut vm, 2);
+    hands.press(&mut vm);
+    homed_by_the_menu(&mut vm);
+    assert_eq!(steps(&vm), [100, 100, 100, 0], "homed: 1 mm off each switch");
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[7], "Press for menu");
+    golden(&vm, "alarm_recovered_by_homing");
+    println!("hard limit, recovered by Home all: {} encoder actions ({} presses, {} detents)", hands.actions(), hands.presses, hands.detents);
+    assert_eq!((hands.presses, hands.detents), (2, 2));
+    assert_eq!(vm.eeprom(), eeprom, "EEPROM untouched");
+    assert!(status(&mut vm).starts_with("<Idle|"));
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
+#[test]
+fn after_a_hard_limit_the_alarm_menu_jogs_off_the_closed_switch_then_homes() {
+    let mut vm = homed_with_crash_job();
+    crash_into_the_x_switch(&mut vm);
+    let x_stop = vm.position(Axis::X);
+    let mut hands = Hands::default();
+    // Alarm menu, Jog: unlocked, the Jog menu on X, 1 mm steps.
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 3);
+    hands.press(&mut vm);
+    assert_eq!(screen(&vm)[0..5], ["[ Jog]", "[ < Back]", " Axis X", " Step 1 mm", " Jog now"]);
+    hands.turn(&mut vm, 3);
+    hands.press(&mut vm);
+    golden(&vm, "alarm_jog_off_switch");
+    // Two detents: 2 mm off the switch, which opens; no alarm comes back.
+    hands.turn(&mut vm, 2);
+    vm.run_for(0.5).unwrap();
+    assert_eq!(vm.position(Axis::X), x_stop + 200);
+    assert!(!vm.input_active(Input::HomeX), "off the switch");
+    hands.press(&mut vm);
+    assert!(!vm.output().rsplit("ALARM:hard limit").next().unwrap().contains("ALARM"), "re-alarmed");
+    // Back to the main menu, Home, Home all.
+    hands.turn(&mut vm, -3);
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    homed_by_the_menu(&mut vm);
+    assert_eq!(steps(&vm), [100, 100, 100, 0]);
+    println!("hard limit, jogged off the switch then homed: {} encoder actions ({} presses, {} detents)", hands.actions(), hands.presses, hands.detents);
+    assert_eq!((hands.presses, hands.detents), (7, 13));
+    ram_within_budget(&vm);
+    // X is watched again: the hard limit trips on the switch.
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
+#[test]
+fn unlock_from_the_alarm_menu_clears_the_alarm_and_moves_nothing() {
+    let mut vm = homed_with_crash_job();
+    crash_into_the_x_switch(&mut vm);
+    let held = vm.positions();
+    let mut hands = Hands::default();
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    vm.run_for(0.5).unwrap();
+    assert_eq!(vm.positions(), held);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert!(status(&mut vm).starts_with("<Idle|"));
+}
+
+/// Z 5 mm into the work, then X back and forth (18 mm at 20 mm/s each),
+/// spindle on: line 3 goes to X20, line 5 on alternate X2 / X20.
+fn cutting_job(lines: usize) -> String {
+    let mut s = String::from("G21 G90\nM3 S8000\nG0 X20 Y5\nG1 Z-5 F600\n");
+    for i in 0..lines {
+        s += if i % 2 == 0 { "G1 X2 F1200\n" } else { "G1 X20 F1200\n" };
+    }
+    s + "G0 Z0\nM5\nM2\n"
+}
+
+#[test]
+fn a_card_pulled_mid_job_stops_retracts_then_stops_the_spindle_and_names_the_line() {
+    let mut vm = motion_util::boot_homed();
+    vm.insert_sd(card(&[("CUT.NC", cutting_job(40).as_bytes())], FatKind::Fat16));
+    let eeprom = vm.eeprom();
+    run_first_file(&mut vm, &mut Hands::default());
+    vm.run_until(|v| v.spindle_on(), 5.0).unwrap();
+    vm.run_for(3.0).unwrap();
+    assert_eq!(vm.position(Axis::Z), 500, "in the cut: Z 5 mm below machine zero");
+    let pulled_at = vm.cycles();
+    let x_at_pull = vm.position(Axis::X);
+    vm.pull_sd();
+    let msg = wait_for(&mut vm, |l| l.starts_with("echo:SD card removed: job stopped at line "), 1.0);
+    let n: usize = msg.rsplit(' ').next().unwrap().parse().unwrap();
+    // The line executing at the pull: line 4 + the X reversals before it.
+    let xs: Vec<i64> = vm.recorder().trace().iter().filter(|t| t.axis == Axis::X && t.cycle <= pulled_at).map(|t| t.position).collect();
+    let reversals = xs.windows(3).filter(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0).count();
+    assert_eq!(n, 4 + reversals, "{msg}");
+    // Stop, then Z up to $160 (2 mm below its switch: 200 steps) with the
+    // spindle still on, then the spindle off.
+    vm.run_until(|v| !v.spindle_on(), 10.0).unwrap();
+    assert_eq!(vm.position(Axis::Z), 200, "retracted before the spindle stopped; {}", tail(&vm));
+    let off_at = vm.cycles();
+    let z_up: Vec<u64> = vm.recorder().trace().iter().filter(|t| t.axis == Axis::Z && t.cycle > pulled_at).map(|t| t.cycle).collect();
+    assert_eq!(z_up.len(), 300, "Z went straight up 3 mm");
+    assert!(*z_up.last().unwrap() <= off_at);
+    let last_z = *z_up.last().unwrap();
+    let spindle_changes: Vec<&(u64, f64)> = vm.spindle_history().iter().filter(|(c, _)| *c > pulled_at).collect();
+    assert!(!spindle_changes.is_empty() && spindle_changes.iter().all(|(c, _)| *c >= last_z), "spindle on until Z was up: {spindle_changes:?}");
+    // X: no move buffered after the pull ran: X only decelerated, in the
+    // direction it had (no reversal), within the hold's reach (see the
+    // abort test: 6.6 mm).
+    let x_after: Vec<i64> = vm.recorder().trace().iter().filter(|t| t.axis == Axis::X && t.cycle > pulled_at).map(|t| t.position).collect();
+    assert!(x_after.windows(3).all(|w| (w[1] - w[0]) * (w[2] - w[1]) > 0), "X reversed: a buffered move ran");
+    assert!((vm.position(Axis::X) - x_at_pull).abs() <= 660, "X ran on {} steps", vm.position(Axis::X) - x_at_pull);
+    wait_for(&mut vm, |l| l.starts_with("echo:SD job ended (card removed)"), 2.0);
+    vm.run_for(1.0).unwrap();
+    let still = vm.positions();
+    vm.run_for(1.0).unwrap();
+    assert_eq!(vm.positions(), still, "nothing moves afterwards");
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[3], "Z     -2.000 mm", "{s:?}");
+    assert_eq!(s[5], "S off", "{s:?}");
+    assert_eq!(s[6], format!("Card out: line {n}"), "{s:?}");
+    assert_eq!(s[7], "Press for menu", "{s:?}");
+    golden(&vm, "card_pulled_job_stopped");
+    // A press opens the menu; nothing resumes.
+    press(&mut vm);
+    assert_eq!(screen(&vm)[0], "[ Menu]");
+    vm.run_for(0.5).unwrap();
+    assert_eq!(vm.positions(), still);
+    assert_eq!(ok(&mut vm, "M27")[0], "Not SD printing");
+    assert_eq!(vm.eeprom(), eeprom, "EEPROM untouched");
+    ram_within_budget(&vm);
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
+#[test]
+fn the_card_out_retract_height_is_setting_160_saved_with_m500_and_listed_by_m503() {
+    let mut vm = boot();
+    assert!(ok(&mut vm, "M503").iter().any(|l| l == "$160=2.000"));
+    ok(&mut vm, "$160=7.5");
+    vm.power_cycle();
+    vm.wait_for_start(3.0).unwrap();
+    vm.run_for(0.05).unwrap();
+    vm.take_lines();
+    assert!(ok(&mut vm, "M503").iter().any(|l| l == "$160=7.500"), "{:?}", vm.output());
+}
+
+#[test]
+fn an_emergency_stop_mid_change_is_named_and_the_alarm_menu_confirms_the_spindle_then_homes() {
+    let mut vm = tools_vm();
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X10 Y5 Z-3");
+    ok(&mut vm, "T2 M6");
+    vm.send_line("T5 M6");
+    // M112 after T2 went back into its pocket, before T5 is clamped.
+    vm.run_until(|vm| vm.atc().transfers.len() == 2, 60.0).unwrap();
+    vm.run_for(0.3).unwrap();
+    vm.send_line("M112");
+    wait_for(&mut vm, |l| l.starts_with("ALARM:"), 2.0);
+    vm.run_for(0.3).unwrap();
+    assert_eq!(spindle_tool(&vm), 0);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ ALARM           T0]", "{s:?}");
+    assert_eq!(s[5..8], ["Emergency stop", "Change interrupted:", "Press to recover"], "{s:?}");
+    golden(&vm, "alarm_estop_change_interrupted");
+    // Encoder only: Alarm menu, Confirm spindle, T0 (the spindle is empty), Yes.
+    let mut hands = Hands::default();
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 4);
+    hands.press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..5], ["[ In spindle now?]", "[ < Back]", " T0 no tool", " T1", " T2 old tool"], "{s:?}");
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    hands.turn(&mut vm, 1);
+    hands.press(&mut vm);
+    wait_for(&mut vm, |l| l == "echo:tool in spindle: T0", 2.0);
+    let e = vm.eeprom();
+    let j = mill::atc::tools::EEPROM_JOURNAL_ADDR as usize;
+    assert_eq!(mill::atc::Journal::from_bytes(&e[j..j + 5].try_into().unwrap()), None, "journal cleared");
+    // Back to the status screen: no alarm, no interrupted change; then Home all.
+    hands.press(&mut vm);
+    tools_to_status(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[6..8], ["No job", "Press for menu"], "{s:?}");
+    main_menu_entry(&mut vm, 4);
+    press(&mut vm);
+    turn(&mut vm, 1);
+    press(&mut vm);
+    homed_by_the_menu(&mut vm);
+    vm.take_lines();
+    ok(&mut vm, "T5 M6");
+    assert_eq!(spindle_tool(&vm), 5);
+    assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
 }

@@ -94,6 +94,9 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.out(if s.dwell_p_ms { F!(" (G4 P in ms) $154=") } else { F!(" (G4 P in seconds) $154=") });
     d.int(s.g80_keeps_motion as i32);
     d.out(if s.g80_keeps_motion { F!(" (G80 keeps the motion mode)\n") } else { F!(" (G80 ends the motion mode)\n") });
+    d.out(F!("echo:Card pulled mid-job, Z retract (mm below its home switch):\n$160="));
+    d.num(s.card_out_retract_mm);
+    d.text("\n");
 }
 
 /// M31, as Marlin answers it: `echo:Print time: 1h 2m 3s` (leading zero

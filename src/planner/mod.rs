@@ -133,6 +133,9 @@ pub struct Block {
     pub direction_bits: u8,
     /// [`Block::TAKE_UP`] and future flags.
     pub flags: u8,
+    /// [`Planner::line_tag`] when the block was queued (low 16 bits of the
+    /// SD job's line number): which line a stop happened in.
+    pub line: u16,
 }
 
 impl Block {
@@ -150,6 +153,7 @@ impl Block {
         max_delta_speed_sqr: 0.0,
         direction_bits: 0,
         flags: 0,
+        line: 0,
     };
 }
 
@@ -258,6 +262,9 @@ impl AxisCache {
 pub struct Planner {
     /// The ring; valid blocks are `tail`, tail+1, … (`len` of them).
     blocks: [Block; BLOCK_BUFFER_LEN],
+    /// Copied into each block queued ([`Block::line`]); the SD job sets it
+    /// to the line it hands out.
+    pub line_tag: u16,
     /// Index of the executing (oldest) block.
     tail: u8,
     /// Index where the next block goes.
@@ -398,6 +405,7 @@ impl Planner {
     pub const fn new() -> Self {
         Planner {
             blocks: [Block::EMPTY; BLOCK_BUFFER_LEN],
+            line_tag: 0,
             tail: 0,
             head: 0,
             len: 0,
@@ -516,6 +524,11 @@ impl Planner {
         let need = 1 + take_up_any as usize;
         if BLOCK_BUFFER_LEN - (self.len as usize) < need {
             return Err(PlanError::Full);
+        }
+        // The slot(s) this move takes, deferred or not, carry its line.
+        self.blocks[self.head as usize].line = self.line_tag;
+        if take_up_any {
+            self.blocks[next_index(self.head) as usize].line = self.line_tag;
         }
 
         if !(may_defer && self.axis_fresh) {

@@ -30,7 +30,7 @@ use super::text::Text;
 use crate::atc::{Journal, N_POCKETS};
 use crate::config::Settings;
 use crate::flash::FStr;
-use crate::machine::{Machine, State};
+use crate::machine::{Alarm, Machine, State};
 
 /// What an entry does when pressed.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -59,6 +59,8 @@ pub enum Act {
     MeasureDia,
     ToolTable,
     ConfirmSpindle,
+    /// Leave the alarm state (`$X`/M999).
+    Unlock,
     /// The last variant (`act_from_u8` checks against it).
     OptStop,
 }
@@ -72,6 +74,8 @@ pub enum MenuId {
     Jog,
     Home,
     Tools,
+    /// Opened from the status screen in an alarm: what gets out of it.
+    Alarm,
 }
 
 const fn item(t: Text, a: Act) -> [u8; 2] {
@@ -92,7 +96,7 @@ fn act_from_u8(b: u8) -> Option<Act> {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 28] = [
+static ITEMS: [[u8; 2]; 33] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -126,16 +130,22 @@ static ITEMS: [[u8; 2]; 28] = [
     item(Text::MeasureDia, Act::MeasureDia),
     item(Text::ToolTable, Act::ToolTable),
     item(Text::ConfirmSpindle, Act::ConfirmSpindle),
+    // Alarm
+    item(Text::Status, Act::Back),
+    item(Text::Unlock, Act::Unlock),
+    item(Text::HomeAll, Act::HomeAll),
+    item(Text::Jog, Act::JogMenu),
+    item(Text::ConfirmSpindle, Act::ConfirmSpindle),
 ];
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 6] = [0, 8, 13, 17, 22, 28];
+static MENU_START: [u8; 7] = [0, 8, 13, 17, 22, 28, 33];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
         let i = self as usize;
-        // SAFETY: i + 1 < 6.
+        // SAFETY: i + 1 < 7.
         let a = flash::read_byte(unsafe { MENU_START.as_ptr().add(i) }) as usize;
         // SAFETY: as above.
         let b = flash::read_byte(unsafe { MENU_START.as_ptr().add(i + 1) }) as usize;
@@ -166,6 +176,7 @@ impl MenuId {
             MenuId::Jog => Text::Jog,
             MenuId::Home => Text::Home,
             MenuId::Tools => Text::Tools,
+            MenuId::Alarm => Text::AlarmMenu,
         }
     }
 }
@@ -273,7 +284,10 @@ pub enum Cmd {
     /// Home the axes of the mask (bit 0 X, 1 Y, 2 Z).
     Home(u8),
     /// Run a Tools command; the firmware puts its outcome in [`Ui::reply`].
+    /// A spindle confirmation (M61) clears an alarm first.
     Tool(ToolOp),
+    /// Leave the alarm state (`$X`/M999; nothing outside an alarm).
+    Unlock,
 }
 
 /// A snapshot of what the screens show, taken once per frame.
@@ -299,6 +313,10 @@ pub struct View {
     pub free_ram: u16,
     /// A tool change that did not finish and awaits M61 (`Atc::interrupted`).
     pub interrupted: Option<Journal>,
+    /// The alarm in force, and for a hard limit the switches that were
+    /// closed (bit i = axis i, `Machine::limit_axes`).
+    pub alarm: Option<Alarm>,
+    pub limit_axes: u8,
 }
 
 impl View {
@@ -318,11 +336,13 @@ impl View {
             files: 0,
             free_ram: 0,
             interrupted: None,
+            alarm: None,
+            limit_axes: 0,
         }
     }
 
     fn job_active(&self) -> bool {
-        matches!(self.job, Phase::Running | Phase::Paused | Phase::CardLost | Phase::Draining(_) | Phase::Aborting(_))
+        matches!(self.job, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_))
     }
 
     /// A Tools command may start: no job, and the machine idle (or in alarm,
@@ -412,6 +432,11 @@ impl Ui {
     pub fn step(&mut self, detents: i8, press: bool, v: &View) -> Cmd {
         match self.screen {
             Screen::Status => {
+                if press && v.state == State::Alarm {
+                    // What gets out of the alarm: unlock, home, jog, M61.
+                    self.go(Screen::Menu(MenuId::Alarm));
+                    return Cmd::None;
+                }
                 if press && v.state == State::Hold {
                     // Held (M0, feed hold, pause): the button resumes.
                     return Cmd::Resume;
@@ -561,7 +586,7 @@ impl Ui {
         let idle = v.state == State::Idle && !v.job_active();
         match a {
             Act::Back => {
-                if m == MenuId::Main {
+                if m == MenuId::Main || m == MenuId::Alarm {
                     self.go(Screen::Status);
                 } else {
                     let entry = match m {
@@ -584,7 +609,17 @@ impl Ui {
             }
             Act::JogMenu => {
                 self.go(Screen::Menu(MenuId::Jog));
-                Cmd::None
+                // From the alarm menu: unlocked, so the axis can leave a
+                // closed switch.
+                if m == MenuId::Alarm {
+                    Cmd::Unlock
+                } else {
+                    Cmd::None
+                }
+            }
+            Act::Unlock => {
+                self.go(Screen::Status);
+                Cmd::Unlock
             }
             Act::HomeMenu => {
                 self.go(Screen::Menu(MenuId::Home));
@@ -632,7 +667,8 @@ impl Ui {
                 Cmd::None
             }
             Act::HomeAll | Act::HomeZ | Act::HomeY | Act::HomeX => {
-                if !idle {
+                // Homing is also the way out of an alarm.
+                if !idle && !(v.state == State::Alarm && !v.job_active()) {
                     return Cmd::None;
                 }
                 self.go(Screen::Status);
@@ -846,6 +882,8 @@ fn status_line(row: usize, v: &View, host: &crate::hostcodes::HostState, l: &mut
             l.uint_right(COLS - 1, v.override_pct as u32);
             l.text(COLS - 1, Text::Pct);
         }
+        // In an alarm the spindle is off: the line says which alarm.
+        5 if v.alarm.is_some() => alarm_line(v, l),
         5 => {
             l.put(0, b"S");
             if v.rpm == 0 {
@@ -872,9 +910,11 @@ fn status_line(row: usize, v: &View, host: &crate::hostcodes::HostState, l: &mut
         7 => {
             l.text(
                 0,
-                if v.interrupted.is_some() {
+                if v.state == State::Alarm {
+                    Text::HintRecover
+                } else if v.interrupted.is_some() {
                     Text::HintConfirm
-                } else if v.state == State::Hold {
+                } else if v.state == State::Hold && !matches!(v.job, Phase::Aborting(_)) {
                     Text::HintResume
                 } else {
                     Text::HintMenu
@@ -906,11 +946,12 @@ fn job_status(v: &View, l: &mut Line) {
             l.text(0, Text::JobPaused);
             pct(l);
         }
+        Phase::Aborting(Outcome::CardRemoved(n)) => {
+            let c = l.text(0, Text::JobCardOut);
+            l.uint(c, n);
+        }
         Phase::Aborting(_) => {
             l.text(0, Text::JobStopping);
-        }
-        Phase::CardLost => {
-            l.text(0, Text::JobCardOut);
         }
         Phase::Ended(o) => match o {
             Outcome::Done => {
@@ -927,10 +968,35 @@ fn job_status(v: &View, l: &mut Line) {
             Outcome::ReadError(_) => {
                 l.text(0, Text::JobReadErr);
             }
-            Outcome::CardRemoved => {
-                l.text(0, Text::JobCardOut);
+            Outcome::CardRemoved(n) => {
+                let c = l.text(0, Text::JobCardOut);
+                l.uint(c, n);
             }
         },
+    }
+}
+
+/// Which alarm, in the operator's words; a hard limit names its switch.
+#[inline(never)]
+fn alarm_line(v: &View, l: &mut Line) {
+    let t = match v.alarm {
+        Some(Alarm::HardLimit) => Text::AlHardLimit,
+        Some(Alarm::ProbeFailed) => Text::AlProbe,
+        Some(Alarm::EmergencyStop) => Text::AlEstop,
+        Some(Alarm::HomingFailed) => Text::AlHoming,
+        Some(Alarm::WatchdogReset) => Text::AlWatchdog,
+        Some(Alarm::CarouselHome) => Text::AlCarousel,
+        Some(Alarm::BrokenTool) => Text::AlBrokenTool,
+        Some(Alarm::ResetWhileMoving) => Text::AlResetMoving,
+        None => return,
+    };
+    let mut c = l.text(0, t);
+    if v.alarm == Some(Alarm::HardLimit) {
+        for a in 0..3 {
+            if v.limit_axes & (1 << a) != 0 {
+                c = l.put(c + 1, &[b"XYZ"[a]]) - 1;
+            }
+        }
     }
 }
 
@@ -1310,7 +1376,8 @@ mod tests {
     /// Open the Tools menu from the status screen and press entry `i`.
     fn tools_entry(ui: &mut Ui, v: &View, i: i8) -> Cmd {
         *ui = Ui::new();
-        ui.step(0, true, v); // status -> menu
+        // The main menu (a press on the status screen, outside an alarm).
+        ui.go(Screen::Menu(MenuId::Main));
         ui.step(5, true, v); // Tools
         assert_eq!(ui.screen, Screen::Menu(MenuId::Tools));
         ui.step(i, true, v)
@@ -1504,5 +1571,60 @@ mod tests {
         tools_entry(&mut ui, &v, 5);
         ui.step(3, true, &v);
         assert_eq!(ui.step(1, true, &v), Cmd::Tool(ToolOp::Confirm(2)));
+    }
+
+    #[test]
+    fn in_an_alarm_the_status_screen_names_it_and_a_press_opens_the_way_out() {
+        let mut ui = Ui::new();
+        let mut v = View::new();
+        v.state = State::Alarm;
+        v.alarm = Some(Alarm::HardLimit);
+        v.limit_axes = 0b001;
+        let s = screen(&ui, &v);
+        assert_eq!(s[0], "[ ALARM           T0]");
+        assert_eq!(s[5], "Hard limit X");
+        assert_eq!(s[7], "Press to recover");
+        v.limit_axes = 0b110;
+        assert_eq!(screen(&ui, &v)[5], "Hard limit YZ");
+        v.alarm = Some(Alarm::ProbeFailed);
+        assert_eq!(screen(&ui, &v)[5], "Probe missed");
+        assert_eq!(ui.step(0, true, &v), Cmd::None);
+        assert_eq!(ui.screen, Screen::Menu(MenuId::Alarm));
+        assert_eq!(screen(&ui, &v)[..6], ["[ Alarm]", "[ Status]", " Unlock", " Home all", " Jog", " Confirm spindle"]);
+        // Unlock: back on the status screen.
+        assert_eq!(ui.step(1, true, &v), Cmd::Unlock);
+        assert_eq!(ui.screen, Screen::Status);
+        // Home all homes from the alarm.
+        ui.step(0, true, &v);
+        assert_eq!(ui.step(2, true, &v), Cmd::Home(0b111));
+        // Jog unlocks and opens the Jog menu.
+        ui.step(0, true, &v);
+        assert_eq!(ui.step(3, true, &v), Cmd::Unlock);
+        assert_eq!(ui.screen, Screen::Menu(MenuId::Jog));
+        // Confirm spindle opens the tool list.
+        ui.go(Screen::Status);
+        v.interrupted = Some(Journal { from: 1, to: 2 });
+        ui.step(0, true, &v);
+        ui.step(4, true, &v);
+        assert_eq!(ui.screen, Screen::PickTool(true));
+        // < Status goes back.
+        ui.go(Screen::Status);
+        ui.step(0, true, &v);
+        assert_eq!(ui.step(0, true, &v), Cmd::None);
+        assert_eq!(ui.screen, Screen::Status);
+    }
+
+    #[test]
+    fn a_card_pulled_mid_job_shows_the_line_it_stopped_at() {
+        let ui = Ui::new();
+        let mut v = View::new();
+        v.state = State::Hold;
+        v.job = Phase::Aborting(Outcome::CardRemoved(41));
+        let s = screen(&ui, &v);
+        assert_eq!(s[6], "Card out: line 41");
+        assert_eq!(s[7], "Press for menu", "no resume offered");
+        v.state = State::Idle;
+        v.job = Phase::Ended(Outcome::CardRemoved(41));
+        assert_eq!(screen(&ui, &v)[6], "Card out: line 41");
     }
 }

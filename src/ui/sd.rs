@@ -177,6 +177,8 @@ pub mod req {
     pub const RESUME: u8 = 1 << 1;
     /// Decelerate, then drop the queue (abort).
     pub const ABORT: u8 = 1 << 2;
+    /// With ABORT: leave the spindle on (the job retracts the tool first).
+    pub const KEEP_SPINDLE: u8 = 1 << 3;
 }
 
 /// How a job ended, for the display and M27.
@@ -190,8 +192,9 @@ pub enum Outcome {
     BadLine(u32),
     /// The file could not be read (at this byte); the job stopped.
     ReadError(u32),
-    /// The card was pulled mid-job.
-    CardRemoved,
+    /// The card was pulled mid-job: the job stopped in this line (the one
+    /// whose move was executing, or the last one read when none was).
+    CardRemoved(u32),
 }
 
 /// Where the job is.
@@ -209,8 +212,6 @@ pub enum Phase {
     Draining(Outcome),
     /// Waiting for the machine to finish an abort (decelerate and flush).
     Aborting(Outcome),
-    /// The card was pulled mid-job: held; only an abort gets out.
-    CardLost,
     /// Finished (the outcome stays for the display).
     Ended(Outcome),
     /// M28: serial lines are written to the open file until M29.
@@ -226,6 +227,9 @@ pub enum Turn {
     Run(usize),
     /// The job is over: turn the spindle off.
     SpindleOff,
+    /// The card was pulled and the job's moves are dropped: retract Z to
+    /// the safe height, then turn the spindle off.
+    RetractThenSpindleOff,
 }
 
 /// Bytes of read-ahead.
@@ -278,7 +282,7 @@ impl SdJob {
 
     /// A job is under way (serial motion is refused meanwhile).
     pub fn active(&self) -> bool {
-        matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_) | Phase::CardLost)
+        matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_))
     }
 
     /// Progress in percent of the file's bytes.
@@ -349,7 +353,6 @@ impl SdJob {
                 Ok(())
             }
             Phase::Running => Ok(()),
-            Phase::CardLost => Err(Text::ErrCardGone),
             _ => Err(Text::ErrNoFileSelected),
         }
     }
@@ -372,7 +375,7 @@ impl SdJob {
 
     /// Abort the job: decelerate, drop the queue, spindle off.
     pub fn abort(&mut self) {
-        if matches!(self.phase, Phase::Running | Phase::Paused | Phase::CardLost | Phase::Draining(_)) {
+        if matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) {
             self.request(req::ABORT);
             self.phase = Phase::Aborting(Outcome::Aborted);
         }
@@ -412,7 +415,6 @@ impl SdJob {
             if self.active() {
                 let outcome = match self.phase {
                     Phase::Aborting(o) => o,
-                    Phase::CardLost => Outcome::CardRemoved,
                     _ => Outcome::Aborted,
                 };
                 return self.end(card, m, outcome, out);
@@ -422,11 +424,8 @@ impl SdJob {
             // An alarm (M112, limit) dropped everything already.
             return self.end(card, m, Outcome::Aborted, out);
         }
-        if matches!(self.phase, Phase::Running | Phase::Paused) && !card.detected() {
-            self.request(req::HOLD);
-            self.phase = Phase::CardLost;
+        if self.card_check(card.detected(), m, out) {
             card.unmount();
-            uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardRemoved).ok();
             return Turn::Idle;
         }
         match self.phase {
@@ -435,7 +434,10 @@ impl SdJob {
                     return Turn::Idle;
                 }
                 match self.next_line(card, line) {
-                    Ok(Some(n)) => Turn::Run(n),
+                    Ok(Some(n)) => {
+                        m.planner.line_tag = self.line as u16;
+                        Turn::Run(n)
+                    }
                     Ok(None) => {
                         self.phase = Phase::Draining(Outcome::Done);
                         Turn::Idle
@@ -451,6 +453,30 @@ impl SdJob {
             Phase::Draining(o) if motion_done => self.end(card, m, o, out),
             _ => Turn::Idle,
         }
+    }
+
+    /// The card is gone (`detected` false) while the job still runs: end
+    /// it. Decelerate and drop every queued move, spindle kept (the tool is
+    /// in the cut); once stopped, [`SdJob::poll`] has the tool retracted and
+    /// the spindle stopped ([`Turn::RetractThenSpindleOff`]). Says at which
+    /// line the job stopped. True when the job ended here. Called every
+    /// main-loop turn, also while a job's line waits (a long arc, a full
+    /// planner), so no queued move outlives the card.
+    #[inline(never)]
+    pub fn card_check(&mut self, detected: bool, m: &Machine, out: &mut impl uWrite) -> bool {
+        if detected || !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) {
+            return false;
+        }
+        // The executing block's line: its tag is the low 16 bits of a line
+        // read at most a planner's worth of blocks ago.
+        let stopped = match m.planner.current_block() {
+            Some(b) => self.line.wrapping_sub((self.line as u16).wrapping_sub(b.line) as u32),
+            None => self.line,
+        };
+        self.request(req::ABORT | req::KEEP_SPINDLE);
+        self.phase = Phase::Aborting(Outcome::CardRemoved(stopped));
+        uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgCardRemovedAt, stopped).ok();
+        true
     }
 
     /// After a line ran: on an error, stop reading (the moves before it finish).
@@ -478,7 +504,10 @@ impl SdJob {
             Outcome::Aborted => uwriteln!(out, "{}{}", Text::Echo, Text::MsgAborted).ok(),
             Outcome::BadLine(n) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgEndedAtLine, n).ok(),
             Outcome::ReadError(p) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgReadErrorAt, p).ok(),
-            Outcome::CardRemoved => uwriteln!(out, "{}{}", Text::Echo, Text::MsgCardRemoved).ok(),
+            Outcome::CardRemoved(n) => {
+                uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgCardEnded, n).ok();
+                return Turn::RetractThenSpindleOff;
+            }
         };
         Turn::SpindleOff
     }
@@ -921,5 +950,46 @@ pub(crate) mod tests {
         assert!(!capture(&mut job, &mut card, b"G0 X0", &mut out));
         assert_eq!(card.files[0].1, b"G1 X1 F600\nM2\n");
         assert!(out.0.contains("Writing to file: NEW.GCO") && out.0.ends_with("Done saving file.\n"));
+    }
+
+    #[test]
+    fn a_card_pulled_mid_job_aborts_keeping_the_spindle_then_retracts_and_names_the_executing_line() {
+        let mut card = FakeCard::new(&[("A.NC", "G0 X1\n")]);
+        let mut job = SdJob::new();
+        let mut m = Machine::new();
+        let mut out = Out::default();
+        job.phase = Phase::Running;
+        job.line = 70_010;
+        // Lines 70,007 and 70,008 are queued; the first one is executing.
+        for (tag, x) in [(70_007u32, 100), (70_008, 200)] {
+            m.planner.line_tag = tag as u16;
+            m.planner.push_line([x, 0, 0, 0], 600.0, false, &m.settings).unwrap();
+        }
+        assert!(!job.card_check(true, &m, &mut out), "card still in");
+        assert!(job.card_check(false, &m, &mut out));
+        assert_eq!(job.phase, Phase::Aborting(Outcome::CardRemoved(70_007)));
+        assert_eq!(job.take_requests(), req::ABORT | req::KEEP_SPINDLE);
+        assert_eq!(out.0, "echo:SD card removed: job stopped at line 70007\n");
+        assert!(!job.card_check(false, &m, &mut out), "once");
+        // The machine finished the abort: the job ends, the tool retracts.
+        m.aborts = m.aborts.wrapping_add(1);
+        let mut line = [0u8; MAX_LINE_LEN];
+        assert_eq!(job.poll(&mut card, &mut m, true, &mut line, &mut out), Turn::RetractThenSpindleOff);
+        assert_eq!(job.phase, Phase::Ended(Outcome::CardRemoved(70_007)));
+        assert!(!job.active());
+    }
+
+    #[test]
+    fn a_card_pulled_with_nothing_queued_names_the_last_line_read() {
+        let mut job = SdJob::new();
+        let m = Machine::new();
+        let mut out = Out::default();
+        job.phase = Phase::Paused;
+        job.line = 12;
+        assert!(job.card_check(false, &m, &mut out));
+        assert_eq!(job.phase, Phase::Aborting(Outcome::CardRemoved(12)));
+        let mut idle = SdJob::new();
+        idle.phase = Phase::Ended(Outcome::Done);
+        assert!(!idle.card_check(false, &m, &mut out), "no job: nothing to end");
     }
 }
