@@ -73,7 +73,7 @@ fn eeprom_settings_written_before_the_dialect_flags_still_load() {
     ok(&mut vm, "$153=1");
     ok(&mut vm, "$154=0");
     let now = vm.eeprom();
-    assert_eq!(now[0], 4, "version 4 now");
+    assert_eq!(now[0], 5, "version 5 now");
     let mut old = now[..LEN_V3].to_vec();
     old[0] = 3;
     old[LEN_V3 - 1] = image_checksum(&old[..LEN_V3 - 1]);
