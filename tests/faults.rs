@@ -35,17 +35,6 @@ fn job() -> Vec<String> {
     j
 }
 
-/// Wait until the machine has been still for `quiet_s` (no step recorded).
-fn settle(vm: &mut Vm, quiet_s: f64) {
-    loop {
-        let before = vm.recorder().trace().len();
-        vm.run_for(quiet_s).unwrap();
-        if vm.recorder().trace().len() == before {
-            return;
-        }
-    }
-}
-
 #[test]
 fn binary_garbage_inside_job_lines_and_over_long_lines_between_them_change_nothing() {
     let mut rng = Rng(seed());

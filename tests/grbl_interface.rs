@@ -10,26 +10,9 @@ use common::*;
 use motion_util::*;
 use sim::{Axis, Flow, Input, StreamOptions, Vm};
 
-/// Sends `?` and returns the next status line.
-fn status(vm: &mut Vm) -> String {
-    vm.send(b"?");
-    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
-}
-
 /// The `$G` line.
 fn modes(vm: &mut Vm) -> String {
     ok(vm, "$G").into_iter().find(|l| l.starts_with("[GC:")).expect("[GC:...]")
-}
-
-/// Runs until no step has been recorded for 50 ms.
-fn settle(vm: &mut Vm) {
-    loop {
-        let n = vm.recorder().trace().len();
-        vm.run_for(0.05).unwrap();
-        if vm.recorder().trace().len() == n {
-            return;
-        }
-    }
 }
 
 #[test]
@@ -90,7 +73,7 @@ fn jog_cancel_stops_with_the_position_exact_and_the_next_jog_runs_at_once() {
     let at = xyz_now(&vm);
     assert!(at[0] > 500 && at[0] < 3500, "{at:?}");
     vm.send([0x85]);
-    settle(&mut vm);
+    settle(&mut vm, 0.05);
     let stopped = xyz_now(&vm);
     // 10 mm/s at 1000 mm/s²: 0.05 mm of deceleration, plus what the
     // stepper had queued (tens of ms at 10 mm/s).
@@ -124,7 +107,7 @@ fn continuous_jogging_runs_without_stops_and_cancel_drops_the_queued_jogs() {
     vm.run_for(0.3).unwrap();
     let at = xyz_now(&vm)[0];
     vm.send([0x85]);
-    settle(&mut vm);
+    settle(&mut vm, 0.05);
     let end = xyz_now(&vm)[0];
     assert!(end < 3200, "queued jogs were dropped: X ended at {end}");
     assert!(end - at < 150, "stopped within about a block: {at} -> {end}");

@@ -13,12 +13,6 @@ use common::*;
 use motion_util::*;
 use sim::{Axis, Input, Vm};
 
-/// Sends `?` and returns the next status line.
-fn status(vm: &mut Vm) -> String {
-    vm.send(b"?");
-    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
-}
-
 /// User-frame mm (X, Y, Z with +Z up) to physical steps.
 fn at(x: f64, y: f64, z: f64) -> [i64; 3] {
     mm_to_steps(user_to_physical_mm([x, y, z]))

@@ -11,12 +11,6 @@ use common::*;
 use motion_util::*;
 use sim::{Axis, Flow, Input, StreamOptions, ViolationKind, Vm};
 
-/// Sends a realtime byte and returns the next status line (`<...>`).
-fn status(vm: &mut Vm) -> String {
-    vm.send(b"?");
-    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
-}
-
 /// Runs until no step has been recorded for `quiet_s`; returns the VM cycle
 /// of the last step (or now if none). Errors after `timeout_s`.
 fn run_until_still(vm: &mut Vm, quiet_s: f64, timeout_s: f64) -> u64 {

@@ -1030,12 +1030,6 @@ fn ram_within_budget(vm: &Vm) -> u32 {
     statics + stack
 }
 
-/// Sends `?` and returns the next status line.
-fn status(vm: &mut Vm) -> String {
-    vm.send(b"?");
-    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
-}
-
 /// The operator's hands: every press and detent goes through here and is
 /// counted.
 #[derive(Default)]

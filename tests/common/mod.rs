@@ -50,6 +50,23 @@ pub fn refused(vm: &mut Vm, line: &str) -> String {
     r.iter().find(|l| l.starts_with("Error")).cloned().unwrap_or_else(|| panic!("{line}: no error in {r:?}"))
 }
 
+/// Sends `?` and returns the next status line (`<...>`).
+pub fn status(vm: &mut Vm) -> String {
+    vm.send(b"?");
+    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
+}
+
+/// Wait until the machine has been still for `quiet_s` (no step recorded).
+pub fn settle(vm: &mut Vm, quiet_s: f64) {
+    loop {
+        let before = vm.recorder().trace().len();
+        vm.run_for(quiet_s).unwrap();
+        if vm.recorder().trace().len() == before {
+            return;
+        }
+    }
+}
+
 /// Positions of X, Y, Z, E in steps, from the recorder.
 pub fn steps(vm: &Vm) -> [i64; 4] {
     vm.positions()
