@@ -77,17 +77,6 @@ impl Activity {
     }
 }
 
-/// Every step recorded so far, all axes.
-fn total_steps(vm: &Vm) -> u64 {
-    crate::Axis::ALL
-        .iter()
-        .map(|&a| {
-            let s = vm.recorder().axis_stats(a);
-            s.steps_pos + s.steps_neg + s.steps_while_disabled
-        })
-        .sum()
-}
-
 /// A pty whose master side is wired to the virtual machine's UART0.
 pub struct PtyBridge {
     master: OwnedFd,
@@ -296,7 +285,7 @@ impl PtyBridge {
                 std::thread::sleep(Duration::from_secs_f64(ahead.min(0.05)));
             }
         }
-        let (steps, out_len) = (total_steps(vm), vm.output_bytes().len());
+        let (steps, out_len) = (vm.recorder().total_steps(), vm.output_bytes().len());
         // Top the UART queue up every half millisecond (16 bytes per 0.5 ms
         // is more than the 25 000 B/s of 250 000 baud: the line stays full).
         let parts = (slice_s / 0.0005).ceil().max(1.0);
@@ -304,7 +293,7 @@ impl PtyBridge {
             vm.run_for(slice_s / parts)?;
             self.feed(vm);
         }
-        act.steps = total_steps(vm) - steps;
+        act.steps = vm.recorder().total_steps() - steps;
         act.output_bytes = vm.output_bytes().len() - out_len;
         self.was_busy = act.host_bytes > 0 || act.output_bytes > 0;
         Ok(act)

@@ -382,6 +382,13 @@ impl Recorder {
         [0, 1, 2, 3].map(|i| self.axes[i].position)
     }
 
+    /// Every step recorded so far, all axes and both directions, with the
+    /// steps taken while a driver was disabled. Cheap (counters), unlike
+    /// [`Recorder::axis_stats`], which analyses the whole trace.
+    pub fn total_steps(&self) -> u64 {
+        self.axes.iter().map(|a| a.steps_pos + a.steps_neg + a.steps_while_disabled).sum()
+    }
+
     /// Positions at power-on.
     pub fn initial_positions(&self) -> [i64; 4] {
         self.initial

@@ -2,7 +2,7 @@
 //! in the virtual machine and talk to it like a host.
 #![allow(dead_code)]
 
-use sim::{Axis, Vm, VmConfig};
+use sim::{Vm, VmConfig};
 
 /// Boot the firmware (`$MILL_ELF`, built by `tools/test`) and wait for `start`.
 pub fn boot() -> Vm {
@@ -74,13 +74,7 @@ pub fn steps(vm: &Vm) -> [i64; 4] {
 
 /// Total steps emitted on every axis (both directions).
 pub fn total_steps(vm: &Vm) -> u64 {
-    [Axis::X, Axis::Y, Axis::Z, Axis::E]
-        .iter()
-        .map(|&a| {
-            let s = vm.recorder().axis_stats(a);
-            s.steps_pos + s.steps_neg + s.steps_while_disabled
-        })
-        .sum()
+    vm.recorder().total_steps()
 }
 
 /// Tiny deterministic PRNG (xorshift32) for fuzz-like inputs.
