@@ -495,6 +495,9 @@ impl Machine {
                 // SD card errors print their own text.
                 uwriteln!(io, "Error:{}", t).ok();
             }
+            interp::Error::NoPocket(t) => {
+                uwriteln!(io, "Error:tool T{}{}", t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
+            }
             other => {
                 uwriteln!(io, "Error:{}", other.message()).ok();
             }

@@ -107,6 +107,8 @@ pub enum Error {
     ProbeAlreadyTriggered,
     /// Tool changer or carousel (T, M6, M61, G201–G205).
     Atc(crate::atc::Fault),
+    /// A T word past the pockets (the tool number asked for).
+    NoPocket(u8),
     /// Tool setter (G37).
     Setter(crate::toolsetter::Fault),
     /// The line was cut short by an abort (SD job, menu).
@@ -134,6 +136,7 @@ impl Error {
             Error::ProbeFailed => F!("probe failed: input did not trip"),
             Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
             Error::Atc(f) => f.message(),
+            Error::NoPocket(_) => F!("tool not in the carousel: T0-T12 only (T0 empties the spindle)"),
             Error::Setter(f) => f.message(),
             Error::Aborted => F!("aborted"),
             Error::JobRunning => F!("SD job running: command refused (status only: ?, M27, M114)"),
@@ -811,8 +814,8 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
         return Some(Err(Error::SpindleCcw));
     }
     let tool = l.tool();
-    if tool.is_some_and(|t| t as usize >= N_TOOLS) {
-        return Some(Err(Error::Atc(crate::atc::Fault::ToolRange)));
+    if let Some(t) = tool.filter(|&t| t as usize >= N_TOOLS) {
+        return Some(Err(Error::NoPocket(t)));
     }
     if is_tool_change(cx, l) && (l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some()) {
         return Some(Err(Error::Atc(crate::atc::Fault::WithMotion)));
