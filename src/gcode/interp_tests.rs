@@ -331,8 +331,7 @@ fn g80_cancels_the_motion_mode_and_axis_words_need_one_as_in_linuxcnc() {
 fn refusals_name_what_is_not_supported_and_move_nothing() {
     let (mut m, mut io) = machine();
     for (l, what) in [
-        ("G41 D1", "cutter radius compensation"),
-        ("G42", "cutter radius compensation"),
+        ("G18 G41 D1", "only in the XY plane"),
         ("#100=10.0", "# parameters"),
         ("G1 X#1 F600", "# parameters"),
         ("o100 sub", "O-word"),
