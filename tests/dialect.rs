@@ -5,6 +5,8 @@
 //! over serial and from the SD card where the two differ.
 
 mod common;
+#[path = "common/motion.rs"]
+mod motion_util;
 use common::*;
 use sim::{Axis, CardKind, FatKind, SdCard, SdImage, Vm};
 
@@ -192,4 +194,138 @@ fn a_300_character_line_that_is_mostly_comment_runs_over_serial_and_from_sd() {
     let s = vm.recorder().axis_stats(Axis::X);
     assert_eq!((s.steps_pos, s.steps_neg), (400, 400));
     assert_eq!(moved(&vm, p0), [0; 4]);
+}
+
+// ------------------------------------------------ cutter radius compensation
+
+mod comp {
+    use super::*;
+    use crate::motion_util::{boot_homed, dist_to_segment, events, mark, xyz, xyz_now, SPMM};
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+
+    /// The issue's reproduction: a G41 entry, a G3 on the inside, an outside
+    /// corner into a line, and a G40 exit.
+    pub const EXAMPLE: &str = "G21 G90 G17\nG0 X10 Y10 Z-10\nG1 Z-12 F100\nG41 X12 Y10 D1\nG3 X14 Y12 I0 J2\nG1 X20\nG40 X25\n";
+
+    /// The tool-centre path of `job` from `start` (work mm, +Z up) by the
+    /// independent reference (tests/comp_reference.py), in physical steps.
+    pub fn reference(job: &str, radii: &str, start: [f64; 3]) -> Vec<[f64; 3]> {
+        let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/comp_reference.py");
+        let mut child = Command::new("python3")
+            .arg(script)
+            .arg(radii)
+            .args(start.map(|v| v.to_string()))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("python3 runs");
+        child.stdin.take().unwrap().write_all(job.as_bytes()).unwrap();
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success(), "reference failed: {}", String::from_utf8_lossy(&out.stderr));
+        let pts: Vec<[f64; 3]> = serde_json::from_slice(&out.stdout).unwrap();
+        pts.iter().map(|p| [p[0] * SPMM, p[1] * SPMM, -p[2] * SPMM]).collect()
+    }
+
+    /// Every step event since the last mark within `max_dev` steps of the
+    /// reference polyline, followed in order to its end, ending exactly on
+    /// its last point. Returns the largest deviation, steps.
+    pub fn check_against(vm: &Vm, reference: &[[f64; 3]], max_dev: f64) -> f64 {
+        let path = events(vm);
+        assert!(!path.is_empty(), "no steps recorded");
+        let last = reference.len() - 2;
+        let mut k = 0usize;
+        let mut worst = 0.0f64;
+        for (i, p) in path.iter().enumerate() {
+            let q = xyz(p);
+            // The first segment near enough from the match on: a path that
+            // crosses itself (an exit over the entry) is followed in order.
+            let window = || (k.saturating_sub(4)..=(k + 400).min(last)).map(|j| (j, dist_to_segment(q, reference[j], reference[j + 1])));
+            let (near, d) = window().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+            assert!(d <= max_dev, "step event {i} at {:?} is {d:.2} steps off the reference near {:?}", p.position, reference[near]);
+            let (j, _) = window().find(|&(_, d)| d <= max_dev).unwrap();
+            worst = worst.max(d);
+            k = k.max(j);
+        }
+        assert!(k + 3 >= last, "the path stopped at reference segment {k} of {last}");
+        let end = reference.last().unwrap().map(|v| v.round() as i64);
+        assert_eq!(xyz_now(vm), end, "final position");
+        worst
+    }
+
+    #[test]
+    fn the_issue_example_follows_the_reference_tool_path() {
+        let mut vm = boot_homed();
+        ok(&mut vm, "G10 L1 P1 R0.5");
+        mark(&mut vm);
+        for l in EXAMPLE.lines() {
+            ok(&mut vm, l);
+        }
+        ok(&mut vm, "M400");
+        let r = reference(EXAMPLE, r#"{"1": 0.5}"#, [1.0, 1.0, -1.0]);
+        let worst = check_against(&vm, &r, 1.5);
+        println!("issue example: worst deviation {worst:.2} steps");
+        assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+    }
+
+    #[test]
+    fn outside_and_inside_corners_of_lines_and_arcs_follow_the_reference() {
+        // A contour with every corner kind: line-line, line-arc and
+        // arc-line corners turning both ways (inside for one side, outside
+        // for the other), tangent junctions, arcs with the tool inside and
+        // outside.
+        let shape = "G1 X20 Y10 F1200\nG1 X22 Y14\nG2 X30 Y14 I4 J0\nG1 X25 Y8\nG1 X12 Y8\nG2 X12 Y14 I0 J3\nG1 X18 Y16\n";
+        for (side, d) in [("G41", "D1"), ("G42", "D2"), ("G41.1", "D1.6")] {
+            let job = format!("G21 G90 G17\nG0 X5 Y5 Z-5\n{side} {d} G1 X10 Y10 F1200\n{shape}G40 G0 X5 Y5\n");
+            let mut vm = boot_homed();
+            ok(&mut vm, "G10 L1 P1 R0.5");
+            ok(&mut vm, "G10 L1 P2 R1.25");
+            mark(&mut vm);
+            for l in job.lines() {
+                ok(&mut vm, l);
+            }
+            ok(&mut vm, "M400");
+            let r = reference(&job, r#"{"1": 0.5, "2": 1.25}"#, [1.0, 1.0, -1.0]);
+            let worst = check_against(&vm, &r, 1.5);
+            println!("{side} {d}: worst deviation {worst:.2} steps");
+            assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+        }
+    }
+
+    #[test]
+    fn refusals_move_nothing_and_name_the_reason() {
+        let mut vm = boot_homed();
+        ok(&mut vm, "G10 L1 P1 R0.5");
+        ok(&mut vm, "G21 G90 G0 X10 Y10 Z-5");
+        ok(&mut vm, "M400");
+        let p0 = steps(&vm);
+        for (line, what) in [
+            ("G18 G41 D1 G1 X20 F600", "XY plane"),
+            ("G41 D1 G1 X10.4 F600", "entry move"),
+        ] {
+            let e = refused(&mut vm, line);
+            assert!(e.contains(what), "{line}: {e}");
+        }
+        ok(&mut vm, "G17");
+        ok(&mut vm, "G41 D1 G1 X20 F600");
+        for (line, what) in [
+            ("G3 X20.6 Y10 I0.3 J0", "arc radius"),
+            ("G18", "XY plane"),
+            ("T2 M6", "tool change"),
+            ("G40 G2 X30 Y10 R5", "exit move"),
+            ("G41 D1", "already on"),
+        ] {
+            let e = refused(&mut vm, line);
+            assert!(e.contains(what), "{line}: {e}");
+        }
+        vm.run_for(1.0).unwrap();
+        assert_eq!(steps(&vm), p0, "the entry move is still held, nothing moved");
+        ok(&mut vm, "G1 X30");
+        ok(&mut vm, "G1 X30.3");
+        let e = refused(&mut vm, "G1 Y20");
+        assert!(e.contains("too short"), "{e}");
+        ok(&mut vm, "G40 G1 X35");
+        ok(&mut vm, "M400");
+        assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+    }
 }

@@ -32,6 +32,7 @@ impl Interp {
     }
 
     /// Apply a mode change the ordinary path earned (see [`CompOutcome`]).
+    #[inline(always)] // an f32 argument: see the note in comp.rs
     pub(super) fn comp_apply(&mut self, mode: Option<(Option<Side>, f32)>) {
         if let Some((side, radius_mm)) = mode {
             self.comp = comp::State { side, radius_mm, entry: side.is_some(), ..comp::State::OFF };
@@ -96,7 +97,7 @@ impl Interp {
             let modal_only = !moves && !self.run.extras && l.other_m.is_none() && l.stopping.is_none() && !off;
             if let Some(h) = self.comp.held.filter(|h| !h.sent && !modal_only) {
                 // Send the held move as it is, then run the line afresh.
-                self.comp_flush(cx, &h, h.seg.end, Phase::Restart)?;
+                self.comp_flush(cx, &h, &h.seg.end, Phase::Restart)?;
                 if let Some(held) = &mut self.comp.held {
                     held.sent = true;
                 }
@@ -142,11 +143,11 @@ impl Interp {
         let mut flush: Option<(Held, P2)> = None;
         let mut corner_arc = None;
         let seg = if self.comp.entry || self.comp.held.is_none() {
-            comp::entry(side, r, tool, &prog).map_err(bad)?
+            comp::entry(side, r, &tool, &prog).map_err(bad)?
         } else {
             let h = self.comp.held.unwrap_or(Held { seg: Seg::line(tool), corner: pstart, z, feed: 0.0, rapid: true, sent: true });
-            let (q, seg) = comp::offset(side, r, pstart, &prog).map_err(bad)?;
-            match comp::corner(side, h.corner, tool, &h.seg, q, &seg) {
+            let (q, seg) = comp::offset(side, r, &pstart, &prog).map_err(bad)?;
+            match comp::corner(side, &h.corner, &tool, &h.seg, &q, &seg) {
                 Ok(Corner::Tangent) => {}
                 Ok(Corner::Outside { turn }) => corner_arc = Some((h.corner, q, turn)),
                 Ok(Corner::Inside(x)) if !h.sent => flush = Some((h, x)),
@@ -176,7 +177,7 @@ impl Interp {
             }
         }
         if let Some((h, e)) = flush {
-            self.comp_flush(cx, &h, e, Phase::CompCorner)?;
+            self.comp_flush(cx, &h, &e, Phase::CompCorner)?;
         }
         // Valid: commit.
         self.commit_line(g, None);
@@ -189,7 +190,8 @@ impl Interp {
 
     /// Set up the held move `h` to run to `end` (its own end, or an inside
     /// corner's point), then phase `then`.
-    fn comp_flush(&mut self, cx: &Ctx, h: &Held, end: P2, then: Phase) -> Result<(), Error> {
+    #[inline(always)] // see the note in comp.rs
+    fn comp_flush(&mut self, cx: &Ctx, h: &Held, end: &P2, then: Phase) -> Result<(), Error> {
         let end3 = [end[0], end[1], h.z];
         self.run.chord_feed = h.feed * self.feed_override_pct as f32 * 0.01;
         self.run.chord_rapid = h.rapid;
@@ -253,6 +255,7 @@ impl Interp {
 /// The side and radius a G41/G42/G41.1/G42.1 line asks for: G41/G42 D<tool>
 /// (the spindle tool without D) take the tool table's diameter; G41.1/G42.1
 /// D<diameter> give it.
+#[inline(always)] // returns 8 bytes or less: see the note in comp.rs
 fn comp_mode(cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<(Side, f32), Error> {
     let (side, direct) = match l.cutter_comp {
         Some(CutterComp::Left) => (Side::Left, false),

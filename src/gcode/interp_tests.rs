@@ -433,3 +433,12 @@ fn bare_axis_words_at_power_up_are_a_rapid() {
     assert_eq!(xyz(&io), [0, 0, 1000], "10 mm below the top (internal steps count down)");
     assert!(refused(&mut m, &mut io, "G0 G80 X1").contains("modal group"), "G0 and G80 share group 1, as in LinuxCNC and grbl");
 }
+
+#[test]
+fn the_compensation_example_runs_on_the_controller() {
+    let (mut m, mut io) = machine();
+    for l in ["G10 L1 P1 R0.5", "G21 G90 G17", "G0 X10 Y10 Z-10", "G1 Z-12 F100", "G41 X12 Y10 D1", "G3 X14 Y12 I0 J2", "G1 X20", "G40 X25"] {
+        run(&mut m, &mut io, l);
+    }
+    assert!((m.interp.pos_mm[0] - 25.0).abs() < 1e-4 && (m.interp.pos_mm[1] - 12.0).abs() < 1e-4, "{:?}", m.interp.pos_mm);
+}
