@@ -207,6 +207,32 @@ fn the_issue_example_runs_arc_and_lines_on_the_offset_path() {
 }
 
 #[test]
+fn under_compensation_a_move_without_z_keeps_the_held_moves_z() {
+    let (mut i, s) = interp();
+    let mut ends = Vec::new();
+    for l in ["G21 G90 G0 X10 Y10 Z-5", "G41 G1 X20 Z-6 D1 F600", "G1 X30", "G40 G1 X35"] {
+        for (_, t) in commands_t1(&mut i, &s, l).unwrap() {
+            ends.push(t.unwrap());
+        }
+    }
+    // Internal Z counts down: user Z-6 is 6.
+    assert!(ends.iter().skip(1).all(|t| (t[2] - 6.0).abs() < 1e-6), "{ends:?}");
+}
+
+#[test]
+fn under_compensation_a_move_after_a_z_move_stays_at_that_z() {
+    // LinuxCNC's gmoccapy sample: an exit arc, Z up, then a bare X Y.
+    let (mut i, s) = interp();
+    let mut last = [0.0; N_AXES];
+    for l in ["G21 G90 G0 X22.5 Y14 Z-10", "G1 Z-19 F400", "G41 D1", "G3 X30.75 Y14 Z-21.05 I4.125 J0", "G3 I-8.25", "G3 X22.5 Y14 Z-19.95 I-4.125 J0", "G0 Z-4", "G0 X22.5 Y14", "M2"] {
+        for (_, t) in commands_t1(&mut i, &s, l).unwrap() {
+            last = t.unwrap_or(last);
+        }
+    }
+    assert!((last[2] - 4.0).abs() < 1e-6, "{last:?}");
+}
+
+#[test]
 fn compensation_refuses_what_linuxcnc_refuses_and_changes_nothing() {
     let (mut i, s) = interp();
     for l in ["G21 G90 G0 X10 Y10", "G18"] {

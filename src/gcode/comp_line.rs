@@ -23,10 +23,12 @@ pub(super) fn turns_on(l: &Line) -> bool {
 
 impl Interp {
     /// The programmed position of axis `a`: under compensation X and Y are
-    /// the programmed end of the held move, not where the tool is.
+    /// the programmed end of the last move in the plane, and Z is the held
+    /// move's until it is sent (then the tool's: Z has no offset).
     pub(super) fn prog_pos(&self, a: usize) -> f32 {
         match &self.comp.held {
             Some(h) if a < 2 && self.comp.side.is_some() => h.corner[a],
+            Some(h) if a == 2 && self.comp.side.is_some() && !h.sent => h.z,
             _ => self.pos_mm[a],
         }
     }
@@ -204,6 +206,15 @@ impl Interp {
             self.run.progress = Progress::None;
         } else {
             let start = [self.pos_mm[0], self.pos_mm[1], self.pos_mm[2]];
+            let mut end3 = end3;
+            // As for a programmed arc: an end that rounds to the start's
+            // steps is the start, a full circle (the offsets of a full
+            // circle's ends come out a few µm apart in f32).
+            let spm = cx.settings.steps_per_mm;
+            if to_steps(start[0], spm[0]) == to_steps(end3[0], spm[0]) && to_steps(start[1], spm[1]) == to_steps(end3[1], spm[1]) {
+                end3[0] = start[0];
+                end3[1] = start[1];
+            }
             let off = [h.seg.centre[0] - start[0], h.seg.centre[1] - start[1], 0.0];
             let plan = new_arc(start, end3, arc::Centre::Offset(off), (0, 1, 2), h.seg.turn < 0, cx.settings.arc_tolerance_mm)?;
             self.check_arc_limits(cx, &plan)?;

@@ -1011,8 +1011,9 @@ impl Interp {
         self.run.target = self.pos_mm;
         if self.comp.side.is_some() {
             // Under compensation the programmed position, not the tool's.
-            self.run.target[0] = self.prog_pos(0);
-            self.run.target[1] = self.prog_pos(1);
+            for a in 0..3 {
+                self.run.target[a] = self.prog_pos(a);
+            }
         }
         let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
         for (a, &w) in AXIS_WORDS.iter().enumerate() {
