@@ -496,7 +496,7 @@ impl Machine {
                 uwriteln!(io, "Error:{}", t).ok();
             }
             interp::Error::NoPocket(t) => {
-                uwriteln!(io, "Error:tool T{}{}", t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
+                uwriteln!(io, "{}{}{}", F!("Error:tool T"), t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
             }
             other => {
                 uwriteln!(io, "Error:{}", other.message()).ok();

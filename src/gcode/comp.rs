@@ -105,6 +105,17 @@ impl State {
     /// G40, nothing held.
     pub const OFF: State = State { side: None, radius_mm: 0.0, entry: false, held: None, corner_arc: None };
 
+    /// Set the mode: `side` (`None`: G40) with `radius_mm`, nothing held.
+    /// Field by field: assigning a whole `State` made the AVR build keep a
+    /// 59-byte copy of it in RAM (`.data`) to copy from.
+    pub fn set(&mut self, side: Option<Side>, radius_mm: f32) {
+        self.side = side;
+        self.radius_mm = radius_mm;
+        self.entry = side.is_some();
+        self.held = None;
+        self.corner_arc = None;
+    }
+
     /// Compensation moves the tool: on, with a radius.
     pub fn active(&self) -> bool {
         self.side.is_some() && self.radius_mm > 0.0

@@ -37,7 +37,7 @@ impl Interp {
     #[inline(always)] // an f32 argument: see the note in comp.rs
     pub(super) fn comp_apply(&mut self, mode: Option<(Option<Side>, f32)>) {
         if let Some((side, radius_mm)) = mode {
-            self.comp = comp::State { side, radius_mm, entry: side.is_some(), ..comp::State::OFF };
+            self.comp.set(side, radius_mm);
         }
     }
 
@@ -74,11 +74,11 @@ impl Interp {
             let (side, radius) = comp_mode(cx, g, l)?;
             if radius > 0.0 && moves {
                 // The entry move is on this line.
-                self.comp = comp::State { side: Some(side), radius_mm: radius, entry: true, ..comp::State::OFF };
+                self.comp.set(Some(side), radius);
                 return match self.comp_move(cx, g, l, motion, is_arc) {
                     Ok(r) => Ok(CompOutcome::Done(Ok(r))),
                     Err(e) => {
-                        self.comp = comp::State::OFF;
+                        self.comp.set(None, 0.0);
                         Err(e)
                     }
                 };

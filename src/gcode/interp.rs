@@ -308,7 +308,7 @@ impl Interp {
         for a in 0..N_AXES {
             self.pos_mm[a] = steps[a] as f32 / s.steps_per_mm[a];
         }
-        self.comp = comp::State::OFF;
+        self.comp.set(None, 0.0);
     }
 
     /// Sum of the offsets between machine and work coordinates, per axis.
