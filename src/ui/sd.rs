@@ -436,6 +436,12 @@ impl SdJob {
                 }
                 match self.next_line(card, line) {
                     Ok(Some(n)) => Turn::Run(n),
+                    Ok(None) if m.interp.comp.held.is_some_and(|h| !h.sent) => {
+                        // A file that ends under cutter compensation: its
+                        // last move, held back for look-ahead, runs (G40).
+                        line[..3].copy_from_slice(b"G40");
+                        Turn::Run(3)
+                    }
                     Ok(None) => {
                         self.phase = Phase::Draining(Outcome::Done);
                         Turn::Idle
