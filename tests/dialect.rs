@@ -298,8 +298,11 @@ mod comp {
         let job = "G21 G90 G17\nG10 L1 P1 R0.5\nG0 X10 Y10 Z-5\nG41 D1 G1 X20 F600\nG1 X30\n";
         let mut vm = with_card(&[("OPEN.NC", job.as_bytes())]);
         let p0 = steps(&vm);
-        let out = run_sd(&mut vm, "OPEN.NC", 20.0);
-        assert!(out.iter().any(|l| l == "Done printing file"), "{out:?}");
+        ok(&mut vm, "M23 OPEN.NC");
+        ok(&mut vm, "M24");
+        vm.wait_line(|l| l == "Done printing file", 20.0).unwrap();
+        // Nothing sent after the job (any line would send the held move).
+        vm.run_for(1.0).unwrap();
         assert_eq!(moved(&vm, p0)[..2], [3000, 1050]);
     }
 
