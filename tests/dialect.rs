@@ -293,6 +293,20 @@ mod comp {
     }
 
     #[test]
+    fn an_sd_job_that_ends_under_compensation_runs_its_last_move() {
+        // No G40, no M2: the move held back for look-ahead still runs.
+        let job = "G21 G90 G17\nG10 L1 P1 R0.5\nG0 X10 Y10 Z-5\nG41 D1 G1 X20 F600\nG1 X30\n";
+        let mut vm = with_card(&[("OPEN.NC", job.as_bytes())]);
+        let p0 = steps(&vm);
+        ok(&mut vm, "M23 OPEN.NC");
+        ok(&mut vm, "M24");
+        vm.wait_line(|l| l == "Done printing file", 20.0).unwrap();
+        // Nothing sent after the job (any line would send the held move).
+        vm.run_for(1.0).unwrap();
+        assert_eq!(moved(&vm, p0)[..2], [3000, 1050]);
+    }
+
+    #[test]
     fn refusals_move_nothing_and_name_the_reason() {
         let mut vm = boot_homed();
         ok(&mut vm, "G10 L1 P1 R0.5");

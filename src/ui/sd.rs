@@ -438,6 +438,12 @@ impl SdJob {
                         m.planner.line_tag = self.line as u16;
                         Turn::Run(n)
                     }
+                    Ok(None) if m.interp.comp.held.is_some_and(|h| !h.sent) => {
+                        // A file that ends under cutter compensation: its
+                        // last move, held back for look-ahead, runs (G40).
+                        line[..3].copy_from_slice(b"G40");
+                        Turn::Run(3)
+                    }
                     Ok(None) => {
                         self.phase = Phase::Draining(Outcome::Done);
                         Turn::Idle
