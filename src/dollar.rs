@@ -116,10 +116,13 @@ impl DollarError {
     }
 }
 
-/// Parse a line that starts with `$`.
+/// Parse a line that starts with `$`. A comment after the command (`$I ;
+/// build info`, `$$ (settings)`, as Inkscape's gcodetools writes for grbl)
+/// is ignored.
 pub fn parse(line: &[u8]) -> Result<Command, DollarError> {
     let rest = line.strip_prefix(b"$").ok_or(DollarError::Syntax)?;
-    let trimmed = trim(rest);
+    let code = rest.iter().position(|&b| b == b';' || b == b'(').map_or(rest, |i| &rest[..i]);
+    let trimmed = trim(code);
     match trimmed {
         b"$" => return Ok(Command::List),
         b"H" | b"h" => return Ok(Command::Home),
@@ -382,6 +385,16 @@ mod tests {
         assert_eq!(parse(b"$100=1e99"), Err(DollarError::BadValue));
         assert_eq!(parse(b"$100=1.2.3"), Err(DollarError::BadValue));
         assert_eq!(parse(b"$100=1234567890"), Err(DollarError::BadValue));
+    }
+
+    #[test]
+    fn a_comment_after_a_dollar_command_is_ignored() {
+        assert_eq!(parse(b"$I ; build info"), Ok(Command::Info));
+        assert_eq!(parse(b"$$ ; settings"), Ok(Command::List));
+        assert_eq!(parse(b"$G(modal state)"), Ok(Command::Modes));
+        assert_eq!(parse(b"$110=4000 ; X max rate"), Ok(Command::Set(110, 4000.0)));
+        assert_eq!(parse(b"$ ; nothing"), Err(DollarError::Syntax));
+        assert_eq!(parse(b"$110=abc ; nonsense"), Err(DollarError::BadValue));
     }
 
     #[test]

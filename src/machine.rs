@@ -652,6 +652,9 @@ impl Machine {
             interp::Error::UnusedWord(w) => {
                 uwrite!(io, "{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
             }
+            interp::Error::NoPocket(t) => {
+                uwriteln!(io, "{}{}{}", F!("Error:tool T"), t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
+            }
             other => {
                 uwrite!(io, "{}", other.message()).ok();
             }

@@ -205,6 +205,137 @@ const F_BAD_BYTE: u8 = 1 << 2;
 /// The last push completed a line that `line()` may return.
 const F_READY: u8 = 1 << 3;
 
+/// The UTF-8 byte-order mark that Windows editors write at the start of a
+/// file: text, not data. Skipped at the start of a line.
+pub const BOM: [u8; 3] = [0xEF, 0xBB, 0xBF];
+
+/// [`LineCut`] state bits.
+const C_PAREN: u8 = 1 << 0;
+const C_SEMI: u8 = 1 << 1;
+/// This `( )` comment overflowed: its text is dropped, its `)` stored.
+const C_SKIP: u8 = 1 << 2;
+/// This `( )` comment is not stored at all (no room for `()`).
+const C_HIDDEN: u8 = 1 << 3;
+/// Comment text was dropped from this line.
+const C_CUT: u8 = 1 << 4;
+
+/// What to do with the next byte of a line (see [`LineCut::keep`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Keep {
+    /// Store it.
+    Store,
+    /// Comment text past the buffer: drop it, the line stays good.
+    Drop,
+    /// The `( )` comment in progress overflowed: drop this byte and the
+    /// comment's stored text, back to just after the last `(` stored.
+    Fold,
+    /// Code past the buffer: the line is too long.
+    Full,
+}
+
+/// Where the bytes of a line fall (code, a `( )` comment, a `;` comment)
+/// and so what happens when a line runs past [`MAX_LINE_LEN`]: as in grbl,
+/// comment text past the buffer is dropped (a Fusion 360 header line is
+/// mostly comment), code past it makes the line too long. A `( )` comment
+/// that overflows is folded to `()`, so the code after it still has the
+/// room it had; what is stored always parses as the line did. One byte; the
+/// serial assembler and the SD reader each keep one for the line in
+/// progress.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LineCut(u8);
+
+impl LineCut {
+    /// At the start of a line.
+    pub const fn new() -> Self {
+        LineCut(0)
+    }
+
+    /// True inside a comment: bytes from 0x80 up are text there (UTF-8,
+    /// Latin-1), not data.
+    #[inline]
+    pub fn in_comment(self) -> bool {
+        self.0 & (C_PAREN | C_SEMI) != 0
+    }
+
+    /// True when comment text was dropped from this line.
+    pub fn cut(self) -> bool {
+        self.0 & C_CUT != 0
+    }
+
+    /// Classify the next byte `b` (not a line end) of a line that holds
+    /// `len` bytes so far. A `( )` comment's text is stored only while a
+    /// slot is left for its `)`.
+    pub fn keep(&mut self, b: u8, len: usize) -> Keep {
+        let s = self.0;
+        if s & C_SEMI != 0 {
+            if len < MAX_LINE_LEN {
+                return Keep::Store;
+            }
+            self.0 |= C_CUT;
+            return Keep::Drop;
+        }
+        if s & C_PAREN != 0 {
+            if b == b')' {
+                self.0 = s & !(C_PAREN | C_SKIP | C_HIDDEN);
+                return if s & C_HIDDEN != 0 { Keep::Drop } else { Keep::Store };
+            }
+            if s & (C_SKIP | C_HIDDEN) != 0 {
+                return Keep::Drop;
+            }
+            if len + 1 < MAX_LINE_LEN {
+                return Keep::Store;
+            }
+            self.0 |= C_SKIP | C_CUT;
+            return Keep::Fold;
+        }
+        match b {
+            b'(' if len + 2 > MAX_LINE_LEN => {
+                self.0 |= C_PAREN | C_HIDDEN | C_CUT;
+                Keep::Drop
+            }
+            b'(' => {
+                self.0 |= C_PAREN;
+                Keep::Store
+            }
+            b';' if len == MAX_LINE_LEN => {
+                self.0 |= C_SEMI | C_CUT;
+                Keep::Drop
+            }
+            b';' => {
+                self.0 |= C_SEMI;
+                Keep::Store
+            }
+            _ if len < MAX_LINE_LEN => Keep::Store,
+            _ => Keep::Full,
+        }
+    }
+}
+
+/// The length a line keeps after [`Keep::Fold`]: up to and with the last
+/// `(` stored (the comment's own, or a `(` inside its text, which leaves a
+/// comment that reads the same).
+pub fn folded_len(line: &[u8]) -> usize {
+    line.iter().rposition(|&c| c == b'(').map_or(line.len(), |i| i + 1)
+}
+
+/// The position of a line's checksum `*`: the last `*` outside comments.
+/// A `*` inside `( )` or after `;` is comment text (`( *** move *** )`).
+pub fn checksum_star(line: &[u8]) -> Option<usize> {
+    let mut paren = false;
+    let mut star = None;
+    for (i, &b) in line.iter().enumerate() {
+        match b {
+            b')' if paren => paren = false,
+            _ if paren => {}
+            b'(' => paren = true,
+            b';' => break,
+            b'*' => star = Some(i),
+            _ => {}
+        }
+    }
+    star
+}
+
 /// The byte the serial RX ISR stores in its ring at the place where it had to
 /// drop received bytes (ring full, or a UART overrun). The assembler turns it
 /// into [`LineAssembler::mark_overrun`], so exactly the damaged line is
@@ -275,6 +406,8 @@ pub struct LineAssembler {
     flags: u8,
     /// The last dropped line started with `N` (see [`LineAssembler::dropped_numbered`]).
     dropped_n: bool,
+    /// Comments of the line in progress (1 byte).
+    cut: LineCut,
 }
 
 impl Default for LineAssembler {
@@ -291,6 +424,7 @@ impl LineAssembler {
             len: 0,
             flags: 0,
             dropped_n: false,
+            cut: LineCut::new(),
         }
     }
 
@@ -319,15 +453,31 @@ impl LineAssembler {
             // make the line too long.
             b' ' | b'\t' if self.len == 0 || self.len as usize == MAX_LINE_LEN => None,
             _ => {
-                if !(0x20..0x7f).contains(&b) && b != b'\t' {
+                let len = self.len as usize;
+                if b >= 0x80 && !self.cut.in_comment() {
+                    // Text, not data: a byte-order mark at the start of the
+                    // line is dropped once whole (`finish` refuses a part).
+                    if len < BOM.len() && self.buf.get(..len) == BOM.get(..len) && BOM.get(len) == Some(&b) {
+                        if len + 1 == BOM.len() {
+                            self.len = 0;
+                            return None;
+                        }
+                    } else {
+                        self.flags |= F_BAD_BYTE;
+                    }
+                } else if (b < 0x20 && b != b'\t') || b == 0x7f {
                     self.flags |= F_BAD_BYTE;
                 }
-                match self.buf.get_mut(self.len as usize) {
-                    Some(slot) => {
-                        *slot = b;
-                        self.len += 1;
+                match self.cut.keep(b, len) {
+                    Keep::Store => {
+                        if let Some(slot) = self.buf.get_mut(len) {
+                            *slot = b;
+                            self.len += 1;
+                        }
                     }
-                    None => self.flags |= F_TOO_LONG,
+                    Keep::Drop => {}
+                    Keep::Fold => self.len = folded_len(self.buf.get(..len).unwrap_or(&[])) as u16,
+                    Keep::Full => self.flags |= F_TOO_LONG,
                 }
                 None
             }
@@ -352,6 +502,7 @@ impl LineAssembler {
     pub fn reset(&mut self) {
         self.flags = 0;
         self.len = 0;
+        self.cut = LineCut::new();
     }
 
     /// The line completed by the last [`push`](Self::push), trimmed, without
@@ -370,11 +521,16 @@ impl LineAssembler {
         while self.len > 0 && matches!(self.buf.get(self.len as usize - 1), Some(b' ' | b'\t')) {
             self.len -= 1;
         }
+        let line = self.buf.get(..self.len as usize).unwrap_or(&[]);
+        // Comment text was dropped from a checksummed line: its checksum
+        // covered that text and can no longer be checked.
+        let cut_checksum = self.cut.cut() && matches!(line.first(), Some(b'N' | b'n')) && checksum_star(line).is_some();
+        self.cut = LineCut::new();
         let result = if flags & F_OVERRUN != 0 {
             Some(Assembled::Overrun)
-        } else if flags & F_TOO_LONG != 0 {
+        } else if flags & F_TOO_LONG != 0 || cut_checksum {
             Some(Assembled::TooLong)
-        } else if flags & F_BAD_BYTE != 0 {
+        } else if flags & F_BAD_BYTE != 0 || line.first() == BOM.first() {
             Some(Assembled::BadByte)
         } else if self.len == 0 {
             None
@@ -394,8 +550,10 @@ impl LineAssembler {
 
 /// Checks Marlin/Repetier line numbers and checksums (`N<n> <command>*<xor>`).
 ///
-/// - `N<n> … *<cs>`: `cs` is the XOR of every byte before the last `*`,
-///   starting at `N`. The line must be number last+1, unless it is M110.
+/// - `N<n> … *<cs>`: `cs` is the XOR of every byte before the last `*`
+///   outside comments ([`checksum_star`]), starting at `N`. The line must be
+///   number last+1, unless it is M110. A `*` inside a comment is text, in
+///   any line.
 /// - `N<n> M110 [N<m>]*<cs>` sets the last line number to `m`, or to `n`
 ///   without one (printcore sends `N-1 M110*cs`).
 /// - A line with neither `N` nor `*` passes as it is (manual console); a bare
@@ -463,7 +621,7 @@ impl LineChecker {
     /// line number is unchanged.
     pub fn check<'a>(&mut self, line: &'a [u8]) -> Result<&'a [u8], ProtoError> {
         let line = trim(line);
-        let star = line.iter().rposition(|&b| b == b'*');
+        let star = checksum_star(line);
         let numbered = matches!(line.first(), Some(b'N' | b'n'));
         if !numbered {
             // A `$` line is grbl's and never checksummed (`$RST=*`).
@@ -1145,6 +1303,121 @@ mod tests {
     }
 
     #[test]
+    fn a_byte_order_mark_at_a_line_start_and_utf8_in_comments_are_text() {
+        let mut a = LineAssembler::new();
+        let out = assemble(&mut a, "\u{feff}G1 X1\n(Ø3 end mill)\nG1 X2 ; Größe\n\u{feff}  G0\n".as_bytes());
+        let lines: Vec<_> = out.iter().map(|(r, l)| (*r, String::from_utf8(l.clone()).unwrap())).collect();
+        assert_eq!(
+            lines,
+            [
+                (Assembled::Line, "G1 X1".into()),
+                (Assembled::Line, "(Ø3 end mill)".into()),
+                (Assembled::Line, "G1 X2 ; Größe".into()),
+                (Assembled::Line, "G0".into()),
+            ]
+        );
+        // Outside a comment, or a mark cut short or not at the start: data.
+        for bad in [&b"G1 X\xc3\x981\n"[..], b"\xef\xbbG1\n", b"\xef\n", b"G1 \xef\xbb\xbf\n", b"(a)\xc3\n", b"(\x01)\n"] {
+            assert_eq!(assemble(&mut a, bad), [(Assembled::BadByte, vec![])], "{bad:?}");
+        }
+        // A mark alone is a blank line.
+        assert_eq!(assemble(&mut a, b"\xef\xbb\xbf\nG0\n"), [(Assembled::Line, b"G0".to_vec())]);
+    }
+
+    #[test]
+    fn comment_text_past_the_limit_is_dropped_and_code_keeps_its_limit() {
+        let mut a = LineAssembler::new();
+        let semi = format!("G0 X1 ; {}\n", "d".repeat(300));
+        let out = assemble(&mut a, semi.as_bytes());
+        assert_eq!(out[0].0, Assembled::Line);
+        assert_eq!(out[0].1, semi.as_bytes()[..MAX_LINE_LEN].to_vec());
+        // An overflowing ( ) comment folds to (), the code after it stays.
+        let paren = format!("G0 X1 ({}) Y2 (short)\n", "d".repeat(300));
+        assert_eq!(assemble(&mut a, paren.as_bytes()), [(Assembled::Line, b"G0 X1 () Y2 (short)".to_vec())]);
+        // A `(` inside the comment text leaves a comment that reads the same.
+        let inner = format!("G0 X1 (a ({}) Y2\n", "d".repeat(300));
+        assert_eq!(assemble(&mut a, inner.as_bytes()), [(Assembled::Line, b"G0 X1 (a () Y2".to_vec())]);
+        // Code past the limit is too long, comment or not before it.
+        let code = format!("G0 X1 ({}) Y{}\n", "d".repeat(300), "2".repeat(MAX_LINE_LEN));
+        assert_eq!(assemble(&mut a, code.as_bytes()), [(Assembled::TooLong, vec![])]);
+        // A `(` with no room for `()` is not stored; the code after it is.
+        let edge = format!("{} (comment) \n", "G4".repeat(MAX_LINE_LEN / 2 - 1));
+        let out = assemble(&mut a, edge.as_bytes());
+        assert_eq!(out, [(Assembled::Line, "G4".repeat(MAX_LINE_LEN / 2 - 1).into_bytes())]);
+        // A checksummed line whose comment was cut cannot be checked: too long.
+        let numbered = format!("N5 G0 X1 ({})*12\n", "d".repeat(300));
+        assert_eq!(assemble(&mut a, numbered.as_bytes()), [(Assembled::TooLong, vec![])]);
+        let unchecked = format!("N5 G0 X1 ({})\n", "d".repeat(300));
+        assert_eq!(assemble(&mut a, unchecked.as_bytes()), [(Assembled::Line, b"N5 G0 X1 ()".to_vec())]);
+    }
+
+    /// The line with its comments taken out.
+    fn code_of(line: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut paren = false;
+        for &b in line {
+            match b {
+                b')' if paren => paren = false,
+                _ if paren => {}
+                b'(' => paren = true,
+                b';' => break,
+                _ => out.push(b),
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn long_lines_keep_their_code_exactly_on_random_lines() {
+        let mut rng = XorShift(0x51ed_2701);
+        let pieces: [&[u8]; 9] = [b"G1 ", b"X12.5", b"(", b")", b";", b"dddddddddddddddd", "Ø".as_bytes(), b" ", b"*7"];
+        let mut a = LineAssembler::new();
+        for _ in 0..20_000 {
+            let mut line = Vec::new();
+            let target = 1 + rng.next() as usize % 400;
+            while line.len() < target {
+                line.extend_from_slice(pieces[rng.next() as usize % pieces.len()]);
+            }
+            // Only text, not data: bytes from 0x80 up stay inside comments.
+            let mut cut = LineCut::new();
+            let mut text = Vec::new();
+            for &b in &line {
+                if b < 0x80 || cut.in_comment() {
+                    cut.keep(b, 0);
+                    text.push(b);
+                }
+            }
+            let code = code_of(trim(&text));
+            text.push(b'\n');
+            let out = assemble(&mut a, &text);
+            match out.first() {
+                Some((Assembled::Line, got)) => {
+                    assert!(got.len() <= MAX_LINE_LEN);
+                    assert_eq!(trim(&code_of(got)), trim(&code), "{:?}", String::from_utf8_lossy(&text));
+                }
+                // Only a line over the limit is ever refused.
+                Some((Assembled::TooLong, _)) => assert!(trim(&text[..text.len() - 1]).len() > MAX_LINE_LEN),
+                None => assert!(code.is_empty() || trim(&code).is_empty()),
+                other => panic!("{other:?} for {:?}", String::from_utf8_lossy(&text)),
+            }
+        }
+    }
+
+    #[test]
+    fn a_star_inside_a_comment_is_not_a_checksum() {
+        let mut c = LineChecker::new();
+        assert_eq!(c.check(b"G0 X5 ( *** move *** )"), Ok(&b"G0 X5 ( *** move *** )"[..]));
+        assert_eq!(c.check(b"G0 X5 ; ** done **"), Ok(&b"G0 X5 ; ** done **"[..]));
+        assert_eq!(c.check(b"G0 X5 (a*b) *12"), Err(ProtoError::MissingLineNumber));
+        let body = "N1 G0 X1 ( *** move *** )";
+        let l = format!("{}*{}", body, xor(body.as_bytes()));
+        assert_eq!(c.check(l.as_bytes()), Ok(&b"G0 X1 ( *** move *** )"[..]));
+        assert_eq!(c.last_line(), 1);
+        assert_eq!(checksum_star(b"N1 G0 (*) X1*5 ; *"), Some(12));
+        assert_eq!(checksum_star(b"G0 (*"), None);
+    }
+
+    #[test]
     fn reset_forgets_the_line_in_progress() {
         let mut a = LineAssembler::new();
         assemble(&mut a, b"G1 X1");
@@ -1178,9 +1451,12 @@ mod tests {
             if let Some(Assembled::Line) = a.push(b) {
                 let line = a.line();
                 assert!(!line.is_empty() && line.len() <= MAX_LINE_LEN);
-                assert!(line
-                    .iter()
-                    .all(|&c| (0x20..0x7f).contains(&c) || c == b'\t'));
+                // Bytes from 0x80 up only inside a comment.
+                let mut cut = LineCut::new();
+                for (k, &c) in line.iter().enumerate() {
+                    assert!((0x20..0x7f).contains(&c) || c == b'\t' || (c >= 0x80 && cut.in_comment()), "{line:?}");
+                    cut.keep(c, k);
+                }
                 let _ = checker.check(line);
                 lines += 1;
             }

@@ -98,6 +98,10 @@ struct Entry {
     /// The SD run's outcome where it differs from the serial one (the card
     /// reader sees bytes a sender strips, e.g. comments).
     expect_sd: Option<String>,
+    /// Tool radii (tool number -> mm) put in the tool table before the job
+    /// (`G10 L1 P<n> R<r>`) and given to the reference, for files that use
+    /// cutter compensation (G41/G42 take the spindle tool's diameter).
+    tool_radii: Vec<(u8, f64)>,
 }
 
 fn manifest() -> Vec<Entry> {
@@ -113,6 +117,11 @@ fn manifest() -> Vec<Entry> {
             scale: j["scale"].as_f64().unwrap(),
             expect: j["expect"].as_str().unwrap().to_string(),
             expect_sd: j.get("expect_sd").and_then(|v| v.as_str()).map(str::to_string),
+            tool_radii: j
+                .get("tool_radii")
+                .and_then(|v| v.as_object())
+                .map(|o| o.iter().map(|(t, r)| (t.parse().unwrap(), r.as_f64().unwrap())).collect())
+                .unwrap_or_default(),
         })
         .collect()
 }
@@ -164,6 +173,8 @@ fn python(args: &[&str]) -> String {
 /// A job made ready: scaled text and its reference path.
 struct Prepared {
     name: String,
+    /// `G10 L1 P<n> R<r>` lines sent before the job (see `Entry::tool_radii`).
+    tool_table: Vec<String>,
     scaled: String,
     scale: f64,
     reference: RefPath,
@@ -179,9 +190,14 @@ fn prepare(e: &Entry) -> Prepared {
     let zflag = if FIRMWARE_Z_UP { "--z-up" } else { "--z-down" };
     let params = python(&["scale", src.to_str().unwrap(), job.to_str().unwrap(), zflag]);
     let params: serde_json::Value = serde_json::from_str(params.trim()).expect("scale parameters");
-    python(&["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start", &start_arg(), zflag]);
+    let radii = format!(
+        "{{{}}}",
+        e.tool_radii.iter().map(|(t, r)| format!("\"{t}\": {r}")).collect::<Vec<_>>().join(", ")
+    );
+    python(&["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start", &start_arg(), zflag, "--radii", &radii]);
     Prepared {
         name: e.folder.clone(),
+        tool_table: e.tool_radii.iter().map(|(t, r)| format!("G10 L1 P{t} R{r}")).collect(),
         scaled: std::fs::read_to_string(&job).unwrap(),
         scale: params["scale"].as_f64().unwrap(),
         reference: read_reference(&path),
@@ -238,11 +254,15 @@ struct RunResult {
     problems: Vec<String>,
 }
 
-fn vm_for_corpus() -> Vm {
+fn vm_for_corpus(p: &Prepared) -> Vm {
     let mut cfg = VmConfig::default();
     cfg.command_timeout_s = LINE_TIMEOUT_S;
     cfg.machine.initial_position = [START_STEPS[0], START_STEPS[1], START_STEPS[2], 0];
-    boot_with(cfg)
+    let mut vm = boot_with(cfg);
+    for l in &p.tool_table {
+        ok(&mut vm, l);
+    }
+    vm
 }
 
 /// The line as a grbl-style sender (UGS, cncjs, bCNC) sends it: comments
@@ -300,7 +320,7 @@ fn outcome_of(refused: &Option<(usize, String)>) -> String {
 /// that aborts on error does), `~` after each M0/M1 pause.
 fn run_serial(p: &Prepared) -> RunResult {
     let wall = Instant::now();
-    let mut vm = vm_for_corpus();
+    let mut vm = vm_for_corpus(p);
     let t0 = vm.seconds();
     let mut refused: Option<(usize, String)> = None;
     let mut problems = Vec::new();
@@ -343,7 +363,7 @@ fn run_serial(p: &Prepared) -> RunResult {
 /// job stops at a refused line.
 fn run_sd(p: &Prepared) -> RunResult {
     let wall = Instant::now();
-    let mut vm = vm_for_corpus();
+    let mut vm = vm_for_corpus(p);
     let img = SdImage::new(FatKind::Fat16).file("JOB.NC", p.scaled.as_bytes()).build();
     vm.insert_sd(SdCard::new(img, CardKind::Sdhc));
     let t0 = vm.seconds();
@@ -845,10 +865,10 @@ fn run_reproduction(name: &str, text: &str, model_args: &[&str], refused: &[&str
     args.push(zflag);
     args.extend_from_slice(model_args);
     python(&args);
-    let mut p = Prepared { name: name.to_string(), scaled: model, scale: 1.0, reference: read_reference(&path) };
+    let mut p = Prepared { name: name.to_string(), tool_table: Vec::new(), scaled: model, scale: 1.0, reference: read_reference(&path) };
     p.scaled = text.clone();
     let wall = Instant::now();
-    let mut vm = vm_for_corpus();
+    let mut vm = vm_for_corpus(&p);
     let t0 = vm.seconds();
     let mut answers = Vec::new();
     for raw in p.scaled.lines() {

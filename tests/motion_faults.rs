@@ -339,7 +339,7 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G2 X20 Y10", "Error:arc needs R or I/J/K"),
         ("G2 X20 Y10 R5 I5", "Error:arc: give R or I/J/K"),
         ("G93 X20", "Error:unsupported code at col 1"),
-        ("G1 X20 G41", "Error:G41/G42 cutter radius compensation not supported"),
+        ("G19 G1 X20 G41", "Error:G41/G42 only in the XY plane (G17); G19 (YZ) is active"),
         ("M11", "Error:unsupported code at col 1"),
         // M104 alone is a printer code hosts send on their own (echo, no
         // error: tests/hosts_protocol.rs); on a line with motion it is refused.

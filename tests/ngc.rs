@@ -127,7 +127,7 @@ fn preamble_codes_are_accepted_and_their_lines_run() {
     ok(&mut vm, "$154=0");
     let n = vm.recorder().trace().len();
     for (l, what) in [
-        ("G41 D1", "cutter radius compensation"),
+        ("G18 G41 D1", "only in the XY plane"),
         ("#100=10.0 (outside feed)", "# parameters"),
         ("G1 X#1", "# parameters"),
         ("o100 sub", "O-word"),

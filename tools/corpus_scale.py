@@ -36,7 +36,8 @@ Scaling choices (also in README "Real jobs (corpus)"):
 
 Usage:
   corpus_scale.py scale IN OUT [--z-down]      prints the parameters as JSON
-  corpus_scale.py path JOB OUT --start X,Y,Z [--z-down] [--g80-cancels]
+  corpus_scale.py path JOB OUT --start X,Y,Z [--z-down] [--g80-cancels] [--radii JSON]
+                        (--radii: tool number -> radius, mm, for G41/G42)
   corpus_scale.py selftest                     checks of the model itself
 Path file: ``L <job line>`` before the points of that line, ``P x y z s``
 (machine mm, +Z up unless --z-down; s = 1: no Z word since the last tool
@@ -47,8 +48,14 @@ happen here),
 
 import json
 import math
+import os
 import re
 import sys
+
+# Cutter radius compensation (G41/G42) is worked out by the tests' own model,
+# tests/comp_reference.py (LinuxCNC's rules; no code shared with the firmware).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+import comp_reference  # noqa: E402
 
 INCH = 25.4
 # Region of the machine the scaled job must fit into, machine mm (depth below
@@ -242,6 +249,16 @@ class Interp:
         # After a tool change Z is where the changer left it (the travel
         # height) until a Z word: points until then are marked.
         self.z_stale = False
+        # Cutter compensation: tool radii (tool number -> mm), the spindle
+        # tool, the programmed moves since G41/G42 (run through
+        # comp_reference at G40), where the tool was at G41/G42.
+        self.radii = {}
+        self.tool = 0
+        self.next_t = 0
+        self.comp = None
+        self.comp_entry = False
+        self.comp_blocks = []
+        self.comp_start = None
 
     # -- output
     def emit(self, p):
@@ -338,12 +355,31 @@ class Interp:
                 pass
             elif code == 92.1:
                 self.g92 = [0.0, 0.0, 0.0]
-            elif code in (4, 40, 49, 43, 54, 55, 56, 57, 58, 59, 61, 61.1, 64, 94):
+            elif code == 40:
+                self.comp_off()
+            elif code in (41, 42, 41.1, 42.1) and not self.bbox_only:
+                d = val.get("D")
+                if code in (41.1, 42.1):
+                    r = d * self.unit() / 2
+                else:
+                    r = self.radii.get(str(int(d) if d is not None else self.tool), 0.0)
+                if r > 0:
+                    self.comp = ("L" if code in (41, 41.1) else "R", r)
+                    self.comp_entry = True
+                    self.comp_blocks = []
+                    self.comp_start = tuple(self.pos)
+            elif code in (41, 42, 41.1, 42.1, 4, 49, 43, 54, 55, 56, 57, 58, 59, 61, 61.1, 64, 94):
                 pass
             else:
                 raise Unsupported("G%s" % code)
         # Tool change: M6 (with or without T) or a T word (this firmware's
         # immediate T, and NGC pre-staging): the changer may run here.
+        if "T" in val:
+            self.next_t = int(val["T"])
+        if 6 in m:
+            self.tool = self.next_t
+        if 2 in m or 30 in m:
+            self.comp_off()
         if 6 in m or "T" in val:
             self.out.append(("J",))
             self.z_stale = True
@@ -382,6 +418,21 @@ class Interp:
                 target[i] = self.work_to_machine(i, val[a])
             else:
                 target[i] = self.pos[i] + val[a] * self.unit()
+        if self.comp is not None and self.motion in (0, 1, 2, 3):
+            if g53 or "R" in val:
+                raise Unsupported("G53 or an R arc under compensation")
+            centre = None
+            if self.motion in (2, 3):
+                u = self.unit()
+                if self.arc_absolute:
+                    centre = (self.work_to_machine(0, val.get("I", 0.0)), self.work_to_machine(1, val.get("J", 0.0)))
+                else:
+                    centre = (self.pos[0] + val.get("I", 0.0) * u, self.pos[1] + val.get("J", 0.0) * u)
+            self.comp_blocks.append(("move", self.motion, tuple(self.pos), tuple(target), centre, self.comp, self.comp_entry))
+            if centre is not None or (target[0], target[1]) != (self.pos[0], self.pos[1]):
+                self.comp_entry = False
+            self.pos = list(target)
+            return
         if g53 and self.bbox_only:
             # Machine coordinates are not the job's frame: no bounding box.
             for i, a in enumerate("XYZ"):
@@ -418,6 +469,19 @@ class Interp:
             r = r0 + val.get("@", 0.0) * u
             a = a0 + math.radians(val.get("^", 0.0))
         return r * math.cos(a) + self.g92[0], r * math.sin(a) + self.g92[1]
+
+    def comp_off(self):
+        """G40 (or the program's end): the tool path of the moves since
+        G41/G42, emitted here; the tool ends where the last one left it."""
+        if self.comp is None:
+            return
+        pts = comp_reference.tool_path(self.comp_blocks + [("off",)], self.comp_start)
+        for p in pts[1:]:
+            # A move without motion (Z to where it is) adds no point.
+            if list(p) != self.pos:
+                self.emit(list(p))
+        self.comp = None
+        self.comp_blocks = []
 
     def homing(self, axes):
         pull = [PULL_OFF, PULL_OFF, -PULL_OFF if self.z_up else PULL_OFF]
@@ -581,8 +645,9 @@ class Interp:
             self.emit(p)
 
 
-def run(text, start, z_up, bbox_only=False, g80_keeps_motion=True):
+def run(text, start, z_up, bbox_only=False, g80_keeps_motion=True, radii=None):
     it = Interp(start, z_up, bbox_only, g80_keeps_motion)
+    it.radii = radii or {}
     unsupported = None
     for n, raw in enumerate(text.splitlines(), 1):
         try:
@@ -845,8 +910,11 @@ def main(argv):
         start = (0.0, 0.0, 0.0)
         if "--start" in argv:
             start = tuple(float(v) for v in argv[argv.index("--start") + 1].split(","))
+        radii = json.loads(argv[argv.index("--radii") + 1]) if "--radii" in argv else {}
         text = open(argv[1], encoding="latin-1").read()
-        it, uns = run(text, start, z_up, g80_keeps_motion="--g80-cancels" not in argv)
+        it, uns = run(text, start, z_up, g80_keeps_motion="--g80-cancels" not in argv, radii=radii)
+        if uns is None:
+            it.comp_off()
         with open(argv[2], "w") as f:
             for e in it.out:
                 if e[0] == "P":

@@ -39,8 +39,13 @@
 //! first [`Interp::next`] and leaves the machine exactly as it was.
 
 use crate::flash::FStr;
+use super::comp;
 use super::cycles::{self, Retract};
 use super::{Coolant, Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
+
+#[path = "comp_line.rs"]
+mod comp_line;
+use comp_line::CompOutcome;
 use crate::config::{Settings, N_WCS};
 use crate::frame;
 use crate::math::round_i32;
@@ -107,6 +112,8 @@ pub enum Error {
     ProbeAlreadyTriggered,
     /// Tool changer or carousel (T, M6, M61, G201–G205).
     Atc(crate::atc::Fault),
+    /// A T word past the pockets (the tool number asked for).
+    NoPocket(u8),
     /// Tool setter (G37).
     Setter(crate::toolsetter::Fault),
     /// The line was cut short by an abort (SD job, menu).
@@ -137,6 +144,7 @@ impl Error {
             Error::ProbeFailed => F!("probe failed: input did not trip"),
             Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
             Error::Atc(f) => f.message(),
+            Error::NoPocket(_) => F!("tool not in the carousel: T0-T12 only (T0 empties the spindle)"),
             Error::Setter(f) => f.message(),
             Error::Aborted => F!("aborted"),
             Error::JobRunning => F!("SD job running: command refused (status only: ?, M27, M114)"),
@@ -228,6 +236,9 @@ pub struct Interp {
     /// canned cycle's state between its moves (~110 B, static: on the stack
     /// it would sit under every wait of the line).
     run: LineRun,
+    /// Cutter radius compensation (G41/G42): the side, the radius and the
+    /// move held back for look-ahead (see [`comp::State`] for its RAM).
+    pub comp: comp::State,
 }
 
 impl Interp {
@@ -259,6 +270,7 @@ impl Interp {
             conv_fresh: false,
             feed_cache: (0, 0, 0.0),
             run: LineRun::new(),
+            comp: comp::State::OFF,
         }
     }
 
@@ -323,10 +335,12 @@ impl Interp {
     }
 
     /// Reset the commanded position to where the steppers are.
+    /// A contour under compensation cannot go on from there: G40.
     pub fn sync_position(&mut self, s: &Settings, steps: [i32; N_AXES]) {
         for a in 0..N_AXES {
             self.pos_mm[a] = steps[a] as f32 / s.steps_per_mm[a];
         }
+        self.comp.set(None, 0.0);
     }
 
     /// Sum of the offsets between machine and work coordinates, per axis.
@@ -369,7 +383,7 @@ impl Interp {
             || l.coolant.is_some()
             || l.path_mode.is_some()
             || l.arc_absolute.is_some()
-            || l.cutter_comp_off
+            || l.cutter_comp.is_some()
             || l.other_m.is_some();
         let words = Word::ALL.iter().any(|&w| !matches!(w, Word::X | Word::Y | Word::Z | Word::F | Word::N) && l.words.contains(w));
         if codes || words {
@@ -536,8 +550,14 @@ enum Phase {
     Dwell,
     /// The line's motion.
     Motion,
-    /// An arc's chords, then its end.
+    /// An arc's chords, then its end; then `LineRun::then`.
     Chords,
+    /// Compensation: the held move (or its chords), then `LineRun::then`.
+    CompFlush,
+    /// Compensation: an outside corner's arc, then the line's actions.
+    CompCorner,
+    /// Run the line from its start again (after a held move was sent).
+    Restart,
     /// A canned cycle's steps.
     Cycle,
     /// Other M codes.
@@ -571,11 +591,27 @@ pub struct LineRun {
     /// The line has a T word, M6, S, M3/M5 or M7–M9 (set by [`early`]).
     extras: bool,
     progress: Progress,
+    /// The phase after `Chords` or `CompFlush`.
+    then: Phase,
+    /// The feed of the chords or held move being handed out, mm/min with
+    /// the override, and whether they are rapids.
+    chord_feed: f32,
+    chord_rapid: bool,
 }
 
 impl LineRun {
     const fn new() -> LineRun {
-        LineRun { phase: Phase::Done, target: [0.0; N_AXES], motion: None, tlo_mm: 0.0, extras: false, progress: Progress::None }
+        LineRun {
+            phase: Phase::Done,
+            target: [0.0; N_AXES],
+            motion: None,
+            tlo_mm: 0.0,
+            extras: false,
+            progress: Progress::None,
+            then: Phase::OtherM,
+            chord_feed: 0.0,
+            chord_rapid: false,
+        }
     }
 }
 
@@ -682,7 +718,6 @@ impl Interp {
                     }
                 }
                 Phase::Chords => {
-                    let feed = self.feed_with_override();
                     let run = &mut self.run;
                     match &mut run.progress {
                         Progress::Arc(plan, end) => match next_chord(plan) {
@@ -690,12 +725,30 @@ impl Interp {
                             None => {
                                 // The programmed end last.
                                 run.target[..3].copy_from_slice(end);
-                                run.phase = Phase::OtherM;
+                                run.phase = run.then;
+                                run.progress = Progress::None;
                             }
                         },
-                        _ => run.phase = Phase::OtherM,
+                        _ => run.phase = run.then,
                     }
-                    return Ok(Some(Command::Move { feed_mm_per_min: feed, rapid: false }));
+                    return Ok(Some(Command::Move { feed_mm_per_min: run.chord_feed, rapid: run.chord_rapid }));
+                }
+                Phase::CompFlush => {
+                    if let Some(c) = self.comp_flush_step() {
+                        return Ok(Some(c));
+                    }
+                }
+                Phase::CompCorner => {
+                    if let Some(c) = self.comp_corner_step(cx) {
+                        return Ok(Some(c));
+                    }
+                }
+                Phase::Restart => {
+                    self.run.phase = Phase::Done;
+                    let r = self.start(cx, l);
+                    if !matches!(r, Ok(None)) || self.run.phase == Phase::Done {
+                        return r;
+                    }
                 }
                 Phase::Cycle => {
                     if let Some(c) = self.cycle_step() {
@@ -753,6 +806,9 @@ impl Interp {
         if !l.words.within(ALWAYS_USED) {
             unused_word(l, &g)?;
         }
+        if l.non_modal.is_some() && (self.comp.side.is_some() || comp_line::turns_on(l)) {
+            return Err(Error::BadWord(F!("G41/G42: no G4, G10, G28, G37, G38, G53, G92 or carousel code with compensation on (G40 first), nothing moved")));
+        }
         if l.non_modal.is_some() {
             if let Some(done) = self.non_modal(cx, &g, l) {
                 return done;
@@ -795,6 +851,9 @@ impl Interp {
         match mo {
             Motion::ArcCw | Motion::ArcCcw if matches!(self.run.progress, Progress::Arc(..)) => {
                 self.run.phase = Phase::Chords;
+                self.run.then = Phase::OtherM;
+                self.run.chord_feed = feed;
+                self.run.chord_rapid = false;
                 None
             }
             Motion::ProbeToward | Motion::ProbeTowardNoError => {
@@ -907,8 +966,8 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
         return Some(Err(Error::SpindleCcw));
     }
     let tool = l.tool();
-    if tool.is_some_and(|t| t as usize >= N_TOOLS) {
-        return Some(Err(Error::Atc(crate::atc::Fault::ToolRange)));
+    if let Some(t) = tool.filter(|&t| t as usize >= N_TOOLS) {
+        return Some(Err(Error::NoPocket(t)));
     }
     if is_tool_change(cx, l) && (l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some()) {
         return Some(Err(Error::Atc(crate::atc::Fault::WithMotion)));
@@ -978,6 +1037,7 @@ fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
     const G37: u32 = Word::mask(&[B, D, L, R]);
     const H_: u32 = Word::mask(&[H]);
     const N_: u32 = Word::mask(&[N]);
+    const D_: u32 = Word::mask(&[D]);
     let mut used = ALWAYS_USED;
     let moves = has_axis_words(l) || l.motion.is_some();
     match g.motion {
@@ -1005,6 +1065,10 @@ fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
     }
     if l.tool_length == Some(ToolLength::Apply) {
         used |= H_;
+    }
+    // G41/G42 D<tool>, G41.1/G42.1 D<diameter>.
+    if l.cutter_comp.is_some_and(|c| c != super::CutterComp::Off) {
+        used |= D_;
     }
     match l.other_m {
         Some(61) => used |= PQ,
@@ -1144,6 +1208,12 @@ impl Interp {
         // The target is worked out in place (`run.target` means nothing
         // until the line commits): no copy on the way to the move.
         self.run.target = self.pos_mm;
+        if self.comp.side.is_some() {
+            // Under compensation the programmed position, not the tool's.
+            for a in 0..3 {
+                self.run.target[a] = self.prog_pos(a);
+            }
+        }
         let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
         for (a, &w) in AXIS_WORDS.iter().enumerate() {
             if let Some(v) = l.word(w) {
@@ -1151,7 +1221,7 @@ impl Interp {
                 self.run.target[a] = if machine_coords {
                     v
                 } else if g.incremental {
-                    self.pos_mm[a] + v
+                    self.prog_pos(a) + v
                 } else {
                     work_to_machine(self, g, a, v)
                 };
@@ -1181,6 +1251,10 @@ impl Interp {
             }
             self.run.target[3] = if g.incremental { self.pos_mm[3] + v } else { v };
         }
+        let mode = match self.comp_line(cx, g, l, motion, any_axis, e_word.is_some())? {
+            CompOutcome::Done(r) => return r,
+            CompOutcome::Ordinary(mode) => mode,
+        };
         if let Motion::Cycle(kind) = g.motion {
             if any_axis || l.motion.is_some() {
                 return self.cycle_line(cx, g, l, kind);
@@ -1206,10 +1280,15 @@ impl Interp {
         match do_motion {
             Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) => {
                 let target = self.run.target;
-                self.arc_line(cx, g, l, &target, mo)
+                let r = self.arc_line(cx, g, l, &target, mo);
+                if r.is_ok() {
+                    self.comp_apply(mode);
+                }
+                r
             }
             _ => {
                 self.commit_line(g, do_motion);
+                self.comp_apply(mode);
                 // A line with nothing but its move (a streamed G1): the move
                 // now, without a turn of `next`'s phases.
                 if do_motion.is_some() && !self.run.extras {
@@ -1324,22 +1403,8 @@ impl Interp {
             Plane::Zx => (2, 0, 1),
             Plane::Yz => (1, 2, 0),
         };
-        let off_words = [Word::I, Word::J, Word::K];
-        let r = l.word(Word::R).map(|r| to_mm(g.inches, r));
         let start = [self.pos_mm[0], self.pos_mm[1], self.pos_mm[2]];
-        let mut centre_off = [0.0f32; 3];
-        let mut any_off = false;
-        for (a, &w) in off_words.iter().enumerate() {
-            if let Some(v) = l.word(w) {
-                let v = word_mm(g.inches, a, v);
-                // G90.1: the word is the centre's work coordinate.
-                centre_off[a] = if g.arc_absolute { work_to_machine(self, g, a, v) - start[a] } else { v };
-                any_off = true;
-            }
-        }
-        if g.arc_absolute && any_off && (l.word(off_words[a0]).is_none() || l.word(off_words[a1]).is_none()) {
-            return Err(Error::BadWord(F!("arc under G90.1: give both centre coordinates of the plane")));
-        }
+        let spec = self.arc_spec(g, l, start)?;
         // An end that rounds to the start's steps in the plane is the start: a
         // full circle (arc.rs), never a sliver of an arc from float round-off.
         let mut target = *target;
@@ -1349,12 +1414,6 @@ impl Interp {
             target[a1] = start[a1];
         }
         let end = [target[0], target[1], target[2]];
-        let spec = match (r, any_off) {
-            (Some(r), false) => arc::Centre::Radius(r),
-            (None, true) => arc::Centre::Offset(centre_off),
-            (Some(_), true) => return Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
-            (None, false) => return Err(Error::BadWord(F!("arc needs R or I/J/K"))),
-        };
         // G18 and G19 contain Z: mirrored into the internal frame, they turn the other way.
         let cw = frame::internal_clockwise(mo == Motion::ArcCw, g.plane != Plane::Xy);
         let plan = new_arc(start, end, spec, (a0, a1, a2), cw, cx.settings.arc_tolerance_mm)?;

@@ -332,8 +332,7 @@ fn g80_cancels_the_motion_mode_and_axis_words_need_one_as_in_linuxcnc() {
 fn refusals_name_what_is_not_supported_and_move_nothing() {
     let (mut m, mut io) = machine();
     for (l, what) in [
-        ("G41 D1", "cutter radius compensation"),
-        ("G42", "cutter radius compensation"),
+        ("G18 G41 D1", "only in the XY plane"),
         ("#100=10.0", "# parameters"),
         ("G1 X#1 F600", "# parameters"),
         ("o100 sub", "O-word"),
@@ -531,4 +530,13 @@ fn polar_words_move_about_the_work_origin_as_in_linuxcnc() {
     assert!(refused(&mut m, &mut io, "G1 @3").contains("origin"));
     assert!(refused(&mut m, &mut io, "G91 G1 ^10").contains("origin"));
     assert_eq!(xyz(&io), [2000, 2000, 0], "nothing moved");
+}
+
+#[test]
+fn the_compensation_example_runs_on_the_controller() {
+    let (mut m, mut io) = machine();
+    for l in ["G10 L1 P1 R0.5", "G21 G90 G17", "G0 X10 Y10 Z-10", "G1 Z-12 F100", "G41 X12 Y10 D1", "G3 X14 Y12 I0 J2", "G1 X20", "G40 X25"] {
+        run(&mut m, &mut io, l);
+    }
+    assert!((m.interp.pos_mm[0] - 25.0).abs() < 1e-4 && (m.interp.pos_mm[1] - 12.0).abs() < 1e-4, "{:?}", m.interp.pos_mm);
 }

@@ -11,6 +11,7 @@
 //! Meaning (modal state, units, offsets, which words a code needs, tool range)
 //! belongs to the interpreter.
 
+pub mod comp;
 pub mod cycles;
 #[cfg(test)]
 mod cycle_tests;
@@ -18,6 +19,6 @@ pub mod interp;
 pub mod parse;
 
 pub use parse::{
-    parse, parse_into, Coolant, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, PathMode, Plane, Spindle,
+    parse, parse_into, Coolant, CutterComp, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, PathMode, Plane, Spindle,
     Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
 };

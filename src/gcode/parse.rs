@@ -18,8 +18,8 @@
 //!   is no exponent:
 //!   a number directly followed by `E` (`X1e99`) is an error, so write a
 //!   blank before an `E` word (`X1 E5`);
-//! - `#` parameters, `[` expressions, O-word subroutines and loops, G41/G42
-//!   and the axis letters A, C, U, V, W are refused with errors that name
+//! - `#` parameters, `[` expressions, O-word subroutines and loops and the
+//!   axis letters A, C, U, V, W are refused with errors that name
 //!   them; an `O<n>` program number alone on a line (Fanuc/HAAS posts:
 //!   `O1001`, `O0000(NAME)`) is accepted and does nothing;
 //! - an axis word without a number (`G28 X Z`) names the axis, with the
@@ -398,6 +398,21 @@ pub enum FeedMode {
     UnitsPerMinute,
 }
 
+/// Cutter radius compensation (NGC group 7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CutterComp {
+    /// G40: off.
+    Off,
+    /// G41 [D<tool>]: tool left of the path, radius from the tool table.
+    Left,
+    /// G42 [D<tool>]: right of it.
+    Right,
+    /// G41.1 D<diameter>: left, with the diameter given.
+    LeftDiameter,
+    /// G42.1 D<diameter>: right, with the diameter given.
+    RightDiameter,
+}
+
 /// Tool length offset (NGC group 8).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ToolLength {
@@ -526,8 +541,8 @@ pub struct Line {
     pub path_mode: Option<PathMode>,
     /// G90.1 (true: I/J/K absolute) / G91.1 (false: incremental).
     pub arc_absolute: Option<bool>,
-    /// G40 (cutter compensation off, the only mode).
-    pub cutter_comp_off: bool,
+    /// G40 G41 G42 G41.1 G42.1.
+    pub cutter_comp: Option<CutterComp>,
     /// One of [`OTHER_M_CODES`], as its number.
     pub other_m: Option<u16>,
     /// For M23/M28: (start, len) of the file name in the parsed text; see
@@ -592,8 +607,6 @@ crate::flash_messages! {
         MissingFileName => "missing file name",
         /// More than [`MAX_PARSE_LEN`] bytes.
         LineTooLong => "line too long",
-        /// G41, G42, G41.1, G42.1.
-        CutterComp => "G41/G42 cutter radius compensation not supported (use a CAM toolpath with the tool radius applied)",
         /// `#1=5`, `X#1`, `X[1+2]`.
         Parameter => "# parameters and [expressions] not supported",
         /// `O100 sub`, `o10 while [...]`, `O100 call`.
@@ -1073,12 +1086,11 @@ fn apply_g(line: &mut Line, code_x10: u16, col: u8) -> Result<(), ParseError> {
         430 => set_group(&mut line.tool_length, ToolLength::Apply, col),
         490 => set_group(&mut line.tool_length, ToolLength::Cancel, col),
         40 => set_group(&mut line.non_modal, NonModal::Dwell, col),
-        400 if line.cutter_comp_off => err(ParseErrorKind::ModalGroupConflict, col),
-        400 => {
-            line.cutter_comp_off = true;
-            Ok(())
-        }
-        410 | 411 | 420 | 421 => err(ParseErrorKind::CutterComp, col),
+        400 => set_group(&mut line.cutter_comp, CutterComp::Off, col),
+        410 => set_group(&mut line.cutter_comp, CutterComp::Left, col),
+        420 => set_group(&mut line.cutter_comp, CutterComp::Right, col),
+        411 => set_group(&mut line.cutter_comp, CutterComp::LeftDiameter, col),
+        421 => set_group(&mut line.cutter_comp, CutterComp::RightDiameter, col),
         610 => set_group(&mut line.path_mode, PathMode::ExactPath, col),
         611 => set_group(&mut line.path_mode, PathMode::ExactStop, col),
         640 => set_group(&mut line.path_mode, PathMode::Blend, col),
@@ -1680,18 +1692,20 @@ mod tests {
     }
 
     #[test]
-    fn cutter_compensation_is_refused_by_name_and_g40_accepted() {
-        for l in ["G41", "G42 D1", "G41.1 D2", "G42.1", "g41 g0 x1"] {
-            assert_eq!(fails(l).0, ParseErrorKind::CutterComp, "{l}");
-        }
-        assert!(ParseErrorKind::CutterComp.message().bytes().map(char::from).collect::<String>().contains("cutter radius compensation"));
-        assert!(ok("G40").cutter_comp_off);
+    fn cutter_compensation_codes_are_one_modal_group() {
+        assert_eq!(ok("G41").cutter_comp, Some(CutterComp::Left));
+        assert_eq!(ok("G42 D1").cutter_comp, Some(CutterComp::Right));
+        assert_eq!(ok("G42 D1").word(Word::D), Some(1.0));
+        assert_eq!(ok("G41.1 D2").cutter_comp, Some(CutterComp::LeftDiameter));
+        assert_eq!(ok("g42.1").cutter_comp, Some(CutterComp::RightDiameter));
+        assert_eq!(ok("G40").cutter_comp, Some(CutterComp::Off));
         let l = ok("G40 G1 X25 Y10");
-        assert!(l.cutter_comp_off);
+        assert_eq!(l.cutter_comp, Some(CutterComp::Off));
         assert_eq!(l.motion, Some(Motion::Linear));
         assert_eq!(l.word(Word::X), Some(25.0));
         assert_eq!(fails("G40 G40"), (ParseErrorKind::ModalGroupConflict, 5));
-        assert!(ok("G17 G20 G40 G90").cutter_comp_off);
+        assert_eq!(fails("G41 G42"), (ParseErrorKind::ModalGroupConflict, 5));
+        assert_eq!(ok("G17 G20 G40 G90").cutter_comp, Some(CutterComp::Off));
     }
 
     #[test]
@@ -2088,7 +2102,6 @@ mod tests {
             ParseErrorKind::BadToolNumber,
             ParseErrorKind::MissingFileName,
             ParseErrorKind::LineTooLong,
-            ParseErrorKind::CutterComp,
             ParseErrorKind::Parameter,
             ParseErrorKind::OWord,
             ParseErrorKind::NoSuchAxis,
@@ -2107,7 +2120,7 @@ mod tests {
     #[test]
     fn every_error_kind_comes_from_some_line_with_the_column_of_its_cause() {
         let long = " ".repeat(MAX_PARSE_LEN + 1);
-        let cases: [(&str, ParseErrorKind, u8); 17] = [
+        let cases: [(&str, ParseErrorKind, u8); 16] = [
             ("G1 X1..2", ParseErrorKind::BadNumber, 4),
             ("G1 Y1e5", ParseErrorKind::Exponent, 4),
             ("G1 Z-1000000", ParseErrorKind::NumberOutOfRange, 4),
@@ -2120,13 +2133,12 @@ mod tests {
             ("T2.5", ParseErrorKind::BadToolNumber, 1),
             ("M28 ;", ParseErrorKind::MissingFileName, 1),
             (long.as_str(), ParseErrorKind::LineTooLong, 255),
-            ("G0 G42 X1", ParseErrorKind::CutterComp, 4),
             ("G0 X#1", ParseErrorKind::Parameter, 4),
             ("o100 sub", ParseErrorKind::OWord, 1),
             ("G0 G84", ParseErrorKind::UnsupportedCycle, 4),
             ("G4 P1 M64 P2", ParseErrorKind::NoOutputs, 7),
         ];
-        let mut seen = [false; 17];
+        let mut seen = [false; 16];
         for (text, kind, col) in cases {
             assert_eq!(fails(text), (kind, col), "{text:?}");
             // Exhaustive: a new kind must be added to the table above.
@@ -2143,11 +2155,10 @@ mod tests {
                 ParseErrorKind::BadToolNumber => 9,
                 ParseErrorKind::MissingFileName => 10,
                 ParseErrorKind::LineTooLong => 11,
-                ParseErrorKind::CutterComp => 12,
-                ParseErrorKind::Parameter => 13,
-                ParseErrorKind::OWord => 14,
-                ParseErrorKind::UnsupportedCycle => 15,
-                ParseErrorKind::NoOutputs => 16,
+                ParseErrorKind::Parameter => 12,
+                ParseErrorKind::OWord => 13,
+                ParseErrorKind::UnsupportedCycle => 14,
+                ParseErrorKind::NoOutputs => 15,
             };
             seen[i] = true;
         }

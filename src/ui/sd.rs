@@ -23,7 +23,7 @@
 //!   before it finish, then the spindle is turned off and line n is reported.
 
 use crate::machine::{CmdResult, Machine, SdJobFlags};
-use crate::protocol::MAX_LINE_LEN;
+use crate::protocol::{folded_len, Keep, LineCut, BOM, MAX_LINE_LEN};
 use crate::ui::text::Text;
 use ufmt::{uWrite, uwriteln};
 
@@ -438,6 +438,12 @@ impl SdJob {
                         m.planner.line_tag = self.line as u16;
                         Turn::Run(n)
                     }
+                    Ok(None) if m.interp.comp.held.is_some_and(|h| !h.sent) => {
+                        // A file that ends under cutter compensation: its
+                        // last move, held back for look-ahead, runs (G40).
+                        line[..3].copy_from_slice(b"G40");
+                        Turn::Run(3)
+                    }
                     Ok(None) => {
                         self.phase = Phase::Draining(Outcome::Done);
                         Turn::Idle
@@ -513,16 +519,19 @@ impl SdJob {
     }
 
     /// Next line of the file into `line`: `Ok(None)` at the end. Blank lines
-    /// are skipped. Errors: the card failed, a control byte (binary data), or
-    /// a line over `MAX_LINE_LEN`. Bytes from 0x80 up (UTF-8 or Latin-1 text,
-    /// as in a comment `(fräsen)`) pass to the parser, which ignores them in
-    /// a comment and refuses them anywhere else.
+    /// are skipped, and so is a byte-order mark at the start of the file.
+    /// Errors: the card failed, a control byte (binary data), or code past
+    /// `MAX_LINE_LEN` (comment text past it is dropped: [`LineCut`]). Bytes
+    /// from 0x80 up (UTF-8 or Latin-1 text, as in a comment `(fräsen)`) pass
+    /// to the parser, which ignores them in a comment and refuses them
+    /// anywhere else.
     #[inline(never)]
     fn next_line(&mut self, card: &mut impl Card, line: &mut [u8; MAX_LINE_LEN]) -> Result<Option<usize>, Text> {
         loop {
             let mut n = 0usize;
             let mut consumed = 0u32;
             let mut ended = false;
+            let mut cut = LineCut::new();
             loop {
                 if self.head == self.fill {
                     if self.eof {
@@ -545,13 +554,18 @@ impl SdJob {
                         break;
                     }
                     b'\r' => {}
-                    b'\t' | 0x20..=0x7E | 0x80..=0xFF => {
-                        if n == MAX_LINE_LEN {
-                            return Err(Text::ErrLineTooLong);
+                    b'\t' | 0x20..=0x7E | 0x80..=0xFF => match cut.keep(b, n) {
+                        Keep::Store => {
+                            line[n] = b;
+                            n += 1;
+                            if self.pos == 0 && n == BOM.len() && line[..n] == BOM {
+                                n = 0;
+                            }
                         }
-                        line[n] = b;
-                        n += 1;
-                    }
+                        Keep::Drop => {}
+                        Keep::Fold => n = folded_len(&line[..n]),
+                        Keep::Full => return Err(Text::ErrLineTooLong),
+                    },
                     _ => return Err(Text::ErrBinary),
                 }
             }
@@ -903,6 +917,28 @@ pub(crate) mod tests {
         assert_eq!(lines_of("(fräsen)\nG0 X1 ; Größe\n").unwrap(), ["(fräsen)", "G0 X1 ; Größe"]);
         let long = format!("G1 X{}\n", "1".repeat(crate::protocol::MAX_LINE_LEN));
         assert_eq!(lines_of(&long), Err(Text::ErrLineTooLong));
+    }
+
+    #[test]
+    fn a_byte_order_mark_starting_the_file_is_skipped_and_nowhere_else() {
+        assert_eq!(lines_of("\u{feff}G0 X1\n(Ø3 end mill)\n").unwrap(), ["G0 X1", "(Ø3 end mill)"]);
+        assert_eq!(lines_of("\u{feff}\nG0 X1\n").unwrap(), ["G0 X1"]);
+        // Later in the file the parser sees it (and refuses it as code).
+        assert_eq!(lines_of("G0 X1\n\u{feff}G0 X2\n").unwrap(), ["G0 X1", "\u{feff}G0 X2"]);
+    }
+
+    #[test]
+    fn comment_text_past_the_limit_is_dropped_and_code_past_it_is_too_long() {
+        let max = crate::protocol::MAX_LINE_LEN;
+        let semi = format!("G0 X1 ; {}\n", "d".repeat(300));
+        let v = lines_of(&semi).unwrap();
+        assert_eq!(v[0].len(), max);
+        assert!(v[0].starts_with("G0 X1 ; ddd"));
+        let paren = format!("G0 X1 ({}) Y2\n", "d".repeat(300));
+        let v = lines_of(&paren).unwrap();
+        assert_eq!(v[0], "G0 X1 () Y2");
+        let code = format!("G0 X1 ({}) Y{}\n", "d".repeat(300), "2".repeat(max));
+        assert_eq!(lines_of(&code), Err(Text::ErrLineTooLong));
     }
 
     #[test]
