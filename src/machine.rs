@@ -653,7 +653,7 @@ impl Machine {
                 uwrite!(io, "{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
             }
             interp::Error::NoPocket(t) => {
-                uwriteln!(io, "{}{}{}", F!("Error:tool T"), t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
+                uwrite!(io, "{}{}{}", F!("tool T"), t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
             }
             other => {
                 uwrite!(io, "{}", other.message()).ok();

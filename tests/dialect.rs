@@ -87,11 +87,26 @@ fn a_byte_order_mark_and_utf8_comment_text_over_serial_are_text() {
     assert_eq!(r, ["ok"], "UTF-8 inside comments is text");
     ok(&mut vm, "M400");
     assert_eq!(moved(&vm, p0)[0], 200);
-    // Outside a comment it is still refused, and nothing moves.
+    // Outside a comment, on a line without a number (a grbl sender, a
+    // terminal), the receive interrupt takes every byte from 0x80 up out
+    // of the stream as grbl does (realtime commands, cncjs's UTF-8 `C2 91`):
+    // the line runs without it.
     let r = command_bytes(&mut vm, "G1 X4 Ø".as_bytes());
+    assert_eq!(r, ["ok"], "{r:?}");
+    ok(&mut vm, "M400");
+    assert_eq!(moved(&vm, p0)[0], 400);
+    // A numbered line (a Marlin host) reaches the line assembler whole:
+    // there it is refused, and nothing moves.
+    ok(&mut vm, &numbered(0, "M110 N0"));
+    let line = numbered(1, "G1 X6 Ø");
+    vm.take_lines();
+    vm.send(line.as_bytes());
+    vm.send(b"\n");
+    vm.run_until(|vm| vm.pending_lines().iter().any(|l| l.starts_with("ok")), 5.0).unwrap();
+    let r = vm.take_lines();
     assert!(r.iter().any(|l| l.starts_with("Error")), "{r:?}");
     ok(&mut vm, "M400");
-    assert_eq!(moved(&vm, p0)[0], 200);
+    assert_eq!(moved(&vm, p0)[0], 400);
 }
 
 // ------------------------------------------------ `*` inside a comment
