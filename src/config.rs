@@ -10,9 +10,10 @@
 use crate::N_AXES;
 
 /// Settings layout version stored in EEPROM. Bump when the layout changes.
-/// Versions 3 (before the dwell and G80 flags) and 4 (before the card-out
-/// retract height) still load, the fields they lack at their defaults.
-pub const SETTINGS_VERSION: u8 = 5;
+/// Versions 3 (before the dwell and G80 flags), 4 (before the card-out
+/// retract height) and 5 (before the input invert mask) still load, the
+/// fields they lack at their defaults.
+pub const SETTINGS_VERSION: u8 = 6;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -31,6 +32,11 @@ pub struct Settings {
     pub travel_mm: [f32; 3],
     /// Bit per axis: invert the direction pin.
     pub invert_dir_mask: u8,
+    /// Inputs read inverted (`$5`): bits 0–2 the X, Y, Z home switches,
+    /// bit 3 the carousel home switch, bit 4 the tool setter / probe. Set for
+    /// a normally-closed switch (a broken wire then reads as triggered) or
+    /// a sensor of the other polarity.
+    pub invert_input_mask: u8,
     /// Junction deviation for cornering speed, mm (grbl's $11).
     pub junction_deviation_mm: f32,
     /// Max chord error of arcs, mm.
@@ -97,6 +103,7 @@ impl Settings {
         accel_mm_per_s2: [1000.0, 1000.0, 1000.0, 50.0],
         travel_mm: [45.0, 45.0, 45.0],
         invert_dir_mask: 0,
+        invert_input_mask: 0,
         junction_deviation_mm: 0.01,
         arc_tolerance_mm: 0.002,
         backlash_mm: [0.0; 3],
@@ -117,7 +124,9 @@ impl Settings {
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V4 + 4;
+    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V5 + 1;
+    /// Size of a version 5 image: no input invert mask.
+    const IMAGE_LEN_V5: usize = Self::IMAGE_LEN_V4 + 4;
     /// Size of a version 4 image: no card-out retract height.
     const IMAGE_LEN_V4: usize = Self::IMAGE_LEN_V3 + 2;
     /// Size of a version 3 image: no dwell or G80 flag.
@@ -181,6 +190,7 @@ impl Settings {
         w.u8(self.dwell_p_ms as u8);
         w.u8(self.g80_keeps_motion as u8);
         w.f32(self.card_out_retract_mm);
+        w.u8(self.invert_input_mask);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -203,6 +213,7 @@ impl Settings {
     fn read_image(&mut self, b: &[u8]) -> bool {
         let len = match b.first() {
             Some(&SETTINGS_VERSION) => Self::IMAGE_LEN,
+            Some(5) => Self::IMAGE_LEN_V5,
             Some(4) => Self::IMAGE_LEN_V4,
             Some(3) => Self::IMAGE_LEN_V3,
             _ => return false,
@@ -227,8 +238,11 @@ impl Settings {
             self.dwell_p_ms = r.u8() != 0;
             self.g80_keeps_motion = r.u8() != 0;
         }
-        if len == Self::IMAGE_LEN {
+        if len >= Self::IMAGE_LEN_V5 {
             self.card_out_retract_mm = r.f32();
+        }
+        if len == Self::IMAGE_LEN {
+            self.invert_input_mask = r.u8();
         }
         self.is_sane()
     }
@@ -379,6 +393,23 @@ mod tests {
         let loaded = Settings::from_bytes(&old).unwrap();
         assert!(loaded.dwell_p_ms);
         assert_eq!(loaded.card_out_retract_mm, Settings::DEFAULT.card_out_retract_mm);
+    }
+
+    #[test]
+    fn a_version_5_image_loads_with_every_input_read_as_wired_before() {
+        let mut s = Settings::DEFAULT;
+        s.card_out_retract_mm = 7.5;
+        s.invert_input_mask = 0b11111;
+        let new = s.to_bytes();
+        let n = Settings::IMAGE_LEN_V5;
+        let mut old = [0xFFu8; Settings::IMAGE_LEN];
+        old[0] = 5;
+        old[1..n - 1].copy_from_slice(&new[1..n - 1]);
+        old[n - 1] = checksum(&old[..n - 1]);
+        let loaded = Settings::from_bytes(&old).unwrap();
+        assert_eq!(loaded.card_out_retract_mm, 7.5);
+        assert_eq!(loaded.invert_input_mask, 0);
+        assert_eq!(Settings::from_bytes(&new).unwrap().invert_input_mask, 0b11111);
     }
 
     #[test]

@@ -15,7 +15,7 @@
 //!  $I            `[VER:1.1h.MillFW:<version>]`, `[OPT:VNH,15,255]`
 //! ```
 //!
-//! The numbers follow grbl where grbl has the setting ($3, $11, $12, $20,
+//! The numbers follow grbl where grbl has the setting ($3, $5, $11, $12, $20,
 //! $21, $22, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
 //! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
 //! automatic tool offset, $151 Repetier's immediate T, $152 optional stop,
@@ -34,14 +34,16 @@ use ufmt::{uWrite, uwrite, uwriteln};
 pub enum Field<'a> {
     Num(&'a mut f32),
     Flag(&'a mut bool),
-    Mask(&'a mut u8),
+    /// A bit mask, and the highest value it may take.
+    Mask(&'a mut u8, u8),
 }
 
 /// The setting numbered `n`, and what it means.
 pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
     use Field::*;
     Some(match n {
-        3 => (Mask(&mut s.invert_dir_mask), F!("direction invert mask, bit 0 X .. bit 3 E")),
+        3 => (Mask(&mut s.invert_dir_mask, 0b1111), F!("direction invert mask, bit 0 X .. bit 3 E")),
+        5 => (Mask(&mut s.invert_input_mask, 0b11111), F!("input invert mask (normally-closed): bit 0-2 X Y Z home, 3 carousel home, 4 tool setter")),
         11 => (Num(&mut s.junction_deviation_mm), F!("junction deviation, mm")),
         12 => (Num(&mut s.arc_tolerance_mm), F!("arc tolerance, mm")),
         20 => (Flag(&mut s.soft_limits), F!("soft limits, 0/1")),
@@ -210,8 +212,8 @@ pub fn set(s: &mut Settings, n: u8, v: f32) -> Result<(), DollarError> {
                 _ => return Err(DollarError::BadValue),
             }
         }
-        Field::Mask(x) => {
-            if !(0.0..=15.0).contains(&v) || v != (v as u8) as f32 {
+        Field::Mask(x, max) => {
+            if !(0.0..=max as f32).contains(&v) || v != (v as u8) as f32 {
                 return Err(DollarError::BadValue);
             }
             *x = v as u8;
@@ -230,7 +232,7 @@ pub fn list(s: &Settings, w: &mut impl uWrite) {
             match f {
                 Field::Num(x) => uwrite!(w, "{}", Micros::from_mm(*x)),
                 Field::Flag(x) => uwrite!(w, "{}", *x as u8),
-                Field::Mask(x) => uwrite!(w, "{}", *x),
+                Field::Mask(x, _) => uwrite!(w, "{}", *x),
             }
             .ok();
             uwriteln!(w, " ({})", what).ok();
@@ -342,7 +344,7 @@ mod tests {
         s.hard_limits = false;
         list(&s, &mut out);
         let lines: Vec<&str> = out.0.lines().collect();
-        assert_eq!(lines.len(), 34);
+        assert_eq!(lines.len(), 35);
         assert!(lines.contains(&"$153=0 (G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$154=1 (G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$151=0 (T alone changes the tool at once (Repetier), 0/1)"), "{lines:?}");

@@ -653,8 +653,10 @@ impl Io for FakeBoard {
         self.stopped
     }
 
-    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8, release: [u16; 3]) {
-        let w = Watch { homing: homing & 0x0F, probe, limits, homed, invert_dir, release };
+    fn set_watch(&mut self, w: Watch) {
+        // The fake's switches are logical (triggered or not): the input
+        // inversion of `$5` is an electrical matter it has no part in.
+        let w = Watch { homing: w.homing & 0x0F, ..w };
         self.rings.get_mut().set_watch(w);
         self.watch = w;
     }

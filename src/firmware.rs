@@ -318,8 +318,8 @@ impl Io for Hw {
         stepper::MOTION.load(portable_atomic::Ordering::Acquire) & stepper::motion::STOP != 0
     }
 
-    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8, release: [u16; 3]) {
-        stepper::set_watch(stepper::Watch { homing, probe, limits, homed, invert_dir, release });
+    fn set_watch(&mut self, w: mill::stepper::rings::Watch) {
+        stepper::set_watch(w);
     }
 
     fn drivers(&mut self, on: bool) {

@@ -31,6 +31,7 @@ use crate::fixed::Micros;
 use crate::gcode::interp::{self, Command, Interp};
 use crate::planner::{PlanError, Planner};
 use crate::protocol::{Assembled, LineAssembler, LineChecker};
+use crate::stepper::rings::Watch;
 use crate::stepper::{Prep, StepperCmd};
 use crate::N_AXES;
 use core::convert::Infallible;
@@ -112,7 +113,7 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     /// homed axes, direction inversion mask.
     /// `release`: steps above 0 where a homed axis' switch may still be
     /// closed (the homing pull-off, per axis X Y Z).
-    fn set_watch(&mut self, homing: u8, probe: bool, limits: u8, homed: u8, invert_dir: u8, release: [u16; 3]);
+    fn set_watch(&mut self, w: Watch);
     /// Enable or disable the stepper drivers.
     fn drivers(&mut self, on: bool);
     /// Enable or disable the carousel (E0) driver alone (G204).
@@ -1525,7 +1526,15 @@ impl Machine {
             let steps = crate::math::round_i32(pulloff * self.settings.steps_per_mm[a]);
             *r = steps.clamp(0, u16::MAX as i32) as u16;
         }
-        io.set_watch(homing, probe, limits, self.homed, self.settings.invert_dir_mask, release);
+        io.set_watch(Watch {
+            homing,
+            probe,
+            limits,
+            homed: self.homed,
+            invert_dir: self.settings.invert_dir_mask,
+            invert_inputs: self.settings.invert_input_mask,
+            release,
+        });
     }
 
     /// `?`: one grbl 1.1 status line.

@@ -20,13 +20,13 @@ fn setting(vm: &mut sim::Vm, n: u32) -> String {
 fn dollar_settings_list_set_persist_and_drive_the_motion() {
     let mut vm = boot();
     let lines = ok(&mut vm, "$$");
-    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 34, "{lines:?}");
+    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 35, "{lines:?}");
     assert_eq!(setting(&mut vm, 100), "100.000");
     assert_eq!(setting(&mut vm, 130), "45.000");
 
     // Nonsense is refused and changes nothing, in RAM or in EEPROM.
     let eeprom = vm.eeprom();
-    for bad in ["$100=-5", "$100=0", "$20=2", "$3=16", "$999=1", "$100=abc", "$100", "$"] {
+    for bad in ["$100=-5", "$100=0", "$20=2", "$3=16", "$5=32", "$5=1.5", "$999=1", "$100=abc", "$100", "$"] {
         let e = refused(&mut vm, bad);
         assert!(e.starts_with("Error:$ command:"), "{bad}: {e}");
     }
@@ -73,7 +73,7 @@ fn eeprom_settings_written_before_the_dialect_flags_still_load() {
     ok(&mut vm, "$153=1");
     ok(&mut vm, "$154=0");
     let now = vm.eeprom();
-    assert_eq!(now[0], 5, "version 5 now");
+    assert_eq!(now[0], 6, "version 6 now");
     let mut old = now[..LEN_V3].to_vec();
     old[0] = 3;
     old[LEN_V3 - 1] = image_checksum(&old[..LEN_V3 - 1]);

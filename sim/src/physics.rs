@@ -54,6 +54,11 @@ pub struct MachineConfig {
     pub atc: AtcConfig,
     /// Hysteresis and bounce of every switch.
     pub switches: SwitchConfig,
+    /// Inputs wired the other way, bit per [`crate::Input::index`] (bit 0
+    /// X home … bit 3 carousel home, bit 4 tool setter): a normally-closed
+    /// switch holds its pin low until triggered (and a broken wire reads
+    /// as triggered); a setter whose output is low when the beam is broken.
+    pub inverted_inputs: u8,
 }
 
 impl Default for MachineConfig {
@@ -69,6 +74,7 @@ impl Default for MachineConfig {
             tool_setter: ToolSetter::Never,
             atc: AtcConfig::default(),
             switches: SwitchConfig::default(),
+            inverted_inputs: 0,
         }
     }
 }

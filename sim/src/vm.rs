@@ -736,7 +736,8 @@ fn regbit_set(inner: &mut Inner, rb: ffi::avr_regbit_t) {
 fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
     let pos = inner.recorder.positions();
     let now = inner.now();
-    let level = input.level(inner.physics.sense(input, &pos, now));
+    let inverted = u32::from(inner.physics.config().inverted_inputs) >> input.index() & 1 != 0;
+    let level = input.level(inner.physics.sense(input, &pos, now)) != inverted;
     if !direct {
         arm_switch_timer(inner);
     }

@@ -276,8 +276,10 @@ pub struct Inputs {
     pub tool_setter: bool,
 }
 
-/// Read all switches (closed switch pulls low; tool setter high = blocked).
+/// Read all switches (closed switch pulls low; tool setter high = blocked),
+/// each inverted where `$5` says so (as the stepper ISR reads them).
 pub fn inputs() -> Inputs {
+    let invert = stepper::input_invert();
     let mut home = 0;
     for (i, p) in pins::HOME.iter().enumerate() {
         if !p.is_high() {
@@ -285,9 +287,9 @@ pub fn inputs() -> Inputs {
         }
     }
     Inputs {
-        home,
-        carousel_home: !pins::CAROUSEL_HOME.is_high(),
-        tool_setter: pins::TOOL_SETTER.is_high(),
+        home: (home ^ invert) & 0b111,
+        carousel_home: !pins::CAROUSEL_HOME.is_high() != (invert & (1 << 3) != 0),
+        tool_setter: pins::TOOL_SETTER.is_high() != (invert & (1 << 4) != 0),
     }
 }
 

@@ -110,6 +110,8 @@ struct Isr {
     limit: u8,
     /// A segment was loaded since the ring was last found empty.
     running: u8,
+    /// Inputs read inverted ([`Watch::invert_inputs`]).
+    invert: u8,
 }
 
 static mut SEGS: [Seg; SEG_RING_LEN] = [Seg { ticks: 0, period: 0, tccr: 0, new_chunk: 0, k_end: 0 }; SEG_RING_LEN];
@@ -129,6 +131,7 @@ static mut ST: Isr = Isr {
     probe: 0,
     limit: 0,
     running: 0,
+    invert: 0,
 };
 
 /// Times the ISR found the segment ring empty after running a segment: one
@@ -272,8 +275,15 @@ pub fn set_watch(w: Watch) {
         let st = &mut *addr_of_mut!(ST);
         st.homing = w.homing & 0x0F;
         st.probe = if w.probe { PROBE_BIT } else { 0 };
+        st.invert = w.invert_inputs;
         st.armed = st.homing | st.probe | st.limit;
     });
+}
+
+/// Inputs read inverted (`$5`), as the ISR applies them.
+pub fn input_invert() -> u8 {
+    // SAFETY: a single byte written by main only (`set_watch`).
+    unsafe { read_volatile(addr_of!(ST.invert)) }
 }
 
 /// What the ISR watches now.
@@ -351,7 +361,7 @@ unsafe fn switches_trip(st: &mut Isr) -> bool {
     // with plain volatile accesses, as main changes it only with interrupts
     // off; reading the switch pins has no side effects.
     unsafe {
-        let closed = pins::home_closed();
+        let closed = pins::home_closed() ^ st.invert;
         let m = MOTION.as_ptr();
         if closed & st.limit != 0 {
             super::spindle_off_raw();
@@ -359,17 +369,18 @@ unsafe fn switches_trip(st: &mut Isr) -> bool {
             return true;
         }
         if st.homing != 0 {
-            // Bit 3 (E0): the carousel switch, closed at 0° (pulls low).
-            let mut c = closed;
+            // Bit 3 (E0): the carousel switch, closed at 0° (pulls low);
+            // `closed` holds its inversion bit until this.
+            let mut c = closed & 0b111 | st.invert & (1 << 3);
             if st.homing & (1 << 3) != 0 && !pins::CAROUSEL_HOME.is_high() {
-                c |= 1 << 3;
+                c ^= 1 << 3;
             }
             if c & st.homing != 0 {
                 write_volatile(m, read_volatile(m) | motion::HOME_TRIPPED | motion::STOP);
                 return true;
             }
         }
-        if st.probe != 0 && pins::TOOL_SETTER.is_high() {
+        if st.probe != 0 && pins::TOOL_SETTER.is_high() != (st.invert & (1 << 4) != 0) {
             write_volatile(m, read_volatile(m) | motion::PROBE_TRIPPED | motion::STOP);
             return true;
         }

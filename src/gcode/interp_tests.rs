@@ -66,7 +66,7 @@ impl Io for FakeIo {
     }
     fn stop_motion(&mut self) {}
     fn clear_stop(&mut self) {}
-    fn set_watch(&mut self, _: u8, _: bool, _: u8, _: u8, _: u8, _: [u16; 3]) {}
+    fn set_watch(&mut self, _: crate::stepper::rings::Watch) {}
     fn drivers(&mut self, _on: bool) {}
     fn carousel_driver(&mut self, _on: bool) {}
     fn spindle(&mut self, duty: u8) {

@@ -89,6 +89,9 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.out(F!(", hard limits "));
     d.out(on_off(s.hard_limits));
     d.text("\n");
+    d.out(F!("echo:Inputs read inverted (normally-closed), bits X Y Z carousel setter:\n$5="));
+    d.int(s.invert_input_mask as i32);
+    d.text("\n");
     d.out(F!("echo:Dialect: $153="));
     d.int(s.dwell_p_ms as i32);
     d.out(if s.dwell_p_ms { F!(" (G4 P in ms) $154=") } else { F!(" (G4 P in seconds) $154=") });

@@ -70,6 +70,10 @@ pub struct Watch {
     pub homed: u8,
     /// Direction-pin inversion mask (setting).
     pub invert_dir: u8,
+    /// Inputs read inverted (`$5`, for normally-closed switches and sensors
+    /// of the other polarity): bits 0–2 the X, Y, Z home switches, bit 3 the
+    /// carousel home switch, bit 4 the tool setter / probe.
+    pub invert_inputs: u8,
     /// How far above 0 (steps, X Y Z) a homed axis' switch may still be
     /// closed: its chunks starting there are not armed (`ChunkWatch::release`).
     pub release: [u16; 3],
@@ -77,7 +81,7 @@ pub struct Watch {
 
 impl Watch {
     /// Nothing watched.
-    pub const NONE: Watch = Watch { homing: 0, probe: false, limits: 0, homed: 0, invert_dir: 0, release: [0; 3] };
+    pub const NONE: Watch = Watch { homing: 0, probe: false, limits: 0, homed: 0, invert_dir: 0, invert_inputs: 0, release: [0; 3] };
 
     /// The part of the watch the splitter bakes into each new chunk.
     #[inline(always)]
@@ -361,7 +365,7 @@ impl Rings {
 }
 
 #[cfg(target_arch = "avr")]
-const _: () = assert!(core::mem::size_of::<Rings>() == 187);
+const _: () = assert!(core::mem::size_of::<Rings>() == 188);
 
 impl Default for Rings {
     fn default() -> Self {

@@ -354,7 +354,7 @@ fn step_output_bits_map_back_to_axes() {
 fn the_watch_gives_the_splitter_its_limit_masks() {
     let mut r = Rings::new();
     let mut bd = Board::new();
-    let w = Watch { homing: 0, probe: false, limits: 0b111, homed: 0b001, invert_dir: 0b0010, release: [4, 0, 0] };
+    let w = Watch { homing: 0, probe: false, limits: 0b111, homed: 0b001, invert_dir: 0b0010, invert_inputs: 0, release: [4, 0, 0] };
     r.set_watch(w);
     assert_eq!(r.watch(), w);
     // X homed at 0: its chunk starting there is not armed; Y inverted: pin high when negative.
