@@ -1,6 +1,6 @@
-//! Passes `memory.x` (the RAM/flash budget, SPEC §11) and `--relax` to the AVR
+//! Passes `memory.x` (the RAM/flash budget, docs/SPEC.md §11) and `--relax` to the AVR
 //! link, and, for the test-only variants (Cargo features), the linker script
-//! of the above-128-KiB build and the no-trampolines build (README, "Flash").
+//! of the above-128-KiB build and the no-trampolines build (docs/ARCHITECTURE.md, "Flash").
 use std::env;
 use std::path::PathBuf;
 use std::process::Command;
@@ -17,7 +17,7 @@ fn main() {
     // Keep the budget symbols even though nothing references them.
     println!("cargo:rustc-link-arg-bins=-Wl,--undefined=__mill_ram_budget");
     // Linker relaxation: call/jmp within ±4 KiB become rcall/rjmp (flash,
-    // README "Flash"); LLVM's AVR objects carry the relocations for it.
+    // docs/ARCHITECTURE.md "Flash"); LLVM's AVR objects carry the relocations for it.
     println!("cargo:rustc-link-arg-bins=-Wl,--relax");
     if env::var_os("CARGO_FEATURE_HIGH_FLASH").is_some() {
         let script = high_flash_script();

@@ -1,4 +1,4 @@
-//! Machine settings (SPEC §3): defaults, limits and their EEPROM image.
+//! Machine settings (docs/SPEC.md §3): defaults, limits and their EEPROM image.
 //!
 //! Everything a machine builder can change over serial (M92, M201, M203, …) and
 //! save with M500 lives in [`Settings`]. The firmware keeps one copy in RAM; the
@@ -19,7 +19,7 @@ pub const SETTINGS_VERSION: u8 = 6;
 pub const N_WCS: usize = 6;
 
 /// Machine settings. All lengths in mm, except the E axis, whose unit is one
-/// carousel pocket pitch (SPEC §7).
+/// carousel pocket pitch (docs/SPEC.md §7).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
     /// Steps per mm (E: steps per pocket pitch).
@@ -82,7 +82,7 @@ pub struct Settings {
 
 /// Highest step rate the stepper ISR is allowed to be asked for, Hz.
 /// The planner caps each block's nominal rate so its dominant axis never
-/// exceeds this, and warns (SPEC §11 overload row; `tests/overload.rs`).
+/// exceeds this, and warns (docs/SPEC.md §11 overload row; `tests/overload.rs`).
 /// Measured in simavr (`tools/bench`): a tick costs 149 cycles with no
 /// partial axis and 241 with three (four axes at once); at 60 kHz (267
 /// cycles) the four-axis ISR takes ~90 % of the CPU and prep still keeps the
@@ -96,7 +96,7 @@ pub const MAX_STEP_RATE_HZ: f32 = 60_000.0;
 pub const MIN_STEP_RATE_HZ: f32 = crate::F_CPU_HZ as f32 / (8.0 * 65535.0);
 
 impl Settings {
-    /// Factory defaults (SPEC §3; thesis §5.2.2 for acceleration).
+    /// Factory defaults (docs/SPEC.md §3; thesis §5.2.2 for acceleration).
     pub const DEFAULT: Settings = Settings {
         steps_per_mm: [100.0, 100.0, 100.0, 200.0 * 16.0 / 18.0],
         max_feed_mm_per_min: [3000.0, 3000.0, 3000.0, 600.0],

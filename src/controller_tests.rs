@@ -7,8 +7,8 @@
 //!
 //! Each test's doc says how it was checked to fail: the code it guards was
 //! broken once by hand (not committed) and the test failed. The functions
-//! named are those of main at 50ee0e8, before issue 12's restructuring
-//! moved some of them.
+//! named are those from before the one-way pipeline restructuring
+//! moved some of them (the git history has that code).
 
 use crate::atc::tools::{
     pocket_bit, Journal, ToolState, ToolTable, ALL_POCKETS, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR, EEPROM_TABLE_ADDR,

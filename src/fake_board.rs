@@ -1,4 +1,4 @@
-//! A fake board for host tests of the controller (issue 12 item 4): the
+//! A fake board for host tests of the controller: the
 //! [`Io`] the firmware implements over `board`, with time, a stepper that
 //! steps, switches that follow the axes, EEPROM in memory and outputs that
 //! are recorded.

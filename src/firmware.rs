@@ -31,7 +31,7 @@ use mill::ui::render::{Line, ROWS, SLICE, WIDTH};
 use mill::ui::sd::{self as sdjob, req, Card, Name, SdError, SdJob, Turn};
 use ufmt::uwriteln;
 
-/// Display frames start at most this often (5 Hz; SPEC §9 asks ≥ 4 Hz).
+/// Display frames start at most this often (5 Hz; docs/SPEC.md §9 asks ≥ 4 Hz).
 const FRAME_MS: u32 = 200;
 /// Jog feed from the menu, mm/min.
 const JOG_FEED_MM_PER_MIN: f32 = 1200.0;
@@ -202,7 +202,7 @@ impl Card for Storage {
     }
 }
 
-/// Page-by-page drawing state (SPEC §9: no frame buffer, refresh ≥ 4 Hz,
+/// Page-by-page drawing state (docs/SPEC.md §9: no frame buffer, refresh ≥ 4 Hz,
 /// never starving the planner: one 32-column slice per idle call).
 struct Display {
     oled: Option<Sh1106<Twi>>,

@@ -1,4 +1,4 @@
-//! The user's coordinate frame and the internal one (issue 13, item 0).
+//! The user's coordinate frame and the internal one.
 //!
 //! Sits at the boundary between the user and the machine: the G-code
 //! interpreter converts the words it reads with it, and every report (M114,
@@ -9,7 +9,7 @@
 //! changer's station and the tool setter's constants, the stored work
 //! offsets and setter calibration, the virtual machine's physical model):
 //! machine Z counts *downward* from the home switch at the top, 0 … +travel,
-//! as the thesis machine measures it (SPEC §3; Table 8: Z1 40.5, Z2 45).
+//! as the thesis machine measures it (docs/SPEC.md §3; Table 8: Z1 40.5, Z2 45).
 //!
 //! **User frame** (every G-code word, work and G53 machine coordinates, every
 //! report): +Z is *up*, away from the work, as in RS274/NGC, LinuxCNC, grbl

@@ -194,7 +194,7 @@ impl State {
 }
 
 crate::flash_messages! {
-    /// Why the machine is in alarm (SPEC §10); `message`: the text after
+    /// Why the machine is in alarm (docs/SPEC.md §10); `message`: the text after
     /// `Error:alarm ` / `ALARM:`.
     #[derive(Clone, Copy, PartialEq, Eq, Debug)]
     pub enum Alarm {
@@ -938,7 +938,7 @@ impl Machine {
                 // Wait for the moves, then spindle off (a mill with its drivers
                 // off cannot cut: OctoPrint's cancel script has M84 but no M5),
                 // drivers off; the position and the homing are kept (Marlin's
-                // default, HOME_AFTER_DEACTIVATE off). README "Cancel".
+                // default, HOME_AFTER_DEACTIVATE off). docs/hosts.md "Cancel".
                 // In an alarm nothing moves: at once.
                 if self.alarm.is_none() {
                     self.wait_idle(io)?;
@@ -1251,7 +1251,7 @@ impl Machine {
     /// While a serial line waits (M400, G4, G28, M0, a tool change, G37, a
     /// full planner ...): `busy:processing` every M113 interval (2 s by
     /// default, Marlin's), counted from the start of the line, so that no
-    /// host times out (SPEC §4). Every wait loop calls it through
+    /// host times out (docs/SPEC.md §4). Every wait loop calls it through
     /// [`Machine::wait_step`]. Not for SD-job or menu lines: no host waits
     /// for those.
     pub fn keepalive(&mut self, io: &mut impl Io) {
@@ -1698,7 +1698,7 @@ impl Machine {
     /// move `axis` by up to `steps` (signed, toward its switch) with the ISR
     /// watching the switch (`set_watch`'s homing mask bit `axis`: X, Y, Z or
     /// the carousel on E). Returns true when the switch tripped; the axis
-    /// position is then 0 at the trip step (SPEC §6: Marlin's convention).
+    /// position is then 0 at the trip step (docs/SPEC.md §6: Marlin's convention).
     pub(crate) fn seek_switch(&mut self, io: &mut impl Io, axis: usize, steps: i32, feed: f32) -> Result<bool, interp::Error> {
         self.apply_watch(io, 1 << axis, false);
         let mut target = io.stepper().position;

@@ -36,7 +36,7 @@ fn main() -> ! {
 }
 
 /// Panic: the machine stops as on M112, reports `ALARM:firmware panic`,
-/// and halts until reset (`board::halt`; README, "Panics").
+/// and halts until reset (`board::halt`; docs/ARCHITECTURE.md, "Panics").
 #[cfg(target_arch = "avr")]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {

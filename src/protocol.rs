@@ -1,4 +1,4 @@
-//! Host line protocol (SPEC §4): bytes in, checked command text out.
+//! Host line protocol (docs/SPEC.md §4): bytes in, checked command text out.
 //!
 //! ```text
 //!  USART0 RX ISR ── MCodeScanner (M112, M108), RxText (? ! ~ 0x18 taken out,
@@ -769,7 +769,7 @@ pub enum Urgent {
 }
 
 /// Watches the raw RX stream inside the ISR for the two M-codes that act as
-/// the bytes arrive, not when the line is parsed (SPEC §4): `M112` and
+/// the bytes arrive, not when the line is parsed (docs/SPEC.md §4): `M112` and
 /// `M108`. One byte of state, O(1) per byte; the caller keeps the previous
 /// byte, which only matters before an `M`.
 ///

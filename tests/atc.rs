@@ -1,4 +1,4 @@
-//! Tool changer (SPEC §7) on the real firmware, checked against the virtual
+//! Tool changer (docs/SPEC.md §7) on the real firmware, checked against the virtual
 //! machine's physical changer: which tool is really in the spindle and in
 //! each pocket, every transfer, every collision, and the EEPROM records.
 
@@ -104,7 +104,7 @@ fn conditions_1_2_3_pick_change_and_empty_the_spindle() {
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
     // The spindle was off the whole time.
     assert!(!vm.spindle_on());
-    // RAM: the change's call chain fits the stack (SPEC §11 budget: static + stack ≤ 7 KiB).
+    // RAM: the change's call chain fits the stack (docs/SPEC.md §11 budget: static + stack ≤ 7 KiB).
     let stack = vm.stack_high_water_bytes().expect("stack paint");
     eprintln!("stack high-water after three changes: {stack} bytes");
     assert!(stack <= 4096, "{stack}");

@@ -17,7 +17,7 @@
 //! - The bootloader clears MCUSR: the firmware still tells power-on,
 //!   external (the port's DTR) and watchdog apart.
 //! - Three `!` in the first bytes after a reset enter the bootloader's
-//!   monitor instead of the firmware (README "Flashing").
+//!   monitor instead of the firmware (docs/flashing.md).
 
 mod common;
 use sim::pty::PtyBridge;

@@ -20,7 +20,7 @@
 //!
 //! The test prints a table (outcome, steps, worst deviation, simulated and
 //! wall time per run) and writes it to `target/corpus/results.md` (the
-//! README's table is copied from it). `MILL_CORPUS=<text>` runs only the
+//! table in docs/ARCHITECTURE.md is copied from it). `MILL_CORPUS=<text>` runs only the
 //! folders whose name contains the text (for development; CI runs all).
 
 mod common;
@@ -36,7 +36,7 @@ use std::time::Instant;
 
 /// Is +Z up in the firmware's G-code frames (RS274/NGC, grbl, LinuxCNC)?
 ///
-/// `false` on main today: Z grows downward (SPEC §3), machine Z runs 0 (top
+/// `false` on main today: Z grows downward (docs/SPEC.md §3), machine Z runs 0 (top
 /// switch) to +45. The scaler then puts each job's Z numbers in 4..38 (the
 /// job's lowest point 4 mm below the top), the firmware runs it upside down
 /// (a retract goes down), and the recorded Z steps are read as +Z down, so

@@ -1,4 +1,4 @@
-//! Motion on the real firmware (SPEC §5, §6; issue #3), in the virtual
+//! Motion on the real firmware (docs/SPEC.md §5, §6), in the virtual
 //! machine: homing, straight lines, arcs, units, offsets and soft limits, each
 //! checked against the steps the recorder saw, not only the firmware's replies.
 //! Faults, feed hold, settings and streams are in `tests/motion_faults.rs`.

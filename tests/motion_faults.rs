@@ -1,4 +1,4 @@
-//! Faults, feed hold, settings and streams on the real firmware (SPEC §4,
+//! Faults, feed hold, settings and streams on the real firmware (docs/SPEC.md §4,
 //! §6, §10; issue #3), in the virtual machine, checked against the recorded
 //! steps: hard limits, M112, `!`/`~`, M500 across a reboot, 2,000 short
 //! segments, and bad input that must change nothing.
@@ -118,7 +118,7 @@ fn feed_hold_stops_within_the_acceleration_limit_and_resume_ends_exactly() {
     vm.run_for(0.5).unwrap();
     assert_eq!(xyz_now(&vm), stopped, "moved during the hold");
     // It decelerated (no abrupt stop): the steps before the stop slow down
-    // within the acceleration limit (+5 %, SPEC §11).
+    // within the acceleration limit (+5 %, docs/SPEC.md §11).
     // The deceleration starts after the motion already queued for the ISR
     // (capped at 40 ms, plus the segment in progress, up to 20 ms) and lasts
     // 25 ms at 25 mm/s: ~90 ms in all (it was ~330 ms with 16 queued

@@ -5,7 +5,7 @@
 //! The test owns the virtual machine; `tests/hosts/octoprint_drive.py` owns
 //! OctoPrint: it writes a fresh basedir with only what a user sets (the
 //! first-run wizard, the connection dialog's port and baud, and the printer
-//! profile's 13 tools that README "OctoPrint" asks for), starts the server on
+//! profile's 13 tools that docs/hosts.md "OctoPrint" asks for), starts the server on
 //! 127.0.0.1 and, through the REST API, connects, runs the demo job to its end,
 //! pauses and resumes a second job that changes to T12, cancels a third with the
 //! spindle on, and asks `M114` from the terminal; then, in the middle of a
@@ -162,7 +162,7 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
 
     let mut problems: Vec<String> = Vec::new();
     if let Some(e) = &extra {
-        problems.push(format!("MILL_OCTOPRINT_EXTRA_CONFIG={e}: not the settings README tells a user to set"));
+        problems.push(format!("MILL_OCTOPRINT_EXTRA_CONFIG={e}: not the settings docs/hosts.md tells a user to set"));
     }
     let mut transcript: Vec<String> = Vec::new();
     let mut result = None;

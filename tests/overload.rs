@@ -1,4 +1,4 @@
-//! Overload (SPEC §11): a feed asking for more steps per second than the
+//! Overload (docs/SPEC.md §11): a feed asking for more steps per second than the
 //! stepper ISR can deliver is capped by the planner at
 //! `config::MAX_STEP_RATE_HZ`, with a warning, and the move still ends on the
 //! exact step, with no crash, no reset and no driver timing violation. grbl-Mega

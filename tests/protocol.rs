@@ -1,4 +1,4 @@
-//! Host protocol on the real firmware (SPEC §4), in the virtual machine.
+//! Host protocol on the real firmware (docs/SPEC.md §4), in the virtual machine.
 
 mod common;
 use common::*;

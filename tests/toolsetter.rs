@@ -1,4 +1,4 @@
-//! Optical tool setter (SPEC §8) on the real firmware: the virtual machine's
+//! Optical tool setter (docs/SPEC.md §8) on the real firmware: the virtual machine's
 //! beam is broken by the real geometry of the tool in the spindle.
 
 mod common;
@@ -157,7 +157,7 @@ fn g38_probes_on_the_tool_setter_input_and_g10_l1_sets_the_table() {
     assert_eq!((tb.length_um(7), tb.diameter_um(7)), (33_250, 4_000));
 }
 
-/// SPEC §8 in a job: T1, cut, T2, G37, the same cut, T0. The recorded Z of
+/// docs/SPEC.md §8 in a job: T1, cut, T2, G37, the same cut, T0. The recorded Z of
 /// the second cut is higher by exactly the length difference.
 #[test]
 fn a_job_with_a_change_and_a_measurement_shifts_z_by_the_length_difference() {

@@ -1,4 +1,4 @@
-//! Standalone operation (SPEC §9, issue #5) on the real ELF in the virtual
+//! Standalone operation (docs/SPEC.md §9) on the real ELF in the virtual
 //! machine: SD card commands and jobs, the SH1106 status screen and menu on
 //! the rotary encoder, and the faults (card pulled, corrupt FAT, bad G-code).
 //!
@@ -357,7 +357,7 @@ fn pause_resume_and_abort_from_the_menu() {
     let x_end = vm.position(Axis::X);
     // At 20 mm/s and 1000 mm/s^2 the deceleration itself takes v^2/2a =
     // 0.2 mm, but a hold starts only after the 16 segments already queued
-    // for the ISR (up to 20 ms each): README "Feed hold reacts late". So the
+    // for the ISR (up to 20 ms each): docs/status.md "Feed hold and abort latency". So the
     // stop comes within 16 x 20 ms x 20 mm/s + 0.2 mm = 6.6 mm.
     let run_on = (x_end - x_at_abort).abs();
     assert!(run_on <= 660, "stopped {run_on} steps after the press");
@@ -562,7 +562,7 @@ fn bad_gcode_on_line_40_stops_the_job_there_and_shows_the_line() {
 
 // ------------------------------------------- throughput, encoder, refresh
 
-/// 2,000 moves of 0.1 mm at F3000 (SPEC §11's stream job).
+/// 2,000 moves of 0.1 mm at F3000 (docs/SPEC.md §11's stream job).
 fn segments_job() -> Vec<String> {
     let mut v = vec!["G21 G90".to_string(), "G1 X1 Y1 F3000".to_string()];
     // Five passes of 400 x 0.1 mm along X (1 <-> 41 mm), 0.1 mm on Y at each end.
@@ -617,8 +617,8 @@ fn segments_from_sd_run_the_same_steps_about_as_fast_as_streamed_ones() {
         2000.0 / ser_s
     );
     assert_eq!(step_list(&sd)[step_list(&sd).len() - 10..], step_list(&ser)[step_list(&ser).len() - 10..]);
-    // The rates themselves are a SPEC §11 budget: `tools/bench` measures them
-    // (the SD row) and the README reports the gap (SD ~10 % behind serial).
+    // The rates themselves are a docs/SPEC.md §11 budget: `tools/bench` measures them
+    // (the SD row) and docs/ARCHITECTURE.md "Benchmark" reports both rows.
     // Here: the same steps, and SD not wildly slower (a stall or a per-line
     // delay would show as 2x).
     assert!(sd_s <= ser_s * 1.25, "SD {sd_s:.2} s is far slower than serial {ser_s:.2} s");

@@ -1,4 +1,4 @@
-//! Fuzz target: arbitrary bytes through the host input path (SPEC §10).
+//! Fuzz target: arbitrary bytes through the host input path (docs/SPEC.md §10).
 //!
 //! ```text
 //!  bytes ─► MCodeScanner (M112, M108; checked against a reference)

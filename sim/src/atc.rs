@@ -1,4 +1,4 @@
-//! The physical tool changer (SPEC §12): a 12-pocket carousel holding tools
+//! The physical tool changer (docs/SPEC.md §12): a 12-pocket carousel holding tools
 //! with real lengths and diameters, the spindle's clamp, and the collisions
 //! a wrong sequence would cause. Pure: fed one step at a time by the VM.
 //!

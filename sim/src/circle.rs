@@ -1,4 +1,4 @@
-//! The streaming benchmark's job (SPEC §11): 2,000 G1 moves of 0.1 mm around
+//! The streaming benchmark's job (docs/SPEC.md §11): 2,000 G1 moves of 0.1 mm around
 //! a circle of radius 20 mm centred at X22.5 Y22.5 (1.6 turns, so no corner
 //! slows it), targets rounded to 0.001 mm. `tools/bench` and the profiler
 //! (`sim/src/bin/profile.rs`) run this same job.

@@ -1,4 +1,4 @@
-//! The scripted host's protocol logic (SPEC §4), without the simulator.
+//! The scripted host's protocol logic (docs/SPEC.md §4), without the simulator.
 //!
 //! [`Streamer`] is the state machine of a G-code sender: which line to send
 //! next under a [`Flow`] policy, what an `ok`, an `Error:` or a `Resend:`

@@ -1,10 +1,10 @@
-//! `sim`: the mill's virtual machine (SPEC §12).
+//! `sim`: the mill's virtual machine (docs/SPEC.md §12).
 //!
 //! The real firmware ELF runs in simavr as an ATmega2560 at 16 MHz; around it
 //! sits a model of the RAMPS 1.4 machine:
 //!
 //! - [`vm`]: the simavr instance, its clock, reset handling and every hook
-//!   (and the simavr quirks of SPEC §14 it works around; see that module).
+//!   (and the simavr quirks of docs/SPEC.md §14 it works around; see that module).
 //! - [`recorder`]: step/dir/enable pins → positions, DRV8825 timing and travel
 //!   violations, step rates, acceleration. Pure, unit-tested on synthetic events.
 //! - [`physics`]: positions → home switches, carousel sensor, tool-setter beam,

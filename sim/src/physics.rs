@@ -6,7 +6,7 @@
 //! ("switch closed", "beam broken"). The VM glue turns those into pin levels
 //! ([`crate::pins::Input::level`]) and drives them into simavr.
 //!
-//! Model (SPEC §12, machine defaults §3):
+//! Model (docs/SPEC.md §12, machine defaults §3):
 //! - Home switches X/Y/Z close when the axis' physical position is ≤ 0 steps,
 //!   so homing trips exactly at machine 0. Z grows downward; its home is Z min.
 //! - Every switch is a *real* switch by default ([`SwitchConfig`]): once

@@ -1,4 +1,4 @@
-//! The RAMPS 1.4 pin map as the virtual machine sees it (SPEC §2).
+//! The RAMPS 1.4 pin map as the virtual machine sees it (docs/SPEC.md §2).
 //!
 //! This is the sim's copy of the firmware's `board` pin table: the only place
 //! in `sim/` that knows which AVR port bit is which machine signal. The
@@ -132,7 +132,7 @@ pub struct DriverPins {
     pub enable: Pin,
 }
 
-/// RAMPS 1.4 driver pins, indexed by [`Axis::index`] (SPEC §2, thesis Table 7).
+/// RAMPS 1.4 driver pins, indexed by [`Axis::index`] (docs/SPEC.md §2, thesis Table 7).
 pub const DRIVERS: [DriverPins; 4] = [
     DriverPins { step: Pin::new(b'F', 0), dir: Pin::new(b'F', 1), enable: Pin::new(b'D', 7) },
     DriverPins { step: Pin::new(b'F', 6), dir: Pin::new(b'F', 7), enable: Pin::new(b'F', 2) },
@@ -187,7 +187,7 @@ impl Input {
         self as usize
     }
 
-    /// The AVR pin this input is wired to (SPEC §2).
+    /// The AVR pin this input is wired to (docs/SPEC.md §2).
     pub const fn pin(self) -> Pin {
         match self {
             Input::HomeX => Pin::new(b'E', 5),

@@ -5,7 +5,7 @@
 //! IOPORT pin IRQ notifications (one call per pin *change*, never per
 //! instruction); the cycle stamp is the VM's monotonic clock.
 //!
-//! What it models (DRV8825 datasheet, SPEC §2):
+//! What it models (DRV8825 datasheet, docs/SPEC.md §2):
 //! - A microstep happens on the rising edge of STEP, in the direction DIR has
 //!   at that edge (HIGH = positive unless the axis is in `invert_dir_mask`).
 //! - While ENABLE is HIGH the driver is off: the edge is flagged

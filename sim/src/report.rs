@@ -1,4 +1,4 @@
-//! The run report (JSON) and the step trace (CSV), SPEC §12 "Outputs".
+//! The run report (JSON) and the step trace (CSV), docs/SPEC.md §12 "Outputs".
 
 use crate::host::StreamReport;
 use crate::isr::IsrStats;

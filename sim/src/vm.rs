@@ -7,7 +7,7 @@
 //! spindle output. All hooks are simavr IRQ notifications or cycle timers;
 //! nothing runs per instruction.
 //!
-//! simavr quirks this module works around (SPEC §14, simavr-ffi 1.2.7):
+//! simavr quirks this module works around (docs/SPEC.md §14, simavr-ffi 1.2.7):
 //! - **Host habits.** UART0's stdout echo and its `usleep` on UCSRnA polling
 //!   are switched off (`AVR_IOCTL_UART_SET_FLAGS` with neither STDIO nor
 //!   POLL_SLEEP), and `avr->sleep` (which `usleep`s to keep wall-clock pace on

@@ -1,4 +1,4 @@
-//! The tool-change sequence of thesis §5.3 (Conditions 1–3, SPEC §7) as a
+//! The tool-change sequence of thesis §5.3 (Conditions 1–3, docs/SPEC.md §7) as a
 //! state machine whose transitions are a table.
 //!
 //! Pure: it never moves anything. It hands out one [`Action`] at a time; the
@@ -140,7 +140,7 @@ const fn row(state: State, when: When, act: Do) -> Row {
     Row { state, when, act }
 }
 
-/// The tool change, in order (thesis §5.3, SPEC §7 steps 1–6).
+/// The tool change, in order (thesis §5.3, docs/SPEC.md §7 steps 1–6).
 pub const TABLE: [Row; 20] = [
     row(State::SpindleOff, When::Always, Do::SpindleOff),
     row(State::BeginJournal, When::Always, Do::BeginJournal),

@@ -1,4 +1,4 @@
-//! Automatic tool changer (SPEC §7, thesis §4.1.10 and §5.3): the T/M6
+//! Automatic tool changer (docs/SPEC.md §7, thesis §4.1.10 and §5.3): the T/M6
 //! tool change, the G201–G205 carousel commands, and what the firmware
 //! remembers about the tools.
 //!
@@ -68,7 +68,7 @@ pub struct Station {
     pub feed_y_out: f32,
 }
 
-/// Thesis Table 8 (SPEC §3). Compile-time constants: they cost no RAM.
+/// Thesis Table 8 (docs/SPEC.md §3). Compile-time constants: they cost no RAM.
 pub const STATION: Station = Station {
     x1: 23.0,
     y_a: 28.0,

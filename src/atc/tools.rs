@@ -1,4 +1,4 @@
-//! What the firmware remembers about the tools (SPEC §7 "Persistence"): the
+//! What the firmware remembers about the tools (docs/SPEC.md §7 "Persistence"): the
 //! tool table, which tool is in the spindle and which pockets are full, and
 //! the "change in progress" journal, each with its EEPROM image.
 //!

@@ -1,4 +1,4 @@
-//! The end of every panic and `abort` path (issue 11): the machine stops in
+//! The end of every panic and `abort` path: the machine stops in
 //! the same safe state as `M112`, says so, and stays stopped.
 //!
 //! [`halt`] runs with interrupts off and trusts nothing the failed code may

@@ -4,8 +4,8 @@
 //! planner block, a step chunk: ~20 calls of 10–70 bytes per streamed
 //! G-code line). avr-libc's versions move one byte per turn: 8 cycles a byte
 //! for `memcpy`, 6 for `memset`. These do the `n mod 4` odd bytes first, then
-//! four per turn: 5 and 3 cycles a byte (measured with the profiler, README
-//! "Speed"). Being defined here, the linker takes them instead of
+//! four per turn: 5 and 3 cycles a byte (measured with the profiler, docs/ARCHITECTURE.md
+//! "Benchmark"). Being defined here, the linker takes them instead of
 //! avr-libc's (an archive member is only pulled in for a symbol still
 //! undefined).
 //!

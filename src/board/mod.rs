@@ -2,7 +2,7 @@
 //!
 //! `arduino-hal` is not on crates.io (and GitHub cannot be reached here), so
 //! this small layer sits directly on the `avr-device` PAC. It owns:
-//! - [`pins`]: the RAMPS 1.4 pin table (SPEC §2);
+//! - [`pins`]: the RAMPS 1.4 pin table (docs/SPEC.md §2);
 //! - [`serial`]: USART0 with interrupt-driven RX/TX rings and realtime bytes;
 //! - [`stepper`]: Timer1, the step ISR (Bresenham over X, Y, Z, E0);
 //! - the millisecond clock (Timer0) and spindle PWM (Timer2) in this file;
@@ -296,7 +296,7 @@ pub fn inputs() -> Inputs {
 // ---- Stack painting (for the RAM report) --------------------------------
 
 /// Byte painted over free RAM at boot; the simulator reads back how much of
-/// it the stack overwrote (stack high-water mark, SPEC §11).
+/// it the stack overwrote (stack high-water mark, docs/SPEC.md §11).
 pub const STACK_PAINT: u8 = 0xC5;
 
 /// Paint the RAM between the end of .bss and the current stack with

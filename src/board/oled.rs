@@ -1,4 +1,4 @@
-//! SH1106 128x64 OLED over I2C (0x3C, 400 kHz; SPEC §2, §9): its command
+//! SH1106 128x64 OLED over I2C (0x3C, 400 kHz; docs/SPEC.md §2, §9): its command
 //! set and page writes, on the [`super::twi::Twi`] master through the
 //! embedded-hal 1.0 `I2c` trait.
 //!

@@ -1,4 +1,4 @@
-//! The RAMPS 1.4 pin table (SPEC §2): the only place that knows ports.
+//! The RAMPS 1.4 pin table (docs/SPEC.md §2): the only place that knows ports.
 //!
 //! Each pin is named after its function and mapped to an AVR port and bit,
 //! with its Arduino pin number beside it (ATmega2560 datasheet §13, "I/O
@@ -115,7 +115,7 @@ pub const SD_DETECT: Pin = pin(PL, 0);
 // MISO D50 = PB3 (SPI): owned by the TWI and SPI drivers.
 // Host serial: USART0 on D0 = PE0 (RX), D1 = PE1 (TX).
 
-/// The stepper ISR's view of the step and direction pins (SPEC §2): the step
+/// The stepper ISR's view of the step and direction pins (docs/SPEC.md §2): the step
 /// pins of X and Y sit on PF, Z on PL, E0 on PA, at bits that do not overlap,
 /// so one byte holds the step outputs of all four axes and `byte & STEP_PF`
 /// (…`STEP_PL`, `STEP_PA`) is what to write to each port's PINx register.

@@ -1,4 +1,4 @@
-//! USART0, the host serial port (SPEC §4), interrupt driven (datasheet §22).
+//! USART0, the host serial port (docs/SPEC.md §4), interrupt driven (datasheet §22).
 //!
 //! RX: the `USART0_RX` interrupt takes every byte as it arrives. Realtime
 //! bytes (`?` `!` `~` outside comments and numbered lines, and 0x18 anywhere:
@@ -278,7 +278,7 @@ const DOR0: u8 = 3;
 // digit, `.` or `-` (tested first: most of a G-code line), ~80 for a line
 // end or a line's first byte (~200 through the slow path). Per
 // streamed G1 line (`cargo run -p sim --release --bin profile -- --trace
-// 500:300`, `__vector_25` inclusive): see the README's "Benchmark". A byte
+// 500:300`, `__vector_25` inclusive): see docs/ARCHITECTURE.md "Benchmark". A byte
 // for the slow path costs ~38 cycles here plus ~165 in `usart0_rx_slow`.
 //
 // SAFETY: the fast path writes only what the RX interrupt owns (the ring

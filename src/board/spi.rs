@@ -1,5 +1,5 @@
 //! SPI master for the SD card: SCK PB1 (D52), MOSI PB2 (D51), MISO PB3 (D50),
-//! chip select PB0 (D53, the hardware SS pin used as a GPIO), SPEC §2.
+//! chip select PB0 (D53, the hardware SS pin used as a GPIO), docs/SPEC.md §2.
 //!
 //! Owns the SPI peripheral (ATmega2560 datasheet §21, "SPI – Serial Peripheral
 //! Interface") and the PB0..PB3 bits of DDRB/PORTB. PB4 is the spindle PWM pin

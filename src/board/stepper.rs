@@ -34,12 +34,12 @@
 //! The timer never stops: with nothing to do it ticks at 1 kHz and polls the
 //! ring, so there is no start/stop race with the main loop. OCR1A never goes
 //! below `MIN_PERIOD_CYCLES` and is loaded before the interrupt is enabled
-//! (simavr never fires CTC with OCR1A = 0, SPEC §14). No TCNT preload is used
+//! (simavr never fires CTC with OCR1A = 0, docs/SPEC.md §14). No TCNT preload is used
 //! (simavr loses those).
 //!
 //! Cycle budget (simavr, 16 MHz, interrupt response and RETI included,
 //! measured by `tools/bench` over all its runs): min 135, mean 168, max 340
-//! (SPEC §11: 400). One tick: 149 cycles with no partial axis (one axis, or
+//! (docs/SPEC.md §11: 400). One tick: 149 cycles with no partial axis (one axis, or
 //! equal-step diagonals), 195 / 218 / 241 with one / two / three partial
 //! axes; a segment load adds ~60, a new chunk ~50, armed switch checks ~30.
 //! Idle polling at 1 kHz: ~135.

@@ -1,4 +1,4 @@
-//! TWI (I²C) master for the OLED: SDA on PD1 (D20), SCL on PD0 (D21), SPEC §2.
+//! TWI (I²C) master for the OLED: SDA on PD1 (D20), SCL on PD0 (D21), docs/SPEC.md §2.
 //!
 //! Owns the TWI peripheral (ATmega2560 datasheet §24, "2-wire Serial
 //! Interface"). It is a blocking, polled master: every wait on TWINT or TWSTO

@@ -1,5 +1,5 @@
 //! Watchdog and reset cause: the last line of defence against a hung main loop
-//! (SPEC §10), and the boot-time report of why the board restarted.
+//! (docs/SPEC.md §10), and the boot-time report of why the board restarted.
 //!
 //! Owns the use of WDTCSR and MCUSR (ATmega2560 datasheet §12 "System Control
 //! and Reset": §12.5 Watchdog Timer and the MCUSR/WDTCSR register

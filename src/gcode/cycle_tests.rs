@@ -1,5 +1,5 @@
-//! Host tests of the canned cycles wired into the interpreter (issue 13
-//! item 4): whole lines through [`Machine::execute`] on a fake board whose
+//! Host tests of the canned cycles wired into the interpreter (G73,
+//! G81–G89): whole lines through [`Machine::execute`] on a fake board whose
 //! stepper applies each planner block at once. The path is the list of
 //! block end points in machine steps (internal frame: Z counts down from
 //! the top switch, so user Z −8 mm is step 800 at 100 steps/mm); step

@@ -1,4 +1,4 @@
-//! G-code interpreter (SPEC §5): modal state and the meaning of each code,
+//! G-code interpreter (docs/SPEC.md §5): modal state and the meaning of each code,
 //! as a pure function of (modal state, parsed line, a read-only [`Ctx`]).
 //!
 //! ```text
@@ -531,7 +531,7 @@ pub struct Ctx<'a> {
     pub alarm: bool,
     /// The alarm is the emergency stop (G28 does not clear it).
     pub estop: bool,
-    /// A serial line while an SD job runs: status requests only (SPEC §9).
+    /// A serial line while an SD job runs: status requests only (docs/SPEC.md §9).
     pub status_only: bool,
 }
 
@@ -792,7 +792,7 @@ impl Interp {
     /// and stores reach only 63 bytes into a stack frame, and in one function
     /// with all of this inlined (a 445-byte frame) every access beyond that
     /// cost 10 extra bytes of code (about 6 KB in all). Measured again with
-    /// the 248 KiB budget (issue 11), in simavr on the real ELF: inlining
+    /// the 248 KiB budget (the application space), in simavr on the real ELF: inlining
     /// them all cost +4 176 B of flash, +117 B of stack and +716 cycles per
     /// G1 line; the four arc helpers alone +1 760 B for no arc speed-up.
     #[inline(never)]
@@ -892,7 +892,7 @@ impl Interp {
 /// the validation of words that need no modal state. `Some` ends the line.
 #[inline(never)]
 fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
-    // During an SD job the serial line may only ask for status (SPEC §9).
+    // During an SD job the serial line may only ask for status (docs/SPEC.md §9).
     if cx.status_only {
         let status_only = l.motion.is_none()
             && !has_axis_words(l)
@@ -1480,7 +1480,7 @@ impl Interp {
                 }
                 self.wcs_mm[w] = off;
                 g.commit(self);
-                // Work offsets are persistent (SPEC §5): stored now; the
+                // Work offsets are persistent (docs/SPEC.md §5): stored now; the
                 // EEPROM layer programs only the bytes that changed.
                 Ok(Some(Command::StoreOffsets))
             }
@@ -1537,7 +1537,7 @@ fn m61(l: &Line) -> Result<Command, Error> {
 
 /// G4's time, in ms: P in seconds (RS274/NGC, grbl, LinuxCNC and every CAM
 /// file of the corpus) or, with `$153=1`, in milliseconds (Mach3 and UCCNC
-/// posts, Marlin: README "G4"); without P, S in seconds (grbl, Marlin).
+/// posts, Marlin: docs/gcode.md "G4"); without P, S in seconds (grbl, Marlin).
 /// With P, an S on the line is the spindle speed.
 fn dwell(s: &Settings, l: &Line) -> Result<f32, Error> {
     let ms = match (l.word(Word::P), l.word(Word::S)) {

@@ -142,7 +142,7 @@ fn max_dist_from(path: &[[i32; N_AXES]], p: [i32; N_AXES], a0: usize, a1: usize)
         .fold(0.0, f64::max)
 }
 
-/// Issue 13 item 1, the reported case: a 0.8 mm circle from an off-grid
+/// The reported case: a 0.8 mm circle from an off-grid
 /// start that moved almost nothing.
 #[test]
 fn the_reported_full_circle_goes_all_the_way_round() {

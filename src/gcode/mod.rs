@@ -1,4 +1,4 @@
-//! G-code (SPEC §5): word-address parser and interpreter.
+//! G-code (docs/SPEC.md §5): word-address parser and interpreter.
 //!
 //! ```text
 //!  protocol::LineChecker (command text) ─► parse::parse ─► parse::Line

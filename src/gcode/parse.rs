@@ -1,4 +1,4 @@
-//! G-code line parser (SPEC §5): RS274/NGC word-address syntax → [`Line`].
+//! G-code line parser (docs/SPEC.md §5): RS274/NGC word-address syntax → [`Line`].
 //!
 //! Sits between `protocol::LineChecker`, which hands over the command text
 //! (`N<n>` and `*<cs>` already stripped), and the interpreter, which owns the
@@ -48,7 +48,7 @@ pub const MAX_PARSE_LEN: usize = crate::protocol::MAX_LINE_LEN;
 
 /// Value words, in the bit order of [`Words`].
 ///
-/// `B` is the G37 broken-tool tolerance (SPEC §5); `A`, `C` (rotary axes),
+/// `B` is the G37 broken-tool tolerance (docs/SPEC.md §5); `A`, `C` (rotary axes),
 /// `U`, `V`, `W` are axes this machine does not have, and `O` is a program
 /// number or an O-word (see [`parse`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -1654,7 +1654,7 @@ mod tests {
     #[test]
     fn axis_letters_of_axes_this_machine_lacks_are_refused_by_name() {
         // LinuxCNC refuses an axis its configuration lacks ("Cannot use A
-        // word"); a 3-axis mill cannot honour A0 either (issue 13, corpus 21).
+        // word"); a 3-axis mill cannot honour A0 either (corpus 21).
         assert_eq!(fails("G1 A5"), (ParseErrorKind::NoSuchAxis, 4));
         assert_eq!(fails("C1"), (ParseErrorKind::NoSuchAxis, 1));
         assert_eq!(fails("G0 x1 u2"), (ParseErrorKind::NoSuchAxis, 7));

@@ -1,5 +1,5 @@
 //! G201–G205: Repetier's auxiliary-motor commands on motor P0, the tool
-//! carousel on the E0 axis (SPEC §7), and carousel homing.
+//! carousel on the E0 axis (docs/SPEC.md §7), and carousel homing.
 //!
 //! Positions are in carousel units: one pocket pitch (20°), 0 = the home
 //! switch. Unlike Repetier:

@@ -2,7 +2,7 @@
 //! [`crate::toolsetter::Seek`] through the planner, with the stepper ISR's probe latch
 //! watching the beam, and stores the results.
 //!
-//! Replies (one line each, SPEC §8):
+//! Replies (one line each, docs/SPEC.md §8):
 //! - `[TOOL:<n> L:<mm>]`, with D1 `[TOOL:<n> L:<mm> D:<mm>]`;
 //! - with B: `[TOOL:<n> L:<mm> dL:<mm>]`, then `ALARM:broken tool` when off by more than tol;
 //! - calibration: `[SETTER Z:<beam tip height, machine mm, +Z up> W:<beam width mm>]`.

@@ -2,7 +2,7 @@
 //! through the planner, keeps the EEPROM records in step with where the
 //! tools are, loads them at boot, and serves M61 and G10 L1.
 //!
-//! Wire protocol (SPEC §4, thesis log lines):
+//! Wire protocol (docs/SPEC.md §4, thesis log lines):
 //! - `SelectTool:<n>` when a change starts, `NowSelectedTool:<n>` when it is
 //!   complete; `busy:processing` every 2 s in between.
 //! - `T<n>` for the tool already in the spindle does nothing and prints nothing.

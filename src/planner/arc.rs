@@ -1,4 +1,4 @@
-//! G2/G3 arcs → chords (SPEC §5, seed 003), grbl's `mc_arc` as an iterator.
+//! G2/G3 arcs → chords (docs/SPEC.md §5, seed 003), grbl's `mc_arc` as an iterator.
 //!
 //! Where it sits: the interpreter validates an arc with [`Arc::new`] before it
 //! commits any modal state, then pulls chord end points from the iterator and
@@ -53,7 +53,7 @@ pub enum Centre {
     Radius(f32),
 }
 
-/// Why an arc was refused (SPEC §10: an arc with no solution is an error).
+/// Why an arc was refused (docs/SPEC.md §10: an arc with no solution is an error).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ArcError {
     /// R is smaller than half the distance between start and end.
@@ -394,7 +394,7 @@ mod tests {
         total
     }
 
-    /// Issue 13: `G0 X18.087536 Y33.329412`, `G3 X18.087536 Y33.329412
+    /// A reported job: `G0 X18.087536 Y33.329412`, `G3 X18.087536 Y33.329412
     /// I-0.4 J-0.69282` moved 2 µrad instead of a full 0.8 mm circle: the
     /// angle between start and end came out of `end − centre` with f32
     /// round-off. Start == end in the plane is a full circle in every plane,

@@ -1,4 +1,4 @@
-//! Motion planner (SPEC §6): the block ring and its look-ahead, grbl's
+//! Motion planner (docs/SPEC.md §6): the block ring and its look-ahead, grbl's
 //! `plan_buffer_line` / `planner_recalculate` in Rust.
 //!
 //! Where it sits: the G-code interpreter rounds each absolute target to integer
@@ -27,7 +27,7 @@
 //! raises a flag ([`Planner::take_exec_replanned`], grbl's
 //! `st_update_plan_block_parameters`) and prep recomputes its profile.
 //!
-//! **Backlash** (SPEC §6, seed 003; default off): when X, Y or Z reverses and its
+//! **Backlash** (docs/SPEC.md §6, seed 003; default off): when X, Y or Z reverses and its
 //! `backlash_mm` is > 0, a separate *take-up block* is queued just before the
 //! reversing move. It moves only the reversing axes, by the backlash in steps, in
 //! the new direction, at their max rate, and carries [`Block::TAKE_UP`]. The
@@ -61,11 +61,11 @@ use crate::N_AXES;
 use core::mem::size_of;
 
 /// Blocks in the ring. RAM: 16 × 48 B = 768 B (host layout; 46 B per block on
-/// AVR, 736 B). grbl-Mega keeps 36, Marlin and Repetier 16 (SPEC §11). 16 blocks
+/// AVR, 736 B). grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md §11). 16 blocks
 /// of 0.1 mm hold 1.6 mm of look-ahead, more than the 1.25 mm needed to stop from
 /// 50 mm/s at 1000 mm/s², so a stream of short moves can still run at full feed.
 /// 32 blocks overflowed the stack: every string literal is copied to RAM on AVR
-/// (about 3.5 KB here), which leaves too little room; see README "RAM".
+/// (about 3.5 KB here), which leaves too little room; see docs/ARCHITECTURE.md "RAM".
 pub const BLOCK_BUFFER_LEN: usize = 16;
 
 /// RAM budget of the whole planner (ring + state), bytes.
@@ -91,7 +91,7 @@ fn root_entry(n: u32) -> (u32, f32, f32) {
 const JUNCTION_COS_LIMIT: f32 = 0.999_999;
 /// At a junction where an axis reverses, its speed steps from +v·|u_prev| to
 /// −v·|u| at once, between a deceleration and an acceleration of the same
-/// sign. Seen through the recorder's 20 ms window (SPEC §11 "measured
+/// sign. Seen through the recorder's 20 ms window (docs/SPEC.md §11 "measured
 /// acceleration") that step adds step/20 ms to the ramps' acceleration: the
 /// demo job's 153° corner (junction deviation alone: 1.7 mm/s, a 3.2 mm/s
 /// step on X) measured 1157 mm/s² at a 1000 mm/s² setting. The step is kept
@@ -163,7 +163,7 @@ pub struct Push {
     /// Blocks queued: 0 for a zero-length move, 2 with a backlash take-up.
     pub queued: u8,
     /// The nominal rate was lowered so the dominant axis stays within
-    /// `config::MAX_STEP_RATE_HZ` (SPEC §11 overload row: warn the operator).
+    /// `config::MAX_STEP_RATE_HZ` (docs/SPEC.md §11 overload row: warn the operator).
     pub rate_capped: bool,
     /// The nominal rate was raised to [`crate::config::MIN_STEP_RATE_HZ`] on the
     /// dominant axis: the feed was slower than the step timer can go.

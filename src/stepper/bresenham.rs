@@ -1,4 +1,4 @@
-//! The Bresenham step distributor (SPEC §6): the one model of the step ISR's
+//! The Bresenham step distributor (docs/SPEC.md §6): the one model of the step ISR's
 //! arithmetic, on the record the ISR runs, [`Chunk`].
 //!
 //! Where it sits: [`super::queue::Splitter`] (main loop) makes a chunk per

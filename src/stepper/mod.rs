@@ -1,5 +1,5 @@
 //! Stepper segment preparation, the step-event records and the rings the
-//! ISR reads them from (SPEC §6).
+//! ISR reads them from (docs/SPEC.md §6).
 //!
 //! Where this sits in the pipeline (grbl's `stepper.c` split in parts):
 //!
@@ -96,7 +96,7 @@ pub struct StBlock {
     pub step_event_count: u32,
     /// Bit i set: axis i moves in the negative direction (before `invert_dir_mask`).
     pub direction_bits: u8,
-    /// The steps of this block are backlash take-up (SPEC §6): the motors move but
+    /// The steps of this block are backlash take-up (docs/SPEC.md §6): the motors move but
     /// the commanded position does not. A firmware that counts machine position in
     /// the ISR should count these steps apart (or subtract
     /// [`Planner::backlash_offset_steps`](crate::planner::Planner::backlash_offset_steps)

@@ -1,5 +1,5 @@
 //! The records the stepper ISR executes, and the producer that writes them
-//! (SPEC §6: "the ISR stays integer-only and short").
+//! (docs/SPEC.md §6: "the ISR stays integer-only and short").
 //!
 //! Where it sits: prep ([`super::Prep`]) emits [`StepperCmd`]s in the main
 //! loop; [`Splitter`], the first stage of [`super::rings::Rings::push`]
@@ -26,7 +26,7 @@
 //! `F(k) = ⌊(k·steps + ⌊N/2⌋) / N⌋` is where the block's own Bresenham is after
 //! k events. Each piece is a Bresenham of its own, so inside a piece a step is
 //! within 0.5 step of the piece's line, whose ends are within 0.5 step of the
-//! block's line: within ±1 step overall (SPEC §11), and the block's total is
+//! block's line: within ±1 step overall (docs/SPEC.md §11), and the block's total is
 //! exact. A block of ≤ 32767 events is one chunk and steps exactly as one
 //! Bresenham.
 
@@ -252,7 +252,7 @@ impl Splitter {
                 c.dir_out[port as usize] |= mask;
             }
         }
-        // SPEC §6: a switch tripping outside homing is an alarm, whether its
+        // docs/SPEC.md §6: a switch tripping outside homing is an alarm, whether its
         // axis moves toward it, away from it or not at all. Not armed: a homed
         // axis that ends this chunk at 0, where its switch is closed by
         // definition (machine 0 is the trip point), or starts it between 0

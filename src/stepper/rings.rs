@@ -1,5 +1,5 @@
 //! The main-loop side of the step ISR's two rings: everything about them
-//! that is logic, host-tested (SPEC §6).
+//! that is logic, host-tested (docs/SPEC.md §6).
 //!
 //! Where it sits: the firmware's `Io::push_segment` hands prep's
 //! [`StepperCmd`]s to [`Rings::push`], which cuts them ([`Splitter`]) into

@@ -398,7 +398,7 @@ fn moves_of_a_thousandth_of_a_millimetre_end_where_one_millimetre_ends() {
 
 #[test]
 fn a_stream_of_short_collinear_moves_runs_at_the_feed() {
-    // SPEC §11: 2,000 × 0.1 mm at F3000 (50 mm/s): ideal 4 s + 0.05 s of ramps.
+    // docs/SPEC.md §11: 2,000 × 0.1 mm at F3000 (50 mm/s): ideal 4 s + 0.05 s of ramps.
     let s = Settings::DEFAULT;
     let (m, _) = run_moves(&s, &x_moves(&[0.1; 2000], 3000.0, &s));
     assert_eq!(m.motor[0], 20_000);

@@ -1,4 +1,4 @@
-//! Optical tool setter (SPEC §8, thesis §4.1.11 and §5.4): G37 length and
+//! Optical tool setter (docs/SPEC.md §8, thesis §4.1.11 and §5.4): G37 length and
 //! diameter measurement, broken-tool check and reference calibration.
 //!
 //! ```text
@@ -24,7 +24,7 @@
 //! Calibration (`G37 L<length> R<radius>` with a reference tool in the
 //! spindle) stores `beam_z = trip_z + length` and `w = span − 2·radius`.
 //!
-//! Commands (SPEC §5):
+//! Commands (docs/SPEC.md §5):
 //! - `G37`: length of the tool in the spindle → tool table, `[TOOL:n L:…]`;
 //! - `G37 D1`: length and diameter, `[TOOL:n L:… D:…]`;
 //! - `G37 B<tol>`: length compared with the table; more than `tol` mm off is
@@ -472,7 +472,7 @@ impl Measure {
     }
 }
 
-/// One seek toward the beam (SPEC §8: fast seek, back off, slow re-seek),
+/// One seek toward the beam (docs/SPEC.md §8: fast seek, back off, slow re-seek),
 /// as a state machine. Distances are signed mm along the seek axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Seek {

@@ -1,4 +1,4 @@
-//! Rotary encoder (A D31, B D33, button D35; SPEC §2) decoding, sampled by
+//! Rotary encoder (A D31, B D33, button D35; docs/SPEC.md §2) decoding, sampled by
 //! the 1 kHz Timer0 tick (`board`): PORTC has no pin-change interrupt on the
 //! ATmega2560, and 1 kHz is 25 samples per quadrature step at 10 detents/s.
 //!

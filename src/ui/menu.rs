@@ -1,4 +1,4 @@
-//! The menu tree (SPEC §9) as data, and the state machine the encoder drives.
+//! The menu tree (docs/SPEC.md §9) as data, and the state machine the encoder drives.
 //!
 //! ```text
 //!  Status ──press──► Menu: < Status | Run from SD | Job | Jog | Home | Tools | Settings | Info
@@ -1313,7 +1313,7 @@ mod tests {
         assert_eq!(ui.step(1, true, &v), Cmd::Abort);
     }
 
-    /// Issue 13 item 5: optional stop (M1) is a Job-menu switch, the same
+    /// Optional stop (M1) is a Job-menu switch, the same
     /// setting as `$152`.
     #[test]
     fn optional_stop_is_switched_in_the_job_menu() {

@@ -1,4 +1,4 @@
-//! Standalone UI (SPEC §9): SH1106 status screen and menu on the rotary
+//! Standalone UI (docs/SPEC.md §9): SH1106 status screen and menu on the rotary
 //! encoder, and SD card jobs.
 //!
 //! Everything here is plain logic, unit-tested on the host; `board` does

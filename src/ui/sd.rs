@@ -1,4 +1,4 @@
-//! SD card jobs and the SD commands M20–M29 (SPEC §5, §9), as plain logic
+//! SD card jobs and the SD commands M20–M29 (docs/SPEC.md §5, §9), as plain logic
 //! over a [`Card`] (the firmware's is `embedded-sdmmc` over SPI; tests use a
 //! fake).
 //!

@@ -122,7 +122,7 @@ crate::flash_texts! {
     Mm = " mm",
     Pct = "%",
     NotIdle = "Machine busy",
-    // Tools menu (SPEC §7, §8).
+    // Tools menu (docs/SPEC.md §7, §8).
     Tools = "Tools",
     ChangeTool = "Change tool",
     MeasureLength = "Measure length",

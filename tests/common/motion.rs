@@ -12,9 +12,9 @@
 use super::*;
 use sim::{Axis, PathPoint, Vm, VmConfig};
 
-/// Steps per mm on X, Y, Z (SPEC §3 default).
+/// Steps per mm on X, Y, Z (docs/SPEC.md §3 default).
 pub const SPMM: f64 = 100.0;
-/// Arc tolerance setting (SPEC §5 default), mm.
+/// Arc tolerance setting (docs/SPEC.md §5 default), mm.
 pub const ARC_TOL_MM: f64 = 0.002;
 
 /// Boot with the machine at `start` physical steps (X, Y, Z) and home it.
@@ -175,7 +175,7 @@ pub fn per_axis_distance_to_circle(u: f64, v: f64, r: f64) -> f64 {
 /// G18 (2,0,1), G19 (1,2,0)); `centre` and `radius` in steps in the plane;
 /// the normal axis runs linearly with the angle from `start` to `end`.
 ///
-/// "Within tolerance + 1 step" (SPEC §11) is taken per axis, like the ±1 step
+/// "Within tolerance + 1 step" (docs/SPEC.md §11) is taken per axis, like the ±1 step
 /// of a Bresenham line: every step event must lie within `max_dev` steps of a
 /// point of the ideal circle on each axis. (Radially, integer chord ends, each
 /// up to ½ step off per axis, plus the Bresenham's ½ step can add up to

@@ -7,7 +7,7 @@ this script owns OctoPrint:
 
 1. writes a fresh basedir: config.yaml with only what a user sets (the first-run
    wizard's choices, the connection dialog's port and baud, and the printer
-   profile's tool count that README "OctoPrint" tells a user to set), and one
+   profile's tool count that docs/hosts.md "OctoPrint" tells a user to set), and one
    admin user with an API key (what `octoprint user add` plus "Generate API key"
    in the user settings make);
 2. starts `octoprint serve` on 127.0.0.1 and talks to it only through its REST
@@ -95,7 +95,7 @@ def write_basedir(base, port_path, tools, extra):
             "baudrate": 250000,
             "additionalPorts": [port_path],
         },
-        # The printer profile README "OctoPrint" tells a user to set.
+        # The printer profile docs/hosts.md "OctoPrint" tells a user to set.
         "printerProfiles": {"default": "mill"},
     }
     for key, value in extra.items():  # --extra-config: for investigations only

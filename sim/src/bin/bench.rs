@@ -1,4 +1,4 @@
-//! `bench`: the SPEC §11 budget table, measured on the real firmware ELF in
+//! `bench`: the docs/SPEC.md §11 budget table, measured on the real firmware ELF in
 //! the virtual machine (all figures from simulated cycles, none from the
 //! wall clock).
 //!
