@@ -73,11 +73,145 @@ pub struct Settings {
     /// `G4 P` is milliseconds (Mach3 and UCCNC posts, Marlin); off: seconds
     /// (RS274/NGC, LinuxCNC, grbl).
     pub dwell_p_ms: bool,
+    /// The tool-change station (`$170`–`$180`).
+    pub station: Station,
+    /// Lowest spindle speed when on, rpm (grbl's `$31`): an `S` below it
+    /// runs at it; `S0` is off.
+    pub spindle_min_rpm: f32,
+    /// Seconds to wait after the spindle starts before anything moves
+    /// (`$181`; Marlin's `SPINDLE_LASER_POWERUP_DELAY`).
+    pub spin_up_s: f32,
+    /// Seconds to wait after the spindle stops (`M5`, and before a tool
+    /// change releases the tool) (`$182`; Marlin's `…POWERDOWN_DELAY`).
+    pub spin_down_s: f32,
     /// G80 cancels only the canned cycle and the motion mode from before
     /// the cycle stays (Fanuc, Haas, Mach3: Fusion 360's Mach3 post moves
     /// with bare axis words after G80); off: G80 leaves no motion mode and
     /// bare axis words are refused (LinuxCNC, grbl).
     pub g80_keeps_motion: bool,
+}
+
+/// The tool-change station (thesis Table 8), the travel height and the
+/// carousel's pocket offset, with the feeds of the sequence (`$170`–`$180`).
+/// X and Y in machine mm; the heights as depths below the Z home switch, mm
+/// (the internal frame of [`crate::frame`]: Z grows downward, as the thesis
+/// measures it; the user's machine Z is the negative: Z1 −40.5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Station {
+    /// X1: in front of the magazine.
+    pub x1: f32,
+    /// Y point A: outside the magazine.
+    pub y_a: f32,
+    /// Y point B: in the pocket.
+    pub y_b: f32,
+    /// Z1: safe, above the tool in the pocket.
+    pub z1: f32,
+    /// Z2: clamp / release.
+    pub z2: f32,
+    /// Travel height to and from the station (near the Z home at the top).
+    pub z_safe: f32,
+    /// Y in, mm/min.
+    pub feed_y_in: f32,
+    /// Z down to clamp, mm/min.
+    pub feed_z_clamp: f32,
+    /// Z down to release and back up, mm/min.
+    pub feed_z_release: f32,
+    /// Y out, mm/min.
+    pub feed_y_out: f32,
+    /// Pocket 1 sits this many pitches past pocket "0" from the carousel's
+    /// home switch: pocket `p` at `p + pocket_offset` pitches.
+    pub pocket_offset: f32,
+    /// Half the width in X of the magazine's keep-out zone around X1, mm
+    /// (`$183`; 0, the default: no zone, as before it existed).
+    pub keep_out_half_width: f32,
+    /// Top of the keep-out zone, mm below the Z home switch (`$184`): above
+    /// it the spindle and its tool clear the magazine.
+    pub keep_out_top: f32,
+}
+
+impl Station {
+    /// Thesis Table 8 (docs/SPEC.md §3).
+    pub const THESIS: Station = Station {
+        x1: 23.0,
+        y_a: 28.0,
+        y_b: 44.0,
+        z1: 40.5,
+        z2: 45.0,
+        z_safe: 1.0,
+        feed_y_in: 800.0,
+        feed_z_clamp: 200.0,
+        feed_z_release: 1000.0,
+        feed_y_out: 1000.0,
+        pocket_offset: 3.0,
+        keep_out_half_width: 0.0,
+        keep_out_top: 1.0,
+    };
+
+    /// Does the straight move from `a` to `b` (machine mm, internal frame: Z
+    /// as depth below the home switch) enter the magazine's keep-out zone?
+    /// The zone: X within `keep_out_half_width` of X1, Y past point A
+    /// (toward the magazine), Z deeper than `keep_out_top`; open on those
+    /// sides, so its faces themselves (Y at point A, the travel height) are
+    /// outside. Only the tool change goes in.
+    pub fn enters_keep_out(&self, a: [f32; 3], b: [f32; 3]) -> bool {
+        self.keep_out_entry(a, b).is_some()
+    }
+
+    /// Where the straight move from `a` to `b` enters the keep-out zone, as
+    /// the fraction of the move done there (0: it starts inside); `None`
+    /// when it stays out. See [`Station::enters_keep_out`].
+    pub fn keep_out_entry(&self, a: [f32; 3], b: [f32; 3]) -> Option<f32> {
+        let w = self.keep_out_half_width;
+        if !(w > 0.0) {
+            return None;
+        }
+        let lo = [self.x1 - w, self.y_a, self.keep_out_top];
+        let hi = [self.x1 + w, f32::INFINITY, f32::INFINITY];
+        // The segment a + t (b - a), t in [0, 1], against each slab (open
+        // intervals): what is left of t after all three is inside the box.
+        let (mut t0, mut t1) = (0.0f32, 1.0f32);
+        for i in 0..3 {
+            let d = b[i] - a[i];
+            if d == 0.0 {
+                if !(a[i] > lo[i] && a[i] < hi[i]) {
+                    return None;
+                }
+                continue;
+            }
+            let (mut u, mut v) = ((lo[i] - a[i]) / d, (hi[i] - a[i]) / d);
+            if u > v {
+                core::mem::swap(&mut u, &mut v);
+            }
+            t0 = if u > t0 { u } else { t0 };
+            t1 = if v < t1 { v } else { t1 };
+            if t0 >= t1 {
+                return None;
+            }
+        }
+        Some(t0)
+    }
+
+    /// Does the box `lo..=hi` (machine mm, internal frame) overlap the
+    /// keep-out zone? For arcs and canned cycles, by their bounding box.
+    pub fn box_enters_keep_out(&self, lo: [f32; 3], hi: [f32; 3]) -> bool {
+        let w = self.keep_out_half_width;
+        w > 0.0
+            && lo[0] < self.x1 + w
+            && hi[0] > self.x1 - w
+            && hi[1] > self.y_a
+            && hi[2] > self.keep_out_top
+    }
+
+    /// The station's points with the axis each lies on and its `$` number.
+    pub fn points(&self) -> [(f32, usize, u8); 6] {
+        [(self.x1, 0, 170), (self.y_a, 1, 171), (self.y_b, 1, 172), (self.z1, 2, 173), (self.z2, 2, 174), (self.z_safe, 2, 175)]
+    }
+
+    /// The first point outside `0..=travel` of its axis: its `$` number and
+    /// the axis. `None`: every point inside.
+    pub fn outside(&self, travel_mm: &[f32; 3]) -> Option<(u8, usize)> {
+        self.points().into_iter().find(|&(v, a, _)| !(v >= 0.0 && v <= travel_mm[a])).map(|(_, a, n)| (n, a))
+    }
 }
 
 /// Highest step rate the stepper ISR is allowed to be asked for, Hz.
@@ -121,10 +255,60 @@ impl Settings {
         wcs_mm: [[0.0; 3]; N_WCS],
         dwell_p_ms: false,
         g80_keeps_motion: true,
+        station: Station::THESIS,
+        spindle_min_rpm: 0.0,
+        spin_up_s: 0.0,
+        spin_down_s: 0.0,
+    };
+
+    /// Every value zero: only a placeholder for building a `Machine` in
+    /// place (`Machine::init`), never used.
+    pub const ZEROED: Settings = Settings {
+        steps_per_mm: [0.0; N_AXES],
+        max_feed_mm_per_min: [0.0; N_AXES],
+        accel_mm_per_s2: [0.0; N_AXES],
+        travel_mm: [0.0; 3],
+        invert_dir_mask: 0,
+        invert_input_mask: 0,
+        junction_deviation_mm: 0.0,
+        arc_tolerance_mm: 0.0,
+        backlash_mm: [0.0; 3],
+        homing_seek_mm_per_min: 0.0,
+        homing_feed_mm_per_min: 0.0,
+        homing_pulloff_mm: 0.0,
+        soft_limits: false,
+        hard_limits: false,
+        spindle_max_rpm: 0.0,
+        auto_tool_offset: false,
+        homing_lock: false,
+        immediate_tool_change: false,
+        optional_stop: false,
+        card_out_retract_mm: 0.0,
+        wcs_mm: [[0.0; 3]; N_WCS],
+        dwell_p_ms: false,
+        g80_keeps_motion: false,
+        station: Station {
+            x1: 0.0,
+            y_a: 0.0,
+            y_b: 0.0,
+            z1: 0.0,
+            z2: 0.0,
+            z_safe: 0.0,
+            feed_y_in: 0.0,
+            feed_z_clamp: 0.0,
+            feed_z_release: 0.0,
+            feed_y_out: 0.0,
+            pocket_offset: 0.0,
+            keep_out_half_width: 0.0,
+            keep_out_top: 0.0,
+        },
+        spindle_min_rpm: 0.0,
+        spin_up_s: 0.0,
+        spin_down_s: 0.0,
     };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V5 + 1;
+    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V5 + 1 + 4 * 16;
     /// Size of a version 5 image: no input invert mask.
     const IMAGE_LEN_V5: usize = Self::IMAGE_LEN_V4 + 4;
     /// Size of a version 4 image: no card-out retract height.
@@ -191,6 +375,12 @@ impl Settings {
         w.u8(self.g80_keeps_motion as u8);
         w.f32(self.card_out_retract_mm);
         w.u8(self.invert_input_mask);
+        for v in self.station_fields() {
+            w.f32(v);
+        }
+        w.f32(self.spindle_min_rpm);
+        w.f32(self.spin_up_s);
+        w.f32(self.spin_down_s);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -206,21 +396,50 @@ impl Settings {
         s.read_image(b).then_some(s)
     }
 
-    /// [`Settings::from_bytes`] into `self`; false (and `self` partly
-    /// overwritten) when the image is not valid. Not inlined: it works on
-    /// the settings through a pointer, within AVR's `ldd` reach.
+    /// [`Settings::from_bytes`] in place, for the boot and M501 (the
+    /// settings are some 250 bytes: no copy of them on the stack). A blank
+    /// or corrupt image leaves `self` as it was; one with a good checksum
+    /// but values no machine could use leaves the defaults.
     #[inline(never)]
-    fn read_image(&mut self, b: &[u8]) -> bool {
+    pub fn load_image(&mut self, b: &[u8]) -> bool {
+        if Self::image_len(b).is_none() {
+            return false;
+        }
+        if self.read_image(b) {
+            return true;
+        }
+        self.reset_to_defaults();
+        false
+    }
+
+    /// The factory settings, in place (read from flash).
+    #[cold]
+    #[inline(never)]
+    pub fn reset_to_defaults(&mut self) {
+        *self = Settings::defaults();
+    }
+
+    /// The length of a valid image of a version this firmware reads
+    /// (version and checksum right), or `None`.
+    fn image_len(b: &[u8]) -> Option<usize> {
         let len = match b.first() {
             Some(&SETTINGS_VERSION) => Self::IMAGE_LEN,
             Some(5) => Self::IMAGE_LEN_V5,
             Some(4) => Self::IMAGE_LEN_V4,
             Some(3) => Self::IMAGE_LEN_V3,
-            _ => return false,
+            _ => return None,
         };
-        if b.len() < len || checksum(&b[..len - 1]) != b[len - 1] {
+        (b.len() >= len && checksum(&b[..len - 1]) == b[len - 1]).then_some(len)
+    }
+
+    /// [`Settings::from_bytes`] into `self`; false (and `self` partly
+    /// overwritten) when the image is not valid. Not inlined: it works on
+    /// the settings through a pointer, within AVR's `ldd` reach.
+    #[inline(never)]
+    fn read_image(&mut self, b: &[u8]) -> bool {
+        let Some(len) = Self::image_len(b) else {
             return false;
-        }
+        };
         let mut r = Reader { buf: b, at: 1 };
         for part in self.f32_fields_mut() {
             for v in part.iter_mut() {
@@ -243,8 +462,57 @@ impl Settings {
         }
         if len == Self::IMAGE_LEN {
             self.invert_input_mask = r.u8();
+            let mut v = [0.0; 13];
+            for x in v.iter_mut() {
+                *x = r.f32();
+            }
+            self.set_station_fields(v);
+            self.spindle_min_rpm = r.f32();
+            self.spin_up_s = r.f32();
+            self.spin_down_s = r.f32();
         }
         self.is_sane()
+    }
+
+    /// The station's values in EEPROM image order.
+    fn station_fields(&self) -> [f32; 13] {
+        let s = &self.station;
+        [
+            s.x1,
+            s.y_a,
+            s.y_b,
+            s.z1,
+            s.z2,
+            s.z_safe,
+            s.feed_y_in,
+            s.feed_z_clamp,
+            s.feed_z_release,
+            s.feed_y_out,
+            s.pocket_offset,
+            s.keep_out_half_width,
+            s.keep_out_top,
+        ]
+    }
+
+    /// Inverse of [`Settings::station_fields`].
+    fn set_station_fields(&mut self, v: [f32; 13]) {
+        let [x1, y_a, y_b, z1, z2, z_safe, feed_y_in, feed_z_clamp, feed_z_release, feed_y_out, pocket_offset, keep_out_half_width, keep_out_top] =
+            v;
+        self.station = Station {
+            x1,
+            y_a,
+            y_b,
+            z1,
+            z2,
+            z_safe,
+            feed_y_in,
+            feed_z_clamp,
+            feed_z_release,
+            feed_y_out,
+            pocket_offset,
+            keep_out_half_width,
+            keep_out_top,
+        };
     }
 
     /// True when every value is one the planner can work with.
@@ -267,6 +535,12 @@ impl Settings {
             && all_within(&self.backlash_mm, 0.0, true, 5.0)
             && all_within(&[self.homing_pulloff_mm], 0.0, true, MAX)
             && all_within(&[self.card_out_retract_mm], 0.0, true, MAX)
+            && all_within(&self.station_fields()[..6], 0.0, true, MAX)
+            && all_within(&self.station_fields()[6..10], 0.0, false, MAX)
+            && all_within(&[self.station.pocket_offset], 0.0, true, 17.0)
+            && all_within(&[self.station.keep_out_half_width, self.station.keep_out_top], 0.0, true, MAX)
+            && all_within(&[self.spindle_min_rpm], 0.0, true, self.spindle_max_rpm)
+            && all_within(&[self.spin_up_s, self.spin_down_s], 0.0, true, 60.0)
             && all_within(self.wcs_mm.as_flattened(), f32::NEG_INFINITY, true, MAX)
     }
 
@@ -410,6 +684,27 @@ mod tests {
         assert_eq!(loaded.card_out_retract_mm, 7.5);
         assert_eq!(loaded.invert_input_mask, 0);
         assert_eq!(Settings::from_bytes(&new).unwrap().invert_input_mask, 0b11111);
+    }
+
+    #[test]
+    fn the_keep_out_zone_takes_moves_into_the_magazine_and_nothing_else() {
+        let s = Station { keep_out_half_width: 10.0, ..Station::THESIS }; // X 13..33, Y past 28, deeper than 1 mm
+        let k = |a: [f32; 3], b: [f32; 3]| s.enters_keep_out(a, b);
+        // The example: over the magazine at the top, then down.
+        assert!(!k([0.0, 0.0, 0.0], [23.0, 42.0, 0.0]));
+        assert!(k([23.0, 42.0, 0.0], [23.0, 42.0, 44.0]));
+        // A diagonal from the work area that cuts through the zone.
+        assert!(k([5.0, 40.0, 10.0], [40.0, 40.0, 10.0]));
+        // Beside it, below the travel height, and on its faces: outside.
+        assert!(!k([5.0, 40.0, 10.0], [12.9, 44.0, 30.0]));
+        assert!(!k([23.0, 28.0, 40.5], [23.0, 0.0, 40.5]));
+        assert!(!k([0.0, 44.0, 1.0], [45.0, 44.0, 1.0]));
+        assert!(!k([10.0, 10.0, 20.0], [40.0, 27.9, 20.0]));
+        // Inside to outside counts (a move must not start in it either).
+        assert!(k([23.0, 30.0, 5.0], [23.0, 20.0, 5.0]));
+        // Zone off.
+        let off = Station { keep_out_half_width: 0.0, ..s };
+        assert!(!off.enters_keep_out([23.0, 42.0, 0.0], [23.0, 42.0, 44.0]));
     }
 
     #[test]

@@ -15,12 +15,14 @@
 //!  $I            `[VER:1.1h.MillFW:<version>]`, `[OPT:VNH,15,255]`
 //! ```
 //!
-//! The numbers follow grbl where grbl has the setting ($3, $5, $11, $12, $20,
+//! The numbers follow grbl where grbl has the setting ($3, $5, $11, $31, $12, $20,
 //! $21, $22, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
 //! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
 //! automatic tool offset, $151 Repetier's immediate T, $152 optional stop,
 //! $153 `G4 P` in milliseconds, $154 G80 keeping the motion mode, $160 the
-//! retract height when the card is pulled mid-job). The table is a `match`, so it lives in flash.
+//! retract height when the card is pulled mid-job, $170–$180 the tool
+//! change station and the carousel's pocket offset, $181/$182 the spindle's
+//! spin-up and spin-down delays). The table is a `match`, so it lives in flash.
 //!
 //! Called from `Machine::run_raw_line` for lines starting with `$`; pure
 //! parsing and formatting here, host-tested.
@@ -53,6 +55,7 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
         25 => (Num(&mut s.homing_seek_mm_per_min), F!("homing seek feed, mm/min")),
         27 => (Num(&mut s.homing_pulloff_mm), F!("homing pull-off, mm")),
         30 => (Num(&mut s.spindle_max_rpm), F!("spindle rpm at 100 % PWM")),
+        31 => (Num(&mut s.spindle_min_rpm), F!("spindle minimum rpm when on")),
         100..=103 => (Num(&mut s.steps_per_mm[(n - 100) as usize]), F!("steps/mm (E: steps/pocket)")),
         110..=113 => (Num(&mut s.max_feed_mm_per_min[(n - 110) as usize]), F!("max rate, mm/min")),
         120..=123 => (Num(&mut s.accel_mm_per_s2[(n - 120) as usize]), F!("acceleration, mm/s^2")),
@@ -64,6 +67,21 @@ pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
         153 => (Flag(&mut s.dwell_p_ms), F!("G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1")),
         154 => (Flag(&mut s.g80_keeps_motion), F!("G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1")),
         160 => (Num(&mut s.card_out_retract_mm), F!("card pulled mid-job: retract Z to this far below its home switch, mm")),
+        170 => (Num(&mut s.station.x1), F!("tool change X1 (in front of the magazine), mm")),
+        171 => (Num(&mut s.station.y_a), F!("tool change Y point A (outside the magazine), mm")),
+        172 => (Num(&mut s.station.y_b), F!("tool change Y point B (in the pocket), mm")),
+        173 => (Num(&mut s.station.z1), F!("tool change Z1 (above the tool in its pocket), mm below Z home")),
+        174 => (Num(&mut s.station.z2), F!("tool change Z2 (clamp / release), mm below Z home")),
+        175 => (Num(&mut s.station.z_safe), F!("tool change travel height, mm below Z home")),
+        176 => (Num(&mut s.station.feed_y_in), F!("tool change feed Y in, mm/min")),
+        177 => (Num(&mut s.station.feed_z_clamp), F!("tool change feed Z down to clamp, mm/min")),
+        178 => (Num(&mut s.station.feed_z_release), F!("tool change feed Z release and up, mm/min")),
+        179 => (Num(&mut s.station.feed_y_out), F!("tool change feed Y out, mm/min")),
+        183 => (Num(&mut s.station.keep_out_half_width), F!("tool magazine keep-out zone: half width in X around X1, mm (0: none)")),
+        184 => (Num(&mut s.station.keep_out_top), F!("tool magazine keep-out zone: top, mm below Z home")),
+        181 => (Num(&mut s.spin_up_s), F!("spindle spin-up delay after M3, s")),
+        182 => (Num(&mut s.spin_down_s), F!("spindle spin-down delay after M5 and before a tool change, s")),
+        180 => (Num(&mut s.station.pocket_offset), F!("carousel: pocket 1 at this + 1 pitches from home, 0-17")),
         _ => return None,
     })
 }
@@ -344,7 +362,7 @@ mod tests {
         s.hard_limits = false;
         list(&s, &mut out);
         let lines: Vec<&str> = out.0.lines().collect();
-        assert_eq!(lines.len(), 35);
+        assert_eq!(lines.len(), 51);
         assert!(lines.contains(&"$153=0 (G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$154=1 (G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$151=0 (T alone changes the tool at once (Repetier), 0/1)"), "{lines:?}");

@@ -765,9 +765,22 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             }
             // The same line as over serial (T<n>, G37 [D1], M61 Q<t>), so
             // the same checks and errors; the reply screen shows the outcome.
+            // The menu picks pockets; the line names the pocket's tool
+            // number, and a pocket without one is refused.
+            use mill::ui::menu::ToolOp;
+            let (op, pocket) = match op {
+                ToolOp::Change(p) => (ToolOp::Change(m.atc.table.number_of(p)), p),
+                ToolOp::Confirm(p) => (ToolOp::Confirm(m.atc.table.number_of(p)), p),
+                other => (other, 0),
+            };
+            let unnumbered = pocket != 0 && matches!(op, ToolOp::Change(0) | ToolOp::Confirm(0));
             let mut l = Line::blank();
             let n = op.gcode(&mut l);
-            let r = m.run_menu_line(&l.chars[..n], hw);
+            let r = if unnumbered {
+                Err(interp::Error::Atc(mill::atc::Fault::NoNumber))
+            } else {
+                m.run_menu_line(&l.chars[..n], hw)
+            };
             hw.ui.reply = match r {
                 Ok(()) => Reply::Ok,
                 Err(e) => Reply::Err(match (e, m.alarm) {

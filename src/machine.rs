@@ -367,7 +367,13 @@ impl Machine {
     /// machine-sized temporary stays in the caller's (never-returning) frame.
     #[inline(never)]
     pub fn init(slot: &mut core::mem::MaybeUninit<Machine>) -> &mut Machine {
-        slot.write(Machine::with_settings(Settings::defaults()))
+        // Built with zeroed settings, which LLVM writes in place, then the
+        // defaults copied in from flash: with the defaults' call in the
+        // initialiser the whole machine was built in a 1.5 KB temporary,
+        // the deepest stack of a run.
+        let m = slot.write(Machine::with_settings(Settings::ZEROED));
+        m.settings.reset_to_defaults();
+        m
     }
 
     /// A machine with `settings`.
@@ -425,16 +431,14 @@ impl Machine {
     pub fn boot(&mut self, io: &mut impl Io, reset_cause: &str) {
         let mut img = [0u8; Settings::IMAGE_LEN];
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
-        let loaded = Settings::from_bytes(&img);
-        if let Some(s) = loaded {
-            self.set_settings(s);
-        }
+        let loaded = self.settings.load_image(&img);
+        self.settings_loaded();
         self.interp.load_settings(&self.settings);
         self.apply_watch(io, 0, false);
         uwriteln!(io, "start").ok();
         self.firmware_line(io);
         uwriteln!(io, "echo:reset cause: {}", reset_cause).ok();
-        if loaded.is_none() {
+        if !loaded {
             uwriteln!(io, "{}", F!("echo:EEPROM settings invalid or blank, using defaults")).ok();
         }
         toolchange::boot(self, io);
@@ -650,11 +654,16 @@ impl Machine {
                 // SD card errors print their own text.
                 uwrite!(io, "{}", t).ok();
             }
+            interp::Error::StationOutside { setting, axis } => {
+                let name = [b'X', b'Y', b'Z'][axis as usize] as char;
+                uwrite!(io, "${}{}{}", setting, F!(" (tool change station) outside the "), name).ok();
+                uwrite!(io, "{}{}{}", F!(" travel 0..$13"), axis, F!(", nothing changed")).ok();
+            }
             interp::Error::UnusedWord(w) => {
                 uwrite!(io, "{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
             }
             interp::Error::NoPocket(t) => {
-                uwrite!(io, "{}{}{}", F!("tool T"), t, F!(" not in the carousel: T0-T12 only (T0 empties the spindle)")).ok();
+                uwrite!(io, "{}{}{}{}{}", F!("tool T"), t, F!(" not in the tool table: G10 L1 P"), t, F!(" Q<pocket> assigns it")).ok();
             }
             other => {
                 uwrite!(io, "{}", other.message()).ok();
@@ -760,6 +769,7 @@ impl Machine {
                 Ok(())
             }
             Command::SetPocket { pocket, full } => toolchange::set_pocket(self, io, pocket, full),
+            Command::AssignTool { tool, pocket } => toolchange::assign(self, io, tool, pocket),
             Command::SetTool { tool, length_mm, radius_mm } => {
                 toolchange::set_tool(self, io, tool, length_mm, radius_mm);
                 Ok(())
@@ -776,12 +786,7 @@ impl Machine {
             }
             Command::CarouselEnable { on } => carousel::enable(self, io, on),
             Command::CarouselHome { back, only_if_unhomed } => carousel::home_command(self, io, back, only_if_unhomed),
-            Command::Spindle { on, duty } => {
-                self.wait_idle(io)?;
-                self.interp.spindle_on = on;
-                io.spindle(duty);
-                Ok(())
-            }
+            Command::Spindle { on, duty } => self.spindle(io, on, duty),
             Command::Coolant { m } => {
                 // One output for both M7 (mist) and M8 (flood), switched in
                 // step with the motion like the spindle (M9 in an alarm: at
@@ -859,6 +864,26 @@ impl Machine {
 
     /// Let the queue drain, then wait `ms` milliseconds, serving realtime
     /// requests and sending the keepalive (G4, the canned cycles' P).
+    /// Switch the spindle in step with the motion; when it starts or stops,
+    /// wait its spin-up (`$181`) or spin-down (`$182`) delay before the next
+    /// move (a speed change while on waits nothing, as Marlin).
+    pub fn spindle(&mut self, io: &mut impl Io, on: bool, duty: u8) -> CmdResult {
+        self.wait_idle(io)?;
+        let was = self.interp.spindle_on;
+        self.interp.spindle_on = on;
+        io.spindle(duty);
+        let delay_s = match (was, on) {
+            (false, true) => self.settings.spin_up_s,
+            (true, false) => self.settings.spin_down_s,
+            _ => 0.0,
+        };
+        if delay_s > 0.0 {
+            self.keepalive(io);
+            self.wait_ms(io, delay_s * 1000.0)?;
+        }
+        Ok(())
+    }
+
     fn wait_ms(&mut self, io: &mut impl Io, ms: f32) -> CmdResult {
         self.wait_idle(io)?;
         let start = io.millis();
@@ -979,7 +1004,7 @@ impl Machine {
         let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
         match dollar::parse(text).map_err(bad)? {
             dollar::Command::List => dollar::list(&self.settings, io),
-            dollar::Command::Modes => dollar::modes(&self.interp, self.atc.spindle(), io),
+            dollar::Command::Modes => dollar::modes(&self.interp, self.atc.spindle_tool(), io),
             dollar::Command::Params => dollar::params(&self.interp, io),
             dollar::Command::Info => startup::info(io),
             dollar::Command::InfoSet => startup::set_info(io, after_eq(text))?,
@@ -1006,6 +1031,13 @@ impl Machine {
                 dollar::set(&mut s, n, v).map_err(bad)?;
                 if !s.is_sane() {
                     return Err(bad(dollar::DollarError::BadValue));
+                }
+                // A station point set outside its axis' travel: named,
+                // nothing stored. (A travel made shorter under the station
+                // is taken: a machine without a changer needs no station;
+                // a tool change then refuses to start.)
+                if let Some((setting, axis)) = s.station.outside(&s.travel_mm).filter(|_| (170..=175).contains(&n)) {
+                    return Err(interp::Error::StationOutside { setting, axis: axis as u8 });
                 }
                 self.replace_settings(s, io)?;
                 self.save_settings(io);
@@ -1164,6 +1196,7 @@ impl Machine {
         let mut target = self.interp.pos_mm;
         target[axis] += crate::frame::axis_internal_from_user(axis, delta_mm);
         self.interp.check_soft_limits(&self.settings, &target)?;
+        let target = self.keep_out_clip(&target);
         self.move_mm(io, &target, feed, false)
     }
 
@@ -1214,9 +1247,33 @@ impl Machine {
             return Err(interp::Error::NotHomed);
         }
         self.interp.check_soft_limits(&self.settings, &target)?;
+        let target = self.keep_out_clip(&target);
         self.move_mm(io, &target, feed, false)?;
         self.state = State::Jog;
         Ok(())
+    }
+
+    /// A jog (`$J=`, the menu's) toward the tool magazine stops at the edge
+    /// of its keep-out zone, a step's width short of it: the target moved
+    /// back along the jog. One that starts at the edge going in moves nothing.
+    #[inline(never)]
+    fn keep_out_clip(&self, target: &[f32; N_AXES]) -> [f32; N_AXES] {
+        let a = self.interp.pos_mm;
+        let xyz = |p: &[f32; N_AXES]| [p[0], p[1], p[2]];
+        let Some(t) = self.settings.station.keep_out_entry(xyz(&a), xyz(target)) else {
+            return *target;
+        };
+        let d: [f32; 3] = core::array::from_fn(|i| target[i] - a[i]);
+        let len = crate::math::sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        // 0.02 mm: two steps at the default 100 steps/mm, so the step grid
+        // does not round the end point into the zone.
+        let t = if len > 0.0 { t - 0.02 / len } else { 0.0 };
+        let t = if t > 0.0 { t } else { 0.0 };
+        let mut c = a;
+        for i in 0..3 {
+            c[i] = a[i] + d[i] * t;
+        }
+        c
     }
 
     /// One turn of every wait loop: top up segments, serve realtime.
@@ -1586,7 +1643,7 @@ impl Machine {
         acc.push(self.interp.coolant_m == 8, b'F');
         acc.push(self.interp.coolant_m == 7, b'M');
         acc.write(io);
-        uwriteln!(io, "|T:{}>", self.atc.spindle()).ok();
+        uwriteln!(io, "|T:{}>", self.atc.spindle_tool()).ok();
     }
 
     /// Steps → mm for X, Y, Z (E in carousel units).
@@ -1607,6 +1664,12 @@ impl Machine {
     /// caches are told).
     pub fn set_settings(&mut self, s: Settings) {
         self.settings = s;
+        self.settings_loaded();
+    }
+
+    /// The settings changed in place: the planner's and the interpreter's
+    /// caches follow.
+    fn settings_loaded(&mut self) {
         self.planner.settings_changed();
         self.interp.settings_changed();
     }
@@ -1622,14 +1685,12 @@ impl Machine {
     pub fn load_settings(&mut self, io: &mut impl Io) -> bool {
         let mut img = [0u8; Settings::IMAGE_LEN];
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
-        match Settings::from_bytes(&img) {
-            Some(s) => {
-                self.set_settings(s);
-                self.interp.load_settings(&self.settings);
-                true
-            }
-            None => false,
+        let loaded = self.settings.load_image(&img);
+        self.settings_loaded();
+        if loaded {
+            self.interp.load_settings(&self.settings);
         }
+        loaded
     }
 
     /// Wait until the queued motion ends or the ISR latched a trip

@@ -123,7 +123,7 @@ fn repeats_and_bounds() {
     assert_eq!(r, ["ok"], "M6 alone changes to the selected (last) T");
     assert_eq!(total_steps(&vm), n);
     // Out of range and malformed tool numbers are errors; nothing moves.
-    assert!(refused(&mut vm, "T13 M6").contains("T0-T12"));
+    assert!(refused(&mut vm, "T13 M6").contains("tool T13 not in the tool table"));
     assert!(refused(&mut vm, "T-1").starts_with("Error:"));
     assert!(refused(&mut vm, "T2 M6 G0 X5").contains("without motion"));
     assert_eq!(total_steps(&vm), n);

@@ -10,7 +10,7 @@
 
 mod common;
 use common::*;
-use sim::{Axis, Input, OpticalBeam, ToolSetter, Vm, VmConfig};
+use sim::{AtcConfig, Axis, Input, OpticalBeam, Tool, ToolSetter, Vm, VmConfig};
 
 /// Every switch normally-closed and the setter's output inverted: the
 /// electrical level of each input is the opposite of the stock machine's.
@@ -108,4 +108,306 @@ fn a_broken_wire_on_a_normally_closed_switch_reads_triggered() {
     let _ = vm.command("$HX");
     settle(&mut vm, 0.5);
     assert!(vm.position(Axis::X) >= before - 10, "X drove {} steps toward a switch that reads closed", before - vm.position(Axis::X));
+}
+
+/// The station moved, the carousel's motor turning the other way and its
+/// pockets one pitch further round, every input the other way: the VM
+/// built so, and the firmware told over serial with `$` commands only.
+fn other_machine() -> VmConfig {
+    let mut cfg = inverted_machine();
+    cfg.machine.invert_dir_mask = 0b1000;
+    let atc = &mut cfg.machine.atc;
+    (atc.x1, atc.y_a, atc.y_b, atc.z1, atc.z2) = (3000, 2500, 4000, 3800, 4250);
+    atc.pocket1_deg = 100.0;
+    cfg
+}
+
+/// What the builder sends for [`other_machine`].
+const OTHER_SETUP: [&str; 8] = ["$5=31", "$3=8", "$170=30", "$171=25", "$172=40", "$173=38", "$174=42.5", "$180=4"];
+
+/// The shop's tool numbers: T20 in pocket 5, T7 in pocket 11, pocket 7
+/// empty and without a number.
+const TOOL_NUMBERS: [&str; 6] = ["G10 L1 P5 Q0", "G10 L1 P20 Q5", "G10 L1 P7 Q0", "G10 L1 P11 Q0", "G10 L1 P7 Q11", "M61 P7 S0"];
+
+/// The VM's changer loaded as [`TOOL_NUMBERS`] says.
+fn shop_tools(atc: &mut AtcConfig) {
+    atc.pockets[4] = Some(Tool { id: 20, ..AtcConfig::default_tool(5) });
+    atc.pockets[10] = Some(Tool { id: 7, ..AtcConfig::default_tool(11) });
+    atc.pockets[6] = None;
+}
+
+/// The changer's physical state: the spindle's tool and every pocket's.
+fn changer(vm: &Vm) -> (Option<u8>, Vec<Option<u8>>) {
+    let a = vm.atc();
+    (a.spindle.map(|t| t.id), a.pockets.iter().map(|p| p.map(|t| t.id)).collect())
+}
+
+#[test]
+fn the_station_and_the_carousel_are_settings_and_a_moved_station_changes_tools() {
+    let mut vm = boot_with(other_machine());
+    for l in OTHER_SETUP {
+        ok(&mut vm, l);
+    }
+    let m503 = ok(&mut vm, "M503");
+    for want in ["$170=30.000", "$172=40.000", "$174=42.500", "$180=4.000"] {
+        assert!(m503.iter().any(|l| l == want), "{want} in M503: {m503:?}");
+    }
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X10 Y10");
+    for (t, spindle) in [(3, Some(3)), (7, Some(7)), (0, None)] {
+        ok(&mut vm, &format!("T{t} M6"));
+        let (s, pockets) = changer(&vm);
+        assert_eq!(s, spindle, "after T{t} M6");
+        for (i, p) in pockets.iter().enumerate() {
+            let here = Some(i as u8 + 1) != spindle;
+            assert_eq!(p.is_some(), here, "pocket {} after T{t} M6: {pockets:?}", i + 1);
+        }
+        assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
+    }
+    ok(&mut vm, "M400");
+    // Back where the job was: X 10, Y 10 (machine Z at the travel height).
+    assert_eq!(steps(&vm)[..2], [1000, 1000]);
+    assert_eq!(vm.atc().transfers.len(), 4, "{:?}", vm.atc().transfers);
+}
+
+#[test]
+fn station_settings_outside_the_travel_are_refused_naming_the_setting_and_the_limit() {
+    let mut vm = boot();
+    let eeprom = vm.eeprom();
+    let e = refused(&mut vm, "$172=50");
+    assert!(e.contains("$172 (tool change station) outside the Y travel 0..$131, nothing changed"), "{e}");
+    for (bad, want) in [("$174=-1", "out of range"), ("$180=18", "out of range"), ("$176=0", "out of range"), ("$183=-2", "out of range")] {
+        let e = refused(&mut vm, bad);
+        assert!(e.contains(want), "{bad}: {e}");
+    }
+    assert_eq!(vm.eeprom(), eeprom, "nothing stored");
+    let m503 = ok(&mut vm, "M503");
+    assert!(m503.iter().any(|l| l == "$172=44.000"), "{m503:?}");
+    // The travel made shorter under the station is taken (a machine
+    // without a changer); a tool change then refuses to start.
+    ok(&mut vm, "$131=40");
+    let e = refused(&mut vm, "$172=41");
+    assert!(e.contains("$172 (tool change station) outside the Y travel 0..$131"), "{e}");
+    ok(&mut vm, "G28");
+    let e = refused(&mut vm, "T1 M6");
+    assert!(e.contains("tool change station outside travel"), "{e}");
+}
+
+#[test]
+fn tool_numbers_are_not_pockets_a_shop_numbered_changer_runs_t20_t7_t0() {
+    let mut cfg = other_machine();
+    shop_tools(&mut cfg.machine.atc);
+    let mut vm = boot_with(cfg);
+    for l in OTHER_SETUP.iter().chain(TOOL_NUMBERS.iter()) {
+        ok(&mut vm, l);
+    }
+    let m503 = ok(&mut vm, "M503");
+    for want in ["G10 L1 P20 Q5", "G10 L1 P7 Q11", "G10 L1 P1 Q1"] {
+        assert!(m503.iter().any(|l| l == want), "{want} in M503: {m503:?}");
+    }
+    assert!(!m503.iter().any(|l| l.ends_with(" Q7")), "pocket 7 has no number: {m503:?}");
+    // Unknown tool numbers are refused before anything moves.
+    ok(&mut vm, "G28");
+    let before = steps(&vm);
+    let e = refused(&mut vm, "T5 M6");
+    assert!(e.contains("tool T5 not in the tool table: G10 L1 P5 Q<pocket> assigns it"), "{e}");
+    let e = refused(&mut vm, "T99 M6");
+    assert!(e.contains("T99"), "{e}");
+    assert_eq!(steps(&vm), before);
+    // The job.
+    ok(&mut vm, "G0 X10 Y10");
+    for (t, pocket) in [(20u8, 5usize), (7, 11), (0, 0)] {
+        let r = ok(&mut vm, &format!("T{t} M6"));
+        assert!(r.iter().any(|l| *l == format!("NowSelectedTool:{t}")), "T{t} M6: {r:?}");
+        let (spindle, pockets) = changer(&vm);
+        assert_eq!(spindle, (t != 0).then_some(t), "the VM's spindle after T{t} M6");
+        if pocket != 0 {
+            assert_eq!(pockets[pocket - 1], None, "pocket {pocket} empty while T{t} is in the spindle");
+        }
+        assert!(status(&mut vm).contains(&format!("T:{t}>")), "{}", status(&mut vm));
+        assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
+    }
+    let (_, pockets) = changer(&vm);
+    assert_eq!((pockets[4], pockets[10], pockets[6]), (Some(20), Some(7), None), "{pockets:?}");
+    ok(&mut vm, "M400");
+    assert_eq!(steps(&vm)[..2], [1000, 1000]);
+    // After a power cycle: still numbered, still set.
+    vm.power_cycle();
+    settle(&mut vm, 0.5);
+    let m503 = ok(&mut vm, "M503");
+    assert!(m503.iter().any(|l| l == "G10 L1 P20 Q5") && m503.iter().any(|l| l == "$170=30.000"), "{m503:?}");
+}
+
+#[test]
+fn tool_numbers_that_clash_are_refused_and_nothing_is_stored() {
+    let mut vm = boot();
+    let eeprom = vm.eeprom();
+    for (line, want) in [
+        ("G10 L1 P20 Q5", "that pocket holds another tool"),
+        ("G10 L1 P3 Q5", "that pocket holds another tool"),
+        ("G10 L1 P20 Q13", "G10 L1 P<tool 1-255> Q<pocket 1-12"),
+        ("G10 L1 P256 Q1", "G10 L1 P<tool 1-255>"),
+        ("G10 L1 P0 Q1", "G10 L1 P<tool 1-255>"),
+        ("G10 L1 P2.5 Q1", "G10 L1 P<tool 1-255>"),
+    ] {
+        let e = refused(&mut vm, line);
+        assert!(e.contains(want), "{line}: {e}");
+    }
+    // Freed, pocket 5 takes T20; T20 cannot then go to a second pocket.
+    ok(&mut vm, "G10 L1 P5 Q0");
+    ok(&mut vm, "G10 L1 P20 Q5");
+    ok(&mut vm, "G10 L1 P9 Q0");
+    let e = refused(&mut vm, "G10 L1 P20 Q9");
+    assert!(e.contains("that tool is in another pocket"), "{e}");
+    assert_ne!(vm.eeprom(), eeprom);
+    let stored = vm.eeprom();
+    let e = refused(&mut vm, "T5 M6");
+    assert!(e.contains("T5 not in the tool table"), "{e}");
+    assert_eq!(vm.eeprom(), stored, "a refused line stores nothing");
+}
+
+/// The first step of any axis after `cycle`.
+fn first_step_after(vm: &Vm, cycle: u64) -> u64 {
+    vm.recorder().trace().iter().find(|t| t.cycle > cycle).map(|t| t.cycle).expect("a step after it")
+}
+
+#[test]
+fn the_spindle_waits_its_spin_up_and_spin_down_and_keeps_its_minimum_speed() {
+    let mut vm = boot();
+    let hz = f64::from(vm.frequency());
+    for l in ["$31=3000", "$181=1.5", "$182=0.8", "G28"] {
+        ok(&mut vm, l);
+    }
+    // S1000 is below $31: the spindle runs at 3000 rpm of $30's 10300.
+    ok(&mut vm, "M3 S1000");
+    ok(&mut vm, "G1 X10 F600");
+    ok(&mut vm, "M400");
+    let &(on, duty) = vm.spindle_history().iter().rev().find(|(_, d)| *d > 0.0).expect("spindle on");
+    assert!((duty - 3000.0 / 10300.0).abs() < 0.01, "duty {duty}");
+    let waited = (first_step_after(&vm, on) - on) as f64 / hz;
+    assert!(waited >= 1.5, "the move started {waited:.3} s after M3, before the spin-up ($181=1.5)");
+    // M5: the next move waits the spin-down.
+    ok(&mut vm, "M5");
+    ok(&mut vm, "G1 X5");
+    ok(&mut vm, "M400");
+    let &(off, _) = vm.spindle_history().last().unwrap();
+    let waited = (first_step_after(&vm, off) - off) as f64 / hz;
+    assert!(waited >= 0.8, "the move started {waited:.3} s after M5 ($182=0.8)");
+    // A tool change with the spindle on: it stops, and the changer's first
+    // move waits the spin-down.
+    ok(&mut vm, "M3 S8000");
+    ok(&mut vm, "T2 M6");
+    let &(off, _) = vm.spindle_history().iter().rev().find(|(_, d)| *d == 0.0).unwrap();
+    let waited = (first_step_after(&vm, off) - off) as f64 / hz;
+    assert!(waited >= 0.8, "the tool change moved {waited:.3} s after stopping the spindle");
+    assert_eq!(vm.atc().spindle.map(|t| t.id), Some(2));
+    // Values out of range are refused.
+    for bad in ["$31=20000", "$181=-1", "$182=61"] {
+        let e = refused(&mut vm, bad);
+        assert!(e.contains("out of range"), "{bad}: {e}");
+    }
+}
+
+/// Steps inside the keep-out zone of `$183=10` (X 13–33, Y past 28, deeper
+/// than 1 mm below the top; the VM counts steps from each switch, where
+/// machine 0 is), outside the cycle windows given (the tool changes).
+fn steps_in_keep_out(vm: &Vm, allowed: &[(u64, u64)]) -> Vec<[i64; 4]> {
+    let mut inside = Vec::new();
+    vm.recorder().for_each_step(|p| {
+        let [x, y, z, _] = p.position;
+        let zone = x > 1300 && x < 3300 && y > 2800 && z > 100;
+        if zone && !allowed.iter().any(|&(a, b)| (a..=b).contains(&p.cycle)) {
+            inside.push(p.position);
+        }
+    });
+    inside
+}
+
+#[test]
+fn no_ordinary_move_enters_the_tool_magazine_and_a_tool_change_still_does() {
+    let mut vm = boot();
+    // Off by default ($183=0): the same move goes in.
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X23 Y42");
+    ok(&mut vm, "G0 Z-44");
+    ok(&mut vm, "M400");
+    assert!(!steps_in_keep_out(&vm, &[]).is_empty());
+    vm.power_cycle();
+    settle(&mut vm, 0.5);
+    ok(&mut vm, "$183=10");
+    ok(&mut vm, "G28");
+    let homed_at = vm.cycles();
+    // The example: over the magazine at the top, then down.
+    ok(&mut vm, "G0 X23 Y42");
+    ok(&mut vm, "M400");
+    let before = steps(&vm);
+    let e = refused(&mut vm, "G0 Z-44");
+    assert!(e.contains("keep-out zone ($183, $184), nothing moved"), "{e}");
+    assert_eq!(steps(&vm), before);
+    ok(&mut vm, "G0 Y10");
+    ok(&mut vm, "G0 Z-10");
+    ok(&mut vm, "M400");
+    // A line across it, an arc and a drilling cycle reaching into it.
+    let before = steps(&vm);
+    for l in ["G1 X23 Y40 F1000", "G2 X23 Y30 I0 J10 F1000", "G81 X23 Y35 Z-12 R-8 F200", "G80"] {
+        let r = vm.command(l).unwrap();
+        if l != "G80" {
+            assert!(r.iter().any(|x| x.contains("keep-out")), "{l}: {r:?}");
+        }
+    }
+    ok(&mut vm, "M400");
+    assert_eq!(steps(&vm), before, "refused moves moved nothing");
+    // A jog toward it stops at its edge (Y 28 - a step or two).
+    ok(&mut vm, "$J=G91 Y30 F1000");
+    ok(&mut vm, "M400");
+    let y = steps(&vm)[1];
+    assert!((2790..=2800).contains(&y), "the jog stopped at Y steps {y}, the zone starts past 2800");
+    // The tool change goes in, as it must.
+    let t0 = vm.cycles();
+    ok(&mut vm, "T4 M6");
+    let changes = vec![(0, homed_at), (t0, vm.cycles())];
+    assert_eq!(vm.atc().spindle.map(|t| t.id), Some(4));
+    assert!(vm.atc().collisions.is_empty());
+    assert_eq!(steps_in_keep_out(&vm, &changes), Vec::<[i64; 4]>::new());
+    assert!(!steps_in_keep_out(&vm, &[(0, homed_at)]).is_empty(), "the tool change itself is in the zone (the check can see it)");
+}
+
+#[test]
+fn random_moves_around_and_through_the_magazine_never_enter_it() {
+    let mut vm = boot();
+    ok(&mut vm, "$183=10");
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 Z-5");
+    let mut rng = Rng(0x5eed_1234);
+    let mut changes = Vec::new();
+    let coord = |rng: &mut Rng, lo: f64, hi: f64| lo + (hi - lo) * f64::from(rng.next() % 10_000) / 10_000.0;
+    let mut refused_n = 0;
+    for i in 0..120 {
+        let (x, y, z) = (coord(&mut rng, 2.0, 43.0), coord(&mut rng, 15.0, 44.0), -coord(&mut rng, 0.0, 30.0));
+        let line = match rng.next() % 6 {
+            0 => format!("G0 X{x:.3} Y{y:.3} Z{z:.3}"),
+            1 => format!("G1 X{x:.3} Y{y:.3} F3000"),
+            2 => format!("G2 X{x:.3} Y{y:.3} R{:.3} F3000", coord(&mut rng, 25.0, 40.0)),
+            3 => format!("$J=G90 X{x:.3} Y{y:.3} F3000"),
+            4 => format!("G81 X{x:.3} Y{y:.3} Z{:.3} R{:.3} F500\nG80", z - 1.0, z),
+            _ => format!("G0 Z{z:.3}"),
+        };
+        for l in line.lines() {
+            let before = steps(&vm);
+            let r = vm.command(l).unwrap();
+            ok(&mut vm, "M400");
+            if r.iter().any(|x| x.contains("keep-out")) {
+                refused_n += 1;
+                assert_eq!(steps(&vm), before, "{l}: refused, yet moved");
+            }
+        }
+        if i % 40 == 39 {
+            let t0 = vm.cycles();
+            ok(&mut vm, &format!("T{} M6", 1 + i / 40));
+            changes.push((t0, vm.cycles()));
+            assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
+        }
+    }
+    assert!(refused_n >= 10, "only {refused_n} moves met the zone: the test does not reach it");
+    assert_eq!(steps_in_keep_out(&vm, &changes), Vec::<[i64; 4]>::new());
 }

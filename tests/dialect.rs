@@ -152,14 +152,14 @@ fn dollar_lines_with_a_comment_run_as_gcodetools_writes_them() {
     assert!(e.starts_with("Error:"), "{e}");
 }
 
-// ------------------------------------------------ tool numbers past the pockets
+// ------------------------------------------------ tool numbers the table lacks
 
 #[test]
-fn a_tool_past_the_pockets_is_refused_naming_the_tool_and_the_pockets() {
+fn a_tool_the_tool_table_lacks_is_refused_naming_the_tool_and_how_to_add_it() {
     let mut vm = unlocked();
     let p0 = steps(&vm);
     let e = refused(&mut vm, "T15 M6");
-    assert!(e.contains("T15") && e.contains("T0-T12"), "{e}");
+    assert!(e.contains("tool T15 not in the tool table: G10 L1 P15 Q<pocket> assigns it"), "{e}");
     ok(&mut vm, "M400");
     assert_eq!(moved(&vm, p0), [0; 4]);
     // From SD the job stops at that line, before any cut.
@@ -167,7 +167,7 @@ fn a_tool_past_the_pockets_is_refused_naming_the_tool_and_the_pockets() {
     let mut vm = with_card(&[("T15.NC", job.as_bytes())]);
     let p0 = steps(&vm);
     let out = run_sd(&mut vm, "T15.NC", 10.0);
-    assert!(out.iter().any(|l| l.contains("T15") && l.contains("T0-T12")), "{out:?}");
+    assert!(out.iter().any(|l| l.contains("tool T15 not in the tool table")), "{out:?}");
     assert!(!out.iter().any(|l| l == "Done printing file"), "{out:?}");
     assert_eq!(moved(&vm, p0), [0; 4]);
     assert!(!vm.spindle_on());

@@ -20,7 +20,7 @@ fn setting(vm: &mut sim::Vm, n: u32) -> String {
 fn dollar_settings_list_set_persist_and_drive_the_motion() {
     let mut vm = boot();
     let lines = ok(&mut vm, "$$");
-    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 35, "{lines:?}");
+    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 51, "{lines:?}");
     assert_eq!(setting(&mut vm, 100), "100.000");
     assert_eq!(setting(&mut vm, 130), "45.000");
 

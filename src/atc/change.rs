@@ -19,7 +19,7 @@
 //! (if needed) carousel homing at the start, and the way back at the end.
 
 use super::tools::{Journal, ToolState};
-use super::{pocket_position, Fault, STATION};
+use super::{pocket_position, Fault, Station};
 
 /// One state of a tool change (one row of [`TABLE`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -241,7 +241,7 @@ pub struct Change {
 impl Change {
     /// Check a request before anything moves. `Ok(None)`: the tool asked
     /// for is already in the spindle, nothing to do.
-    pub fn new(r: &Request) -> Result<Option<Change>, Fault> {
+    pub fn new(r: &Request, s: &Station) -> Result<Option<Change>, Fault> {
         if r.to as usize > super::tools::N_POCKETS {
             return Err(Fault::ToolRange);
         }
@@ -259,16 +259,8 @@ impl Change {
         if to != 0 && !r.tools.pocket_full(to) {
             return Err(Fault::PocketEmpty);
         }
-        let s = &STATION;
         let inside = |v: f32, axis: usize| v >= 0.0 && v <= r.travel_mm[axis];
-        let ok = inside(s.x1, 0)
-            && inside(s.y_a, 1)
-            && inside(s.y_b, 1)
-            && inside(s.z_safe, 2)
-            && inside(s.z1, 2)
-            && inside(s.z2, 2)
-            && inside(r.xy_mm[0], 0)
-            && inside(r.xy_mm[1], 1);
+        let ok = s.outside(&r.travel_mm).is_none() && inside(r.xy_mm[0], 0) && inside(r.xy_mm[1], 1);
         if !ok {
             return Err(Fault::SoftLimit);
         }
@@ -334,13 +326,13 @@ impl Change {
     }
 
     /// The first action.
-    pub fn start(&mut self) -> Action {
+    pub fn start(&mut self, s: &Station) -> Action {
         self.at = self.next_row(0) as u8;
-        self.action()
+        self.action(s)
     }
 
     /// Feed the outcome of the last action; returns the next one.
-    pub fn step(&mut self, ev: Event) -> Action {
+    pub fn step(&mut self, ev: Event, s: &Station) -> Action {
         if let Some(r) = self.result {
             return match r {
                 Ok(()) => Action::Done,
@@ -360,18 +352,17 @@ impl Change {
                     _ => {}
                 }
                 self.at = self.next_row(self.at as usize + 1) as u8;
-                self.action()
+                self.action(s)
             }
         }
     }
 
     /// The action of the current row.
-    fn action(&mut self) -> Action {
+    fn action(&mut self, s: &Station) -> Action {
         let Some(row) = row_at(self.at as usize) else {
             self.result = Some(Ok(()));
             return Action::Done;
         };
-        let s = &STATION;
         let mv = |axis: usize, v: f32, feed: Option<f32>| {
             let mut xyz = [None; 3];
             xyz[axis] = Some(v);
@@ -399,8 +390,8 @@ impl Change {
             Do::Station => Action::Move { xyz: [Some(s.x1), Some(s.y_a), None], feed_mm_per_min: None },
             Do::Back => Action::Move { xyz: [Some(self.xy_mm[0]), Some(self.xy_mm[1]), None], feed_mm_per_min: None },
             Do::HomeCarousel => Action::HomeCarousel,
-            Do::TurnOld => Action::Turn { position: pocket_position(self.from) },
-            Do::TurnNew => Action::Turn { position: pocket_position(self.to) },
+            Do::TurnOld => Action::Turn { position: pocket_position(self.from, s.pocket_offset) },
+            Do::TurnNew => Action::Turn { position: pocket_position(self.to, s.pocket_offset) },
             Do::StoreReleased => Action::Store(self.tools.released()),
             Do::StoreClamped => Action::Store(self.tools.clamped(self.to)),
             Do::EndJournal => Action::EndJournal,
@@ -427,14 +418,14 @@ mod tests {
     /// Run a change with an executor that succeeds at everything; returns
     /// the states visited and the actions handed out.
     fn run(r: &Request) -> (Vec<State>, Vec<Action>, Change) {
-        let mut c = Change::new(r).unwrap().expect("a change");
+        let mut c = Change::new(r, &Station::THESIS).unwrap().expect("a change");
         let mut states = Vec::new();
         let mut actions = Vec::new();
-        let mut a = c.start();
+        let mut a = c.start(&Station::THESIS);
         while !matches!(a, Action::Done | Action::Abort(_)) {
             states.push(c.state().unwrap());
             actions.push(a);
-            a = c.step(Event::Done);
+            a = c.step(Event::Done, &Station::THESIS);
         }
         assert_eq!(a, Action::Done);
         (states, actions, c)
@@ -524,28 +515,28 @@ mod tests {
 
     #[test]
     fn the_tool_already_in_the_spindle_needs_no_change() {
-        assert_eq!(Change::new(&request(7, 7)), Ok(None));
-        assert_eq!(Change::new(&request(0, 0)), Ok(None));
+        assert_eq!(Change::new(&request(7, 7), &Station::THESIS), Ok(None));
+        assert_eq!(Change::new(&request(0, 0), &Station::THESIS), Ok(None));
     }
 
     #[test]
     fn requests_that_cannot_run_are_refused_before_anything_moves() {
-        assert_eq!(Change::new(&request(0, 13)), Err(Fault::ToolRange));
+        assert_eq!(Change::new(&request(0, 13), &Station::THESIS), Err(Fault::ToolRange));
         let mut r = request(0, 2);
         r.xyz_homed = false;
-        assert_eq!(Change::new(&r), Err(Fault::NotHomed));
+        assert_eq!(Change::new(&r, &Station::THESIS), Err(Fault::NotHomed));
         let mut r = request(0, 2);
         r.tools.occupied &= !pocket_bit(2);
-        assert_eq!(Change::new(&r), Err(Fault::PocketEmpty));
+        assert_eq!(Change::new(&r, &Station::THESIS), Err(Fault::PocketEmpty));
         let mut r = request(4, 2);
         r.tools.occupied |= pocket_bit(4);
-        assert_eq!(Change::new(&r), Err(Fault::ReturnPocketFull));
+        assert_eq!(Change::new(&r, &Station::THESIS), Err(Fault::ReturnPocketFull));
         let mut r = request(0, 2);
         r.travel_mm[1] = 40.0; // Y point B (44) is outside
-        assert_eq!(Change::new(&r), Err(Fault::SoftLimit));
+        assert_eq!(Change::new(&r, &Station::THESIS), Err(Fault::SoftLimit));
         let mut r = request(0, 2);
         r.xy_mm = [-1.0, 0.0];
-        assert_eq!(Change::new(&r), Err(Fault::SoftLimit));
+        assert_eq!(Change::new(&r, &Station::THESIS), Err(Fault::SoftLimit));
     }
 
     /// Every transition into `Abort`: fail each action of each condition in
@@ -557,19 +548,19 @@ mod tests {
             let r = request(from, to);
             let (states, _, _) = run(&r);
             for fail_at in 0..states.len() {
-                let mut c = Change::new(&r).unwrap().unwrap();
-                let mut a = c.start();
+                let mut c = Change::new(&r, &Station::THESIS).unwrap().unwrap();
+                let mut a = c.start(&Station::THESIS);
                 for _ in 0..fail_at {
-                    a = c.step(Event::Done);
+                    a = c.step(Event::Done, &Station::THESIS);
                 }
                 assert!(!matches!(a, Action::Done | Action::Abort(_)));
                 let failed_state = c.state().unwrap();
                 assert_eq!(failed_state, states[fail_at]);
-                assert_eq!(c.step(Event::Failed(Fault::Stopped)), Action::Abort(Fault::Stopped));
+                assert_eq!(c.step(Event::Failed(Fault::Stopped), &Station::THESIS), Action::Abort(Fault::Stopped));
                 assert_eq!(c.result(), Some(Err(Fault::Stopped)));
                 assert_eq!(c.state(), None);
                 // Further events do not restart it.
-                assert_eq!(c.step(Event::Done), Action::Abort(Fault::Stopped));
+                assert_eq!(c.step(Event::Done, &Station::THESIS), Action::Abort(Fault::Stopped));
                 // The tool state reflects exactly the stores that completed.
                 let released = states[..fail_at].contains(&State::OldInPocket);
                 let clamped = states[..fail_at].contains(&State::NewInSpindle);

@@ -21,8 +21,9 @@
 //! - `machine::toolchange`: the executor over `machine::Machine`, boot, M61, G10 L1.
 //!
 //! Carousel units: one unit is one pocket pitch (20°), counted from the home
-//! switch (0°). Pocket `p` sits at position `p + 3` (pocket 1 at 80°), the
-//! thesis's `ATC_OFFSET + id` with `ATC_OFFSET = 3` in these units.
+//! switch (0°). Pocket `p` sits at position `p + offset` (`$180`, default
+//! 3: pocket 1 at 80°), the thesis's `ATC_OFFSET + id` with `ATC_OFFSET = 3`
+//! in these units.
 //!
 //! All operator-facing ATC texts are in [`Fault::message`] and in
 //! `machine::toolchange::report_*`, so they can move to flash in one place.
@@ -32,61 +33,19 @@ pub mod tools;
 
 pub use tools::{Journal, ToolState, ToolTable, N_POCKETS};
 
-/// Carousel position of pocket 1 minus one: pocket `p` is at `p + POCKET_OFFSET` pitches.
-pub const POCKET_OFFSET: f32 = 3.0;
+pub use crate::config::Station;
 
-/// Carousel position (pitches from home) of pocket `p`.
-pub fn pocket_position(p: u8) -> f32 {
-    p as f32 + POCKET_OFFSET
+/// Carousel position (pitches from home) of pocket `p` on a carousel whose
+/// pocket 1 sits `pocket_offset + 1` pitches from its home switch.
+pub fn pocket_position(p: u8, pocket_offset: f32) -> f32 {
+    p as f32 + pocket_offset
 }
-
-/// The tool-change station (thesis Table 8) and the travel height, machine
-/// mm in the internal frame of [`crate::frame`] (Z grows downward, as the
-/// thesis measures it: the user's machine Z is the negative, Z1 −40.5,
-/// Z2 −45, travel height −1), with the feeds of the sequence, mm/min.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Station {
-    /// X1: in front of the magazine.
-    pub x1: f32,
-    /// Y point A: outside the magazine.
-    pub y_a: f32,
-    /// Y point B: in the pocket.
-    pub y_b: f32,
-    /// Z1: safe, above the tool in the pocket.
-    pub z1: f32,
-    /// Z2: clamp / release.
-    pub z2: f32,
-    /// Travel height to and from the station (near the Z home at the top).
-    pub z_safe: f32,
-    /// Y in, mm/min.
-    pub feed_y_in: f32,
-    /// Z down to clamp, mm/min.
-    pub feed_z_clamp: f32,
-    /// Z down to release and back up, mm/min.
-    pub feed_z_release: f32,
-    /// Y out, mm/min.
-    pub feed_y_out: f32,
-}
-
-/// Thesis Table 8 (docs/SPEC.md §3). Compile-time constants: they cost no RAM.
-pub const STATION: Station = Station {
-    x1: 23.0,
-    y_a: 28.0,
-    y_b: 44.0,
-    z1: 40.5,
-    z2: 45.0,
-    z_safe: 1.0,
-    feed_y_in: 800.0,
-    feed_z_clamp: 200.0,
-    feed_z_release: 1000.0,
-    feed_y_out: 1000.0,
-};
 
 crate::flash_messages! {
     /// Why an ATC command was refused or stopped (`message`: the text after `Error:`).
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
     pub enum Fault {
-        /// T outside 0..=12.
+        /// A pocket outside 0..=12.
         ToolRange => "tool must be T0-T12",
         /// X, Y, Z not homed.
         NotHomed => "home X Y Z (G28) before a tool change",
@@ -116,6 +75,12 @@ crate::flash_messages! {
         M61Words => "M61 Q<0-12>, or M61 P<1-12> S<0|1>",
         /// M61 P S1 for the pocket of the tool in the spindle.
         PocketOfSpindleTool => "that tool is in the spindle",
+        /// G10 L1 P Q: the pocket holds another tool number.
+        PocketTaken => "that pocket holds another tool: take it out first (G10 L1 P<its number> Q0)",
+        /// The menu: a pocket the tool table gives no tool number.
+        NoNumber => "that pocket has no tool number (G10 L1 P<tool> Q<pocket>)",
+        /// G10 L1 P Q: the tool is in another pocket.
+        ToolElsewhere => "that tool is in another pocket: take it out first (G10 L1 P<tool> Q0)",
     }
 }
 
@@ -139,9 +104,15 @@ impl Atc {
         Atc { tools: ToolState::FACTORY, table: ToolTable::EMPTY, interrupted: None, last_t: 0xFF }
     }
 
-    /// Tool in the spindle.
+    /// Tool in the spindle, as the pocket it comes from (0: empty).
     pub fn spindle(&self) -> u8 {
         self.tools.spindle
+    }
+
+    /// The tool number of the tool in the spindle (0: empty): what the
+    /// operator and the host see (`T20`).
+    pub fn spindle_tool(&self) -> u8 {
+        self.table.number_of(self.tools.spindle)
     }
 
     /// Length of tool `t`, mm.

@@ -34,14 +34,24 @@ pub const EEPROM_JOURNAL_ADDR: u16 = 264;
 pub const EEPROM_TABLE_ADDR: u16 = 272;
 /// EEPROM address of the tool setter's calibration record.
 pub const EEPROM_SETTER_ADDR: u16 = 352;
+/// EEPROM address of the tool numbers' record (`ToolTable::numbers`).
+pub const EEPROM_NUMBERS_ADDR: u16 = 384;
 
 const _: () = assert!(crate::config::Settings::IMAGE_LEN <= EEPROM_STATE_ADDR as usize);
 const _: () = assert!(EEPROM_STATE_ADDR as usize + ToolState::IMAGE_LEN <= EEPROM_JOURNAL_ADDR as usize);
 const _: () = assert!(EEPROM_JOURNAL_ADDR as usize + Journal::IMAGE_LEN <= EEPROM_TABLE_ADDR as usize);
 const _: () = assert!(EEPROM_TABLE_ADDR as usize + ToolTable::IMAGE_LEN <= EEPROM_SETTER_ADDR as usize);
+const _: () = assert!(EEPROM_SETTER_ADDR as usize + crate::toolsetter::Setter::IMAGE_LEN <= EEPROM_NUMBERS_ADDR as usize);
 
-/// Layout version of the three records. Bump when a layout changes.
+/// Layout version of the records. Bump when a layout changes.
 const VERSION: u8 = 1;
+
+/// [`ToolTable::numbers`]: the pocket's own number (tool `p` in pocket
+/// `p`, the factory numbering). Zero, so a fresh table is all zeros and
+/// costs no `.data`.
+pub const OWN_NUMBER: u8 = 0;
+/// [`ToolTable::numbers`]: the pocket has no tool number.
+pub const NO_NUMBER: u8 = 255;
 
 /// Checksum of a record, seeded so an all-0xFF or all-0x00 image fails.
 pub(crate) fn checksum(b: &[u8]) -> u8 {
@@ -186,15 +196,54 @@ pub struct ToolTable {
     pub length_um: [i32; N_POCKETS],
     /// Tool diameter, µm; index `t - 1`.
     pub diameter_um: [u16; N_POCKETS],
+    /// The tool number of the tool kept in each pocket (CAM and the shop's
+    /// tool library number tools freely: T20, T101), as stored:
+    /// [`OWN_NUMBER`] for the pocket's own number, [`NO_NUMBER`] for none;
+    /// read it with [`ToolTable::number_of`]. `T<n>` finds its pocket here
+    /// (`G10 L1 P<n> Q<pocket>` assigns it).
+    pub numbers: [u8; N_POCKETS],
 }
 
-const _: () = assert!(core::mem::size_of::<ToolTable>() == 72);
+const _: () = assert!(core::mem::size_of::<ToolTable>() == 84);
 
 impl ToolTable {
     /// Every entry zero.
-    pub const EMPTY: ToolTable = ToolTable { length_um: [0; N_POCKETS], diameter_um: [0; N_POCKETS] };
+    pub const EMPTY: ToolTable = ToolTable { length_um: [0; N_POCKETS], diameter_um: [0; N_POCKETS], numbers: [OWN_NUMBER; N_POCKETS] };
     /// Image size: version, 12 × (4 + 2), checksum.
     pub const IMAGE_LEN: usize = 1 + 6 * N_POCKETS + 1;
+    /// Size of the tool numbers' record (at [`EEPROM_NUMBERS_ADDR`]).
+    pub const NUMBERS_LEN: usize = 1 + N_POCKETS + 1;
+
+    /// The pocket of tool `t`; `Some(0)` for T0 (the empty spindle), `None`
+    /// for a tool number no pocket has.
+    pub fn pocket_of(&self, t: u8) -> Option<u8> {
+        if t == 0 {
+            return Some(0);
+        }
+        (1..=N_POCKETS as u8).find(|&p| self.number_of(p) == t)
+    }
+
+    /// The tool number of pocket `p`'s tool (0 for pocket 0, the empty
+    /// spindle, and for a pocket without a number).
+    pub fn number_of(&self, p: u8) -> u8 {
+        if pocket_bit(p) == 0 {
+            return 0;
+        }
+        match self.numbers[p as usize - 1] {
+            OWN_NUMBER => p,
+            NO_NUMBER => 0,
+            n => n,
+        }
+    }
+
+    /// Give pocket `p` (1..=12) tool number `t` (0: none).
+    pub fn set_number(&mut self, p: u8, t: u8) {
+        self.numbers[p as usize - 1] = match t {
+            0 => NO_NUMBER,
+            t if t == p => OWN_NUMBER,
+            t => t,
+        };
+    }
 
     /// Length of tool `t`, µm (0 for T0 and out of range).
     pub fn length_um(&self, t: u8) -> i32 {
@@ -226,12 +275,35 @@ impl ToolTable {
         img
     }
 
+    /// The tool numbers' EEPROM record: version, a number per pocket,
+    /// checksum. A blank record (a table written before the numbers) reads
+    /// as tool `p` in pocket `p`.
+    pub fn numbers_to_bytes(&self) -> [u8; Self::NUMBERS_LEN] {
+        let mut img = [0u8; Self::NUMBERS_LEN];
+        img[1..1 + N_POCKETS].copy_from_slice(&self.numbers);
+        seal(&mut img);
+        img
+    }
+
+    /// Parse the numbers' record; `None` when blank, corrupt, or one
+    /// number in two pockets (a table no T word could use).
+    pub fn numbers_from_bytes(img: &[u8; Self::NUMBERS_LEN]) -> Option<[u8; N_POCKETS]> {
+        if !valid(img) {
+            return None;
+        }
+        let mut t = ToolTable::EMPTY;
+        t.numbers.copy_from_slice(&img[1..1 + N_POCKETS]);
+        let num = |i: usize| t.number_of(i as u8 + 1);
+        let twice = (1..N_POCKETS).any(|i| num(i) != 0 && (0..i).any(|j| num(j) == num(i)));
+        (!twice).then_some(t.numbers)
+    }
+
     /// Parse an image; `None` when blank or corrupt.
     pub fn from_bytes(img: &[u8; Self::IMAGE_LEN]) -> Option<ToolTable> {
         if !valid(img) {
             return None;
         }
-        let mut t = ToolTable { length_um: [0; N_POCKETS], diameter_um: [0; N_POCKETS] };
+        let mut t = ToolTable { length_um: [0; N_POCKETS], diameter_um: [0; N_POCKETS], numbers: [OWN_NUMBER; N_POCKETS] };
         for i in 0..N_POCKETS {
             let b = &img[1 + 4 * i..5 + 4 * i];
             t.length_um[i] = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);

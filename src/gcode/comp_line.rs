@@ -283,7 +283,7 @@ fn comp_mode(cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<(Side, f32), Error> {
         to_mm(g.inches, d)
     } else {
         let t = match d {
-            Some(d) => tool_index(d).ok_or(Error::BadWord(F!("G41/G42: D must be a tool number 0-12")))?,
+            Some(d) => tool_pocket(cx, d).ok_or(Error::BadWord(F!("G41/G42: D must be a tool of the tool table")))?,
             None => cx.atc.spindle() as usize,
         };
         match t {

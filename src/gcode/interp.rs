@@ -80,9 +80,6 @@ fn inch_to_mm(v: f32) -> f32 {
     v * MM_PER_INCH
 }
 
-/// Number of tool table entries, T0..T12.
-pub const N_TOOLS: usize = 13;
-
 /// Interpreter errors, printed as `Error:<message>`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Error {
@@ -112,7 +109,7 @@ pub enum Error {
     ProbeAlreadyTriggered,
     /// Tool changer or carousel (T, M6, M61, G201–G205).
     Atc(crate::atc::Fault),
-    /// A T word past the pockets (the tool number asked for).
+    /// A T word the tool table has no pocket for (the tool number).
     NoPocket(u8),
     /// Tool setter (G37).
     Setter(crate::toolsetter::Fault),
@@ -122,6 +119,11 @@ pub enum Error {
     JobRunning,
     /// An SD card error (its message in flash, printed after `Error:`).
     Sd(FStr),
+    /// A `$` setting would put a tool change station point outside the
+    /// travel of its axis: the setting (`$170`…) and the axis (0 X … 2 Z).
+    StationOutside { setting: u8, axis: u8 },
+    /// The move would enter the tool magazine's keep-out zone.
+    KeepOut,
     /// A word no code on the line uses (LinuxCNC: "R word with no g code
     /// that uses it"); printed with its letter.
     UnusedWord(Word),
@@ -144,12 +146,14 @@ impl Error {
             Error::ProbeFailed => F!("probe failed: input did not trip"),
             Error::ProbeAlreadyTriggered => F!("probe input already triggered, nothing moved"),
             Error::Atc(f) => f.message(),
-            Error::NoPocket(_) => F!("tool not in the carousel: T0-T12 only (T0 empties the spindle)"),
+            Error::NoPocket(_) => F!("tool not in the tool table (G10 L1 P<tool> Q<pocket> assigns it)"),
             Error::Setter(f) => f.message(),
             Error::Aborted => F!("aborted"),
             Error::JobRunning => F!("SD job running: command refused (status only: ?, M27, M114)"),
             Error::Sd(_) => F!("SD card error"),
             Error::UnusedWord(_) => F!("word with no code that uses it"),
+            Error::StationOutside { .. } => F!("tool change station point outside the travel"),
+            Error::KeepOut => F!("move enters the tool magazine's keep-out zone ($183, $184), nothing moved"),
         }
     }
 
@@ -168,7 +172,7 @@ impl Error {
             },
             Error::Alarm | Error::NotHomed | Error::JobRunning => 9,
             Error::BadFeed => 22,
-            Error::SoftLimit => 15,
+            Error::SoftLimit | Error::KeepOut => 15,
             Error::Arc(_) => 33,
             Error::Atc(crate::atc::Fault::ToolRange) => 38,
             Error::ProbeAlreadyTriggered | Error::ProbeFailed => 9,
@@ -470,6 +474,9 @@ pub enum Command {
     SetPocket { pocket: u8, full: bool },
     /// G10 L1: tool table entry `tool` (mm, converted from inches).
     SetTool { tool: u8, length_mm: Option<f32>, radius_mm: Option<f32> },
+    /// `G10 L1 P<tool> Q<pocket>`: tool number `tool` is kept in `pocket`
+    /// (0: the tool leaves the table).
+    AssignTool { tool: u8, pocket: u8 },
     /// G10 L2/L20 changed a work offset: store the settings image.
     StoreOffsets,
     /// G201: turn the carousel to `x` pitches.
@@ -679,10 +686,13 @@ impl Interp {
                 Phase::Start => return Ok(None),
                 Phase::Tool => {
                     self.run.phase = Phase::Spindle;
+                    // T is a tool number; the commands carry its pocket
+                    // (checked against the tool table in `early`).
+                    let pocket = l.tool().map(|t| cx.atc.table.pocket_of(t).unwrap_or(u8::MAX));
                     if is_tool_change(cx, l) {
-                        return Ok(Some(Command::SelectTool { to: l.tool().map(u16::from) }));
-                    } else if let Some(t) = l.tool() {
-                        return Ok(Some(Command::PreselectTool(t)));
+                        return Ok(Some(Command::SelectTool { to: pocket.map(u16::from) }));
+                    } else if let Some(p) = pocket {
+                        return Ok(Some(Command::PreselectTool(p)));
                     }
                 }
                 Phase::Spindle => {
@@ -918,7 +928,7 @@ fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>
             119 => Some(Command::Report(Report::Switches)),
             503 => Some(Command::Report(Report::Settings)),
             31 => Some(Command::Report(Report::PrintTime)),
-            61 => return Some(m61(l).map(Some)),
+            61 => return Some(m61(cx, l).map(Some)),
             999 => Some(Command::ClearAlarm),
             110 => return Some(Ok(None)), // handled by the line checker
             // The RX interrupt's scanner has usually raised it already.
@@ -966,7 +976,7 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
         return Some(Err(Error::SpindleCcw));
     }
     let tool = l.tool();
-    if let Some(t) = tool.filter(|&t| t as usize >= N_TOOLS) {
+    if let Some(t) = tool.filter(|&t| cx.atc.table.pocket_of(t).is_none()) {
         return Some(Err(Error::NoPocket(t)));
     }
     if is_tool_change(cx, l) && (l.motion.is_some() || has_axis_words(l) || l.non_modal.is_some()) {
@@ -1055,6 +1065,8 @@ fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
     }
     used |= match l.non_modal {
         Some(NonModal::Dwell) => P_,
+        // G10 L1 P<tool> Q<pocket>: the tool numbers.
+        Some(NonModal::SetOffsets) if l.word(L) == Some(1.0) => G10 | Q_,
         Some(NonModal::SetOffsets) => G10,
         Some(NonModal::MeasureTool) => G37,
         Some(NonModal::AuxMove | NonModal::AuxSetPosition | NonModal::AuxReport | NonModal::AuxEnable | NonModal::AuxHome) => P_,
@@ -1132,7 +1144,7 @@ fn modal_words(cx: &Ctx, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
             ToolLength::Cancel => 0.0,
             ToolLength::Apply => {
                 let t = match l.word(Word::H) {
-                    Some(h) => tool_index(h).ok_or(Error::BadWord(F!("H must be a tool number 0-12")))?,
+                    Some(h) => tool_pocket(cx, h).ok_or(Error::BadWord(F!("H: no such tool in the tool table")))?,
                     None => cx.atc.spindle() as usize,
                 };
                 crate::atc::tool_length_offset_mm(cx.atc.length_mm(t as u8))
@@ -1154,7 +1166,7 @@ impl Interp {
                 Ok(_) => return None,
                 Err(e) => Err(e),
             },
-            Some(NonModal::SetOffsets) => self.set_offsets(g, l),
+            Some(NonModal::SetOffsets) => self.set_offsets(cx, g, l),
             Some(NonModal::SetPosition) => {
                 let mut off = self.g92_mm;
                 for (a, &w) in AXIS_WORDS.iter().enumerate() {
@@ -1275,6 +1287,7 @@ impl Interp {
                 self.refresh_conv(cx.settings);
             }
             soft_limits(&mut self.steps_cache, &self.travel_steps, cx.settings, &self.run.target)?;
+            keep_out(cx.settings, &self.pos_mm, &self.run.target)?;
             do_motion = Some(motion);
         }
         match do_motion {
@@ -1341,8 +1354,10 @@ impl Interp {
         let cycle = cycles::Cycle::new(params, pos).map_err(bad)?;
         let run = CycleRun { cycle, sticky, off };
         let (lo, hi) = run.cycle.bounds();
-        self.check_soft_limits(cx.settings, &cycle_target(self.pos_mm, &run, lo))?;
-        self.check_soft_limits(cx.settings, &cycle_target(self.pos_mm, &run, hi))?;
+        let (lo4, hi4) = (cycle_target(self.pos_mm, &run, lo), cycle_target(self.pos_mm, &run, hi));
+        self.check_soft_limits(cx.settings, &lo4)?;
+        self.check_soft_limits(cx.settings, &hi4)?;
+        keep_out_box(cx.settings, &self.pos_mm, &lo4, &hi4)?;
         self.run.target = self.pos_mm;
         self.commit_line(g, Some(g.motion));
         self.cycle = run.sticky;
@@ -1433,20 +1448,29 @@ impl Interp {
         lo4[..3].copy_from_slice(&lo);
         hi4[..3].copy_from_slice(&hi);
         self.check_soft_limits(cx.settings, &lo4)?;
-        self.check_soft_limits(cx.settings, &hi4)
+        self.check_soft_limits(cx.settings, &hi4)?;
+        keep_out_box(cx.settings, &self.pos_mm, &lo4, &hi4)
     }
 
     /// G10 L1 / L2 / L20.
     #[inline(never)]
-    fn set_offsets(&mut self, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
+    fn set_offsets(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
         let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;
         let p = l.word(Word::P).ok_or(Error::BadWord(F!("G10 needs P")))?;
         let conv = |v: f32| to_mm(g.inches, v);
         match round_i32(lv) {
             1 if lv == 1.0 => {
-                let t = tool_index(p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool number 0-12")))?;
+                if let Some(q) = l.word(Word::Q) {
+                    // `G10 L1 P<tool> Q<pocket>`: the tool table's numbering.
+                    let (tool, pocket) = (whole_in(p, 1, 255), whole_in(q, 0, crate::atc::N_POCKETS as i32));
+                    let (Some(tool), Some(pocket)) = (tool, pocket) else {
+                        return Err(Error::BadWord(F!("G10 L1 P<tool 1-255> Q<pocket 1-12, 0 takes the tool out>")));
+                    };
+                    return Ok(Some(Command::AssignTool { tool, pocket }));
+                }
+                let t = tool_pocket(cx, p).ok_or(Error::BadWord(F!("G10 L1: P must be a tool of the tool table")))?;
                 if t == 0 {
-                    return Err(Error::BadWord(F!("G10 L1: P must be a tool number 1-12")));
+                    return Err(Error::BadWord(F!("G10 L1: P must be a tool of the tool table, not 0")));
                 }
                 let r = l.word(Word::R);
                 if r.is_some_and(|r| r < 0.0) {
@@ -1516,16 +1540,17 @@ impl Interp {
     }
 }
 
-/// M61's words: `Q<0-12>`, or `P<1-12> S<0|1>`.
+/// M61's words: `Q<tool>` (a tool of the tool table, 0: empty), or
+/// `P<1-12> S<0|1>`.
 #[inline(never)]
-fn m61(l: &Line) -> Result<Command, Error> {
+fn m61(cx: &Ctx, l: &Line) -> Result<Command, Error> {
     let whole = |v: f32, lo: i32, hi: i32| {
         let n = round_i32(v);
         (n as f32 == v && (lo..=hi).contains(&n)).then_some(n as u8)
     };
     let bad = Error::Atc(crate::atc::Fault::M61Words);
     match (l.word(Word::Q), l.word(Word::P), l.word(Word::S)) {
-        (Some(q), None, None) => Ok(Command::ConfirmTool { tool: whole(q, 0, 12).ok_or(bad)? }),
+        (Some(q), None, None) => Ok(Command::ConfirmTool { tool: tool_pocket(cx, q).ok_or(bad)? as u8 }),
         (None, Some(p), Some(s)) => {
             let pocket = whole(p, 1, 12).ok_or(bad)?;
             let full = whole(s, 0, 1).ok_or(bad)? == 1;
@@ -1680,6 +1705,33 @@ fn add_cold(a: f32, b: f32) -> f32 {
     a + b
 }
 
+/// A straight move from `a` to `b` must not enter the tool magazine's
+/// keep-out zone (only the tool change, which does not come through here,
+/// goes in).
+#[inline(never)]
+fn keep_out(s: &Settings, a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
+    if s.station.enters_keep_out([a[0], a[1], a[2]], [b[0], b[1], b[2]]) {
+        return Err(Error::KeepOut);
+    }
+    Ok(())
+}
+
+/// An arc or a canned cycle by its bounding box, with the start point
+/// (the cycle's first move starts there). `a` and `b` are opposite
+/// corners, in either order per axis (the Z flip of a cycle's user bounds
+/// swaps them).
+#[inline(never)]
+fn keep_out_box(s: &Settings, from: &[f32; N_AXES], a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
+    let min = |x: f32, y: f32| if x < y { x } else { y };
+    let max = |x: f32, y: f32| if x > y { x } else { y };
+    let l = core::array::from_fn(|i| min(from[i], min(a[i], b[i])));
+    let h = core::array::from_fn(|i| max(from[i], max(a[i], b[i])));
+    if s.station.box_enters_keep_out(l, h) {
+        return Err(Error::KeepOut);
+    }
+    Ok(())
+}
+
 /// [`Interp::check_soft_limits`] over the interpreter's caches (fresh).
 #[inline(never)]
 fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32; 3], s: &Settings, t: &[f32; N_AXES]) -> Result<(), Error> {
@@ -1721,6 +1773,7 @@ fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
 }
 
 fn spindle_duty(s: &Settings, rpm: f32) -> u8 {
+    let rpm = if rpm > 0.0 && rpm < s.spindle_min_rpm { s.spindle_min_rpm } else { rpm };
     let d = rpm / s.spindle_max_rpm * 255.0;
     if d <= 0.0 {
         0
@@ -1732,13 +1785,19 @@ fn spindle_duty(s: &Settings, rpm: f32) -> u8 {
     }
 }
 
-fn tool_index(v: f32) -> Option<usize> {
-    let t = round_i32(v);
-    if (t as f32 - v) != 0.0 || !(0..N_TOOLS as i32).contains(&t) {
-        None
-    } else {
-        Some(t as usize)
-    }
+/// `v` as a whole number within `lo..=hi`.
+#[inline(never)]
+fn whole_in(v: f32, lo: i32, hi: i32) -> Option<u8> {
+    let n = round_i32(v);
+    (n as f32 == v && (lo..=hi).contains(&n)).then_some(n as u8)
+}
+
+/// The pocket of the tool numbered `v` (a T, H, D, G10 L1 P or M61 Q word):
+/// a whole number the tool table has; 0 is the empty spindle.
+#[inline(never)]
+pub(crate) fn tool_pocket(cx: &Ctx, v: f32) -> Option<usize> {
+    let t = whole_in(v, 0, 255)?;
+    cx.atc.table.pocket_of(t).map(usize::from)
 }
 
 /// The modal fields a line may change, copied so an invalid line changes nothing.

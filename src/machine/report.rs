@@ -100,6 +100,39 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.out(F!("echo:Card pulled mid-job, Z retract (mm below its home switch):\n$160="));
     d.num(s.card_out_retract_mm);
     d.text("\n");
+    d.out(F!("echo:Tool change station X1 YA YB, Z1 Z2 travel (mm below Z home), feeds, pocket offset:\n"));
+    let st = &s.station;
+    let values = [
+        st.x1,
+        st.y_a,
+        st.y_b,
+        st.z1,
+        st.z2,
+        st.z_safe,
+        st.feed_y_in,
+        st.feed_z_clamp,
+        st.feed_z_release,
+        st.feed_y_out,
+        st.pocket_offset,
+    ];
+    for (i, v) in values.into_iter().enumerate() {
+        d.out(F!("$"));
+        d.int(170 + i as i32);
+        d.out(F!("="));
+        d.num(v);
+        d.text("\n");
+    }
+    d.out(F!("echo:Tool numbers by pocket (G10 L1 P<tool> Q<pocket>):\n"));
+    for p in 1..=crate::atc::N_POCKETS as u8 {
+        let n = m.atc.table.number_of(p);
+        if n != 0 {
+            d.out(F!("G10 L1 P"));
+            d.int(n as i32);
+            d.out(F!(" Q"));
+            d.int(p as i32);
+            d.text("\n");
+        }
+    }
 }
 
 /// M31, as Marlin answers it: `echo:Print time: 1h 2m 3s` (leading zero

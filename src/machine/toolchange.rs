@@ -22,7 +22,7 @@ use super::{carousel, Io, Machine, State};
 use crate::atc::change::{Action, Change, Event, Request};
 use crate::atc::tools::{
     pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_SETTER_ADDR, EEPROM_STATE_ADDR,
-    EEPROM_TABLE_ADDR,
+    EEPROM_NUMBERS_ADDR, EEPROM_TABLE_ADDR,
 };
 use crate::atc::{tool_length_offset_mm, Fault};
 use crate::gcode::interp::Error;
@@ -48,6 +48,9 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
     if let Some(t) = ToolTable::from_bytes(&tb) {
         m.atc.table = t;
     }
+    let mut nb = [0u8; ToolTable::NUMBERS_LEN];
+    io.eeprom_read(EEPROM_NUMBERS_ADDR, &mut nb);
+    m.atc.table.numbers = ToolTable::numbers_from_bytes(&nb).unwrap_or([crate::atc::tools::OWN_NUMBER; crate::atc::N_POCKETS]);
     let mut jb = [0u8; Journal::IMAGE_LEN];
     io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
     m.atc.interrupted = Journal::from_bytes(&jb);
@@ -55,14 +58,15 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
     io.eeprom_read(EEPROM_SETTER_ADDR, &mut sb);
     m.setter = Setter::from_bytes(&sb).unwrap_or(Setter::DEFAULT);
     apply_offset(m);
-    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle()).ok();
+    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle_tool()).ok();
     report_interrupted(m, io);
 }
 
 /// The interrupted-change line, if a change is interrupted.
 pub fn report_interrupted(m: &Machine, io: &mut impl Io) {
     if let Some(j) = m.atc.interrupted {
-        uwrite!(io, "{}{}->T{}", F!("echo:tool change T"), j.from, j.to).ok();
+        let (from, to) = (m.atc.table.number_of(j.from), m.atc.table.number_of(j.to));
+        uwrite!(io, "{}{}->T{}", F!("echo:tool change T"), from, to).ok();
         uwriteln!(io, "{}", F!(" interrupted: motion refused until M61 Q<tool in spindle>")).ok();
     }
 }
@@ -95,16 +99,16 @@ pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), 
         xy_mm: [m.interp.pos_mm[0], m.interp.pos_mm[1]],
         travel_mm: m.settings.travel_mm,
     };
-    let change = Change::new(&req).map_err(Error::Atc)?;
+    let change = Change::new(&req, &m.settings.station).map_err(Error::Atc)?;
     m.atc.last_t = to as u8;
     let Some(mut c) = change else {
         return Ok(());
     };
-    uwriteln!(io, "{}{}", F!("SelectTool:"), to).ok();
+    uwriteln!(io, "{}{}", F!("SelectTool:"), m.atc.table.number_of(to as u8)).ok();
     m.state = State::Tool;
     let mut journal = false;
     let mut failure = None;
-    let mut a = c.start();
+    let mut a = c.start(&m.settings.station);
     loop {
         let ev = match a {
             Action::Done => break,
@@ -137,22 +141,19 @@ pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), 
                 }
             },
         };
-        a = c.step(ev);
+        a = c.step(ev, &m.settings.station);
     }
     m.state = State::Idle;
     apply_offset(m);
-    uwriteln!(io, "{}{}", F!("NowSelectedTool:"), m.atc.spindle()).ok();
+    uwriteln!(io, "{}{}", F!("NowSelectedTool:"), m.atc.spindle_tool()).ok();
     Ok(())
 }
 
 /// One action of a change.
 fn perform(m: &mut Machine, io: &mut impl Io, a: Action) -> Result<(), Error> {
     match a {
-        Action::SpindleOff => {
-            m.wait_idle(io)?;
-            m.interp.spindle_on = false;
-            io.spindle(0);
-        }
+        // Stopped, and its spin-down waited, before the tool is released.
+        Action::SpindleOff => m.spindle(io, false, 0)?,
         Action::Move { xyz, feed_mm_per_min } => {
             let mut t = m.interp.pos_mm;
             for (i, v) in xyz.iter().enumerate() {
@@ -187,10 +188,15 @@ fn clear_journal(io: &mut impl Io) {
     }
 }
 
-/// Store the tool table if it differs from `before`.
+/// Store the tool table (lengths and diameters, and the numbers' record)
+/// where it differs from `before`.
 pub fn store_table(m: &Machine, io: &mut impl Io, before: &ToolTable) {
-    if m.atc.table != *before {
-        io.eeprom_write(EEPROM_TABLE_ADDR, &m.atc.table.to_bytes());
+    let t = &m.atc.table;
+    if t.length_um != before.length_um || t.diameter_um != before.diameter_um {
+        io.eeprom_write(EEPROM_TABLE_ADDR, &t.to_bytes());
+    }
+    if t.numbers != before.numbers {
+        io.eeprom_write(EEPROM_NUMBERS_ADDR, &t.numbers_to_bytes());
     }
 }
 
@@ -202,7 +208,7 @@ pub fn confirm_tool(m: &mut Machine, io: &mut impl Io, t: u8) {
         clear_journal(io);
     }
     apply_offset(m);
-    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), t).ok();
+    uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle_tool()).ok();
 }
 
 /// M61 P<p> S<0|1>: pocket `p` holds its tool (`full`) or is empty.
@@ -215,6 +221,31 @@ pub fn set_pocket(m: &mut Machine, io: &mut impl Io, p: u8, full: bool) -> Resul
     if st != m.atc.tools {
         store_state(m, io, st);
     }
+    Ok(())
+}
+
+/// `G10 L1 P<tool> Q<pocket>`: tool number `tool` is kept in `pocket`;
+/// `Q0` takes the tool out of the table. Refused, nothing stored: a pocket
+/// that holds another tool number, a tool already in another pocket (take
+/// it out first with `Q0`), and the pocket of the tool in the spindle.
+pub fn assign(m: &mut Machine, io: &mut impl Io, tool: u8, pocket: u8) -> Result<(), Error> {
+    let before = m.atc.table;
+    let now = before.pocket_of(tool);
+    let holder = before.number_of(pocket);
+    if pocket != 0 && holder != 0 && holder != tool {
+        return Err(Error::Atc(Fault::PocketTaken));
+    }
+    if pocket != 0 && now.is_some_and(|p| p != pocket) {
+        return Err(Error::Atc(Fault::ToolElsewhere));
+    }
+    let affected = if pocket != 0 { pocket } else { now.unwrap_or(0) };
+    if affected != 0 && affected == m.atc.spindle() {
+        return Err(Error::Atc(Fault::PocketOfSpindleTool));
+    }
+    if affected != 0 {
+        m.atc.table.set_number(affected, if pocket == 0 { 0 } else { tool });
+    }
+    store_table(m, io, &before);
     Ok(())
 }
 

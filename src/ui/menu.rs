@@ -721,7 +721,7 @@ impl Ui {
     pub fn line(&self, row: usize, v: &View, m: &Machine, file: &dyn Fn(u8) -> Option<Name>) -> Line {
         let mut l = Line::blank();
         match self.screen {
-            Screen::Status => status_line(row, v, &m.host, &mut l),
+            Screen::Status => status_line(row, v, m.atc.table.number_of(v.tool), &m.host, &mut l),
             Screen::Info => info_line(row, v, &mut l),
             _ => {
                 if row == 0 {
@@ -862,13 +862,13 @@ pub fn state_text(s: State) -> Text {
 }
 
 #[inline(never)]
-fn status_line(row: usize, v: &View, host: &crate::hostcodes::HostState, l: &mut Line) {
+fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcodes::HostState, l: &mut Line) {
     match row {
         0 => {
             l.invert = true;
             l.text(1, state_text(v.state));
             let c = l.put(COLS - 4, b"T");
-            l.uint(c, v.tool as u32);
+            l.uint(c, tool as u32);
         }
         1..=3 => {
             l.put(0, &[b"XYZ"[row - 1]]);
@@ -1051,9 +1051,12 @@ fn jog_line(row: usize, ui: &Ui, v: &View, l: &mut Line) {
 
 /// " T<t>" at column 1 and, when given, a note after it; returns the
 /// column after the number.
-fn tool_and_note(l: &mut Line, t: u8, note: Option<Text>) -> usize {
+fn tool_and_note(l: &mut Line, m: &Machine, t: u8, note: Option<Text>) -> usize {
+    // `t` is a pocket; the operator sees its tool's number (`T20`), or `T-`
+    // for a pocket the tool table gives no number.
     let c = l.put(1, b"T");
-    let c = l.uint(c, t as u32);
+    let n = m.atc.table.number_of(t);
+    let c = if t != 0 && n == 0 { l.put(c, b"-") } else { l.uint(c, n as u32) };
     if let Some(n) = note {
         l.text(c + 1, n);
     }
@@ -1085,14 +1088,14 @@ fn pick_line(e: u8, confirm: bool, v: &View, m: &Machine, l: &mut Line) {
     } else {
         None
     };
-    tool_and_note(l, t, note);
+    tool_and_note(l, m, t, note);
 }
 
 /// Row `t` (1..=12) of the tool table, `T3*  25.000    2.000` (length and
 /// diameter, mm; * = in the spindle), from the tool table in RAM.
 #[inline(never)]
 fn table_line(t: u8, v: &View, m: &Machine, l: &mut Line) {
-    let c = tool_and_note(l, t, None);
+    let c = tool_and_note(l, m, t, None);
     if t == v.tool {
         l.chars[c] = b'*';
     }
@@ -1118,7 +1121,7 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
         }
         (Reply::Ok, 3) if matches!(op, ToolOp::Measure { .. }) => table_line(t, v, m, l),
         (Reply::Ok, 2) => {
-            tool_and_note(l, t, Some(Text::InSpindle));
+            tool_and_note(l, m, t, Some(Text::InSpindle));
         }
         (_, 7) => {
             l.text(0, Text::HintBack);
