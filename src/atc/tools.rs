@@ -41,7 +41,6 @@ const _: () = assert!(crate::config::Settings::IMAGE_LEN <= EEPROM_STATE_ADDR as
 const _: () = assert!(EEPROM_STATE_ADDR as usize + ToolState::IMAGE_LEN <= EEPROM_JOURNAL_ADDR as usize);
 const _: () = assert!(EEPROM_JOURNAL_ADDR as usize + Journal::IMAGE_LEN <= EEPROM_TABLE_ADDR as usize);
 const _: () = assert!(EEPROM_TABLE_ADDR as usize + ToolTable::IMAGE_LEN <= EEPROM_SETTER_ADDR as usize);
-const _: () = assert!(EEPROM_SETTER_ADDR as usize + crate::toolsetter::Setter::IMAGE_LEN <= EEPROM_NUMBERS_ADDR as usize);
 
 /// Layout version of the records. Bump when a layout changes.
 const VERSION: u8 = 1;

@@ -30,6 +30,9 @@ use crate::math::round_i32;
 use crate::toolsetter::Setter;
 use ufmt::{uwrite, uwriteln};
 
+// The setter's record (toolsetter) ends before the tool numbers' (atc).
+const _: () = assert!(EEPROM_SETTER_ADDR as usize + Setter::IMAGE_LEN <= EEPROM_NUMBERS_ADDR as usize);
+
 /// Load the tool records and the tool setter's calibration (defaults when
 /// blank) at boot, and say what the operator must know.
 #[inline(never)]
