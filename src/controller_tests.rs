@@ -27,7 +27,7 @@ impl Rig {
     /// Power on with `io` (its EEPROM, switches and motor positions).
     fn boot(mut io: FakeBoard) -> Rig {
         let mut m = Box::new(Machine::new());
-        m.boot(&mut io, "power-on");
+        m.boot(&mut io, F!("power-on"), false);
         Rig { m, io }
     }
 

@@ -636,7 +636,7 @@ pub fn run() -> ! {
     // SAFETY: all shared state is initialised; ISRs may run from here on.
     unsafe { avr_device::interrupt::enable() };
     wdt::enable_2s();
-    m.boot(hw, cause.as_str());
+    m.boot(hw, cause.name(), cause == wdt::ResetCause::Watchdog);
     // The SD job's line buffer lives here, not in `job_turn`'s frame: zeroing
     // it on every turn of the loop cost ~1.4k cycles per streamed line. The
     // serial line runs from it too (`push_bytes`): never both at once.
@@ -758,6 +758,7 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             }
             Ok(())
         }
+        Cmd::Teach(p) => m.teach_station(hw, p),
         Cmd::Tool(op) => {
             if matches!(op, mill::ui::menu::ToolOp::Confirm(_)) && m.alarm.is_some() {
                 // Confirming the spindle is a way out of the alarm.
@@ -793,7 +794,7 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         _ => Ok(()),
     };
     if let Err(e) = r {
-        uwriteln!(hw, "echo:menu:").ok();
+        uwriteln!(hw, "{}", mill::F!("echo:menu:")).ok();
         m.report_error(hw, e);
     }
 }

@@ -28,6 +28,7 @@
 use crate::config::Settings;
 use crate::dollar;
 use crate::fixed::Micros;
+use crate::flash::FStr;
 use crate::gcode::interp::{self, Command, Interp};
 use crate::planner::{PlanError, Planner};
 use crate::protocol::{Assembled, LineAssembler, LineChecker};
@@ -428,7 +429,7 @@ impl Machine {
 
     /// Start-up: load settings, print the banner and the reset reason.
     #[inline(never)]
-    pub fn boot(&mut self, io: &mut impl Io, reset_cause: &str) {
+    pub fn boot(&mut self, io: &mut impl Io, reset_cause: FStr, watchdog: bool) {
         let mut img = [0u8; Settings::IMAGE_LEN];
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
         let loaded = self.settings.load_image(&img);
@@ -437,12 +438,12 @@ impl Machine {
         self.apply_watch(io, 0, false);
         uwriteln!(io, "start").ok();
         self.firmware_line(io);
-        uwriteln!(io, "echo:reset cause: {}", reset_cause).ok();
+        uwriteln!(io, "{}{}", F!("echo:reset cause: "), reset_cause).ok();
         if !loaded {
             uwriteln!(io, "{}", F!("echo:EEPROM settings invalid or blank, using defaults")).ok();
         }
         toolchange::boot(self, io);
-        if reset_cause == "watchdog" {
+        if watchdog {
             self.raise(io, Alarm::WatchdogReset);
         } else if self.settings.homing_lock {
             uwriteln!(io, "{}", F!("echo:home (G28) before moving, or M999 to unlock")).ok();
@@ -460,8 +461,8 @@ impl Machine {
     pub fn firmware_line(&self, io: &mut impl Io) {
         uwriteln!(
             io,
-            "FIRMWARE_NAME:{} {}{}",
-            crate::FIRMWARE_NAME,
+            "{}{}{}",
+            F!("FIRMWARE_NAME:MillFW "),
             crate::FIRMWARE_VERSION,
             F!(" FIRMWARE_URL:none PROTOCOL_VERSION:1.0 MACHINE_TYPE:Mill EXTRUDER_COUNT:1 AXIS_COUNT:3 TOOLS:12")
         )
@@ -547,7 +548,7 @@ impl Machine {
             }
             crate::protocol::Retry::Resend(n) => {
                 uwriteln!(io, "Error:{}, Last Line: {}", msg, self.chk.last_line()).ok();
-                uwriteln!(io, "Resend:{}", n).ok();
+                uwriteln!(io, "{}{}", F!("Resend:"), n).ok();
             }
         }
     }
@@ -565,7 +566,7 @@ impl Machine {
                 // flight): not a new try of the failed line.
                 let e = crate::protocol::ProtoError::LineNumber;
                 uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.last_line()).ok();
-                uwriteln!(io, "Resend:{}", self.chk.resend_line()).ok();
+                uwriteln!(io, "{}{}", F!("Resend:"), self.chk.resend_line()).ok();
             }
             Err(e) => {
                 self.numbered = true;
@@ -805,7 +806,7 @@ impl Machine {
                     interp::Report::Position => report::position(self, io),
                     interp::Report::Firmware => self.firmware_line(io),
                     interp::Report::Temperatures => {
-                        uwriteln!(io, "T:0.0 /0.0").ok();
+                        uwriteln!(io, "{}", F!("T:0.0 /0.0")).ok();
                     }
                     interp::Report::Switches => report::switches(self, io),
                     interp::Report::Settings => report::settings(self, io),
@@ -1026,24 +1027,46 @@ impl Machine {
             dollar::Command::Home => return self.execute(b"G28", io),
             dollar::Command::Unlock => return self.execute(b"M999", io),
             dollar::Command::Jog => return self.jog_line(text, io),
-            dollar::Command::Set(n, v) => {
-                let mut s = self.settings;
-                dollar::set(&mut s, n, v).map_err(bad)?;
-                if !s.is_sane() {
-                    return Err(bad(dollar::DollarError::BadValue));
-                }
-                // A station point set outside its axis' travel: named,
-                // nothing stored. (A travel made shorter under the station
-                // is taken: a machine without a changer needs no station;
-                // a tool change then refuses to start.)
-                if let Some((setting, axis)) = s.station.outside(&s.travel_mm).filter(|_| (170..=175).contains(&n)) {
-                    return Err(interp::Error::StationOutside { setting, axis: axis as u8 });
-                }
-                self.replace_settings(s, io)?;
-                self.save_settings(io);
-            }
+            dollar::Command::Set(n, v) => self.set_setting(io, n, v)?,
         }
         Ok(())
+    }
+
+    /// `$<n>=<v>`: check the value, then store all settings at once.
+    #[inline(never)]
+    pub fn set_setting(&mut self, io: &mut impl Io, n: u8, v: f32) -> CmdResult {
+        let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
+        let mut s = self.settings;
+        dollar::set(&mut s, n, v).map_err(bad)?;
+        if !s.is_sane() {
+            return Err(bad(dollar::DollarError::BadValue));
+        }
+        // A station point set outside its axis' travel: named, nothing
+        // stored. (A travel made shorter under the station is taken: a
+        // machine without a changer needs no station; a tool change then
+        // refuses to start.)
+        if let Some((setting, axis)) = s.station.outside(&s.travel_mm).filter(|_| (170..=175).contains(&n)) {
+            return Err(interp::Error::StationOutside { setting, axis: axis as u8 });
+        }
+        self.replace_settings(s, io)?;
+        self.save_settings(io);
+        Ok(())
+    }
+
+    /// The menu's "teach": station point `p` (`$170 + p`: X1, Y point A,
+    /// Y point B, Z1, Z2, the travel height) becomes where the machine is,
+    /// through the same checks as `$170=…`. Refused until homed (the
+    /// position means nothing before).
+    #[inline(never)]
+    pub fn teach_station(&mut self, io: &mut impl Io, p: u8) -> CmdResult {
+        if self.homed & 0b111 != 0b111 {
+            return Err(interp::Error::NotHomed);
+        }
+        let Some(&(_, axis, n)) = self.settings.station.points().get(p as usize) else {
+            return Err(interp::Error::BadWord(dollar::DollarError::Unknown.message()));
+        };
+        let v = self.interp.pos_mm[axis];
+        self.set_setting(io, n, v)
     }
 
     /// `$C`: check mode on (from Idle) or off. Leaving it puts the commanded
@@ -1634,7 +1657,7 @@ impl Machine {
                 self.write_xyz(io, wco);
             }
             1 => {
-                uwrite!(io, "|Ov:{},100,100", self.interp.feed_override_pct).ok();
+                uwrite!(io, "{}{}{}", F!("|Ov:"), self.interp.feed_override_pct, F!(",100,100")).ok();
             }
             _ => {}
         }

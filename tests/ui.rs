@@ -1303,3 +1303,45 @@ fn an_emergency_stop_mid_change_is_named_and_the_alarm_menu_confirms_the_spindle
     assert_eq!(spindle_tool(&vm), 5);
     assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
 }
+
+/// Tools > Changer shows the station in machine coordinates; "teach" stores
+/// where the machine is as a point, through the same checks as `$170=…`,
+/// kept over a power cycle. (The machine is put there over serial; the
+/// menu's jog moves it the same way, `jog_home_settings_and_info_from_the_menu`.)
+#[test]
+fn the_changer_page_shows_the_station_and_teaches_a_point_where_the_machine_is() {
+    let mut vm = tools_vm();
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X30.5 Y20 Z-3");
+    ok(&mut vm, "M400");
+    tools_entry(&mut vm, 6);
+    let s = screen(&vm);
+    assert_eq!(
+        s[0..8],
+        ["[ Changer]", "[ < Back]", " X1            23.000", " Y point A     28.000", " Y point B     44.000", " Z1           -40.500", " Z2           -45.000", " Travel Z      -1.000"],
+        "{s:?}"
+    );
+    golden(&vm, "changer_page");
+    // X1: teach it.
+    turn(&mut vm, 1);
+    press(&mut vm);
+    assert_eq!(screen(&vm)[0..3], ["[ Teach X1?]", "[ No]", " Yes"], "{:?}", screen(&vm));
+    turn(&mut vm, 1);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Changer]", " < Back", "[ X1            30.500]"], "{s:?}");
+    // The travel height, taught at Z -3; "No" changes nothing.
+    turn(&mut vm, 5);
+    press(&mut vm);
+    press(&mut vm);
+    assert_eq!(screen(&vm)[7], "[ Travel Z      -1.000]", "{:?}", screen(&vm));
+    press(&mut vm);
+    turn(&mut vm, 1);
+    press(&mut vm);
+    assert_eq!(screen(&vm)[7], "[ Travel Z      -3.000]", "{:?}", screen(&vm));
+    // Stored: after a power cycle M503 lists them.
+    vm.power_cycle();
+    vm.run_for(1.0).unwrap();
+    let m503 = ok(&mut vm, "M503");
+    assert!(m503.iter().any(|l| l == "$170=30.500") && m503.iter().any(|l| l == "$175=3.000"), "{m503:?}");
+}

@@ -72,15 +72,17 @@ impl ResetCause {
         }
     }
 
-    /// Short lowercase name for the boot banner, e.g. `"watchdog"`.
-    pub fn as_str(&self) -> &'static str {
+    /// Short lowercase name for the boot banner, e.g. `"watchdog"` (in
+    /// flash: as `&str` the names sat in RAM).
+    pub fn name(&self) -> mill::flash::FStr {
+        use mill::F;
         match self {
-            ResetCause::PowerOn => "power-on",
-            ResetCause::External => "external",
-            ResetCause::BrownOut => "brown-out",
-            ResetCause::Watchdog => "watchdog",
-            ResetCause::Jtag => "jtag",
-            ResetCause::Unknown => "unknown",
+            ResetCause::PowerOn => F!("power-on"),
+            ResetCause::External => F!("external"),
+            ResetCause::BrownOut => F!("brown-out"),
+            ResetCause::Watchdog => F!("watchdog"),
+            ResetCause::Jtag => F!("jtag"),
+            ResetCause::Unknown => F!("unknown"),
         }
     }
 }

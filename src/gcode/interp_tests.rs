@@ -101,7 +101,7 @@ impl Io for FakeIo {
 pub fn machine() -> (Box<Machine>, FakeIo) {
     let mut m = Box::new(Machine::new());
     let mut io = FakeIo::new();
-    m.boot(&mut io, "test");
+    m.boot(&mut io, F!("test"), false);
     m.homed = 0b111;
     io.out.clear();
     (m, io)

@@ -61,6 +61,8 @@ pub enum Act {
     ConfirmSpindle,
     /// Leave the alarm state (`$X`/M999).
     Unlock,
+    /// Tools > Changer: the station's points.
+    Changer,
     /// The last variant (`act_from_u8` checks against it).
     OptStop,
 }
@@ -96,7 +98,7 @@ fn act_from_u8(b: u8) -> Option<Act> {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 33] = [
+static ITEMS: [[u8; 2]; 34] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -130,6 +132,7 @@ static ITEMS: [[u8; 2]; 33] = [
     item(Text::MeasureDia, Act::MeasureDia),
     item(Text::ToolTable, Act::ToolTable),
     item(Text::ConfirmSpindle, Act::ConfirmSpindle),
+    item(Text::Changer, Act::Changer),
     // Alarm
     item(Text::Status, Act::Back),
     item(Text::Unlock, Act::Unlock),
@@ -140,7 +143,7 @@ static ITEMS: [[u8; 2]; 33] = [
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 7] = [0, 8, 13, 17, 22, 28, 33];
+static MENU_START: [u8; 7] = [0, 8, 13, 17, 22, 29, 34];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
@@ -206,6 +209,27 @@ pub enum Screen {
     Reply(ToolOp),
     /// T1..T12 length and diameter (view, scrolling).
     ToolTable,
+    /// The tool change station's points (entry 0 "< Back", entry i is
+    /// point i - 1 of [`STATION_POINTS`]) with their machine coordinates.
+    Changer,
+    /// "Teach <point>?" No/Yes: store the current position as the point.
+    Teach(u8),
+}
+
+/// The station's points on the Changer screen, `$170`–`$175`.
+const STATION_POINTS: u8 = 6;
+
+/// The name of station point `p` (a `match`: a table of them would be
+/// copied to RAM).
+fn point_text(p: u8) -> Text {
+    match p {
+        0 => Text::PointX1,
+        1 => Text::PointYA,
+        2 => Text::PointYB,
+        3 => Text::PointZ1,
+        4 => Text::PointZ2,
+        _ => Text::PointTravel,
+    }
 }
 
 /// A Tools-menu command: one G-code line run through the machine.
@@ -288,6 +312,8 @@ pub enum Cmd {
     Tool(ToolOp),
     /// Leave the alarm state (`$X`/M999; nothing outside an alarm).
     Unlock,
+    /// Store the current position as station point `i` (`$170 + i`).
+    Teach(u8),
 }
 
 /// A snapshot of what the screens show, taken once per frame.
@@ -407,6 +433,8 @@ impl Ui {
             Screen::Files => v.files + 1,
             Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) => 2,
             Screen::PickTool(_) => TOOL_ENTRIES,
+            Screen::Changer => STATION_POINTS + 1,
+            Screen::Teach(_) => 2,
             Screen::Settings => SETTINGS_LINES,
             _ => 0,
         }
@@ -564,6 +592,23 @@ impl Ui {
                 }
                 Cmd::None
             }
+            Screen::Changer => {
+                if sel == 0 {
+                    self.back_to(MenuId::Tools, 6);
+                } else {
+                    self.go(Screen::Teach(sel - 1));
+                }
+                Cmd::None
+            }
+            Screen::Teach(p) => {
+                self.go(Screen::Changer);
+                self.scroll(p as i8 + 1, STATION_POINTS + 1);
+                if sel == 1 && v.state == State::Idle {
+                    Cmd::Teach(p)
+                } else {
+                    Cmd::None
+                }
+            }
             Screen::AskTool(op) => {
                 if sel == 1 {
                     return self.run_tool(op, v);
@@ -694,6 +739,10 @@ impl Ui {
                 self.go(Screen::ToolTable);
                 Cmd::None
             }
+            Act::Changer => {
+                self.go(Screen::Changer);
+                Cmd::None
+            }
             Act::ConfirmSpindle => {
                 if v.interrupted.is_some() {
                     self.go(Screen::PickTool(true));
@@ -739,6 +788,8 @@ impl Ui {
                         Screen::AskTool(_) => Text::HoldsQ,
                         Screen::Reply(op) => op.entry().0,
                         Screen::ToolTable => Text::TableHead,
+                        Screen::Changer => Text::Changer,
+                        Screen::Teach(_) => Text::TeachQ,
                         _ => Text::Settings,
                     };
                     let c = l.text(1, t);
@@ -750,6 +801,10 @@ impl Ui {
                         }
                         Screen::AskTool(ToolOp::Change(t) | ToolOp::Confirm(t)) => {
                             let c = l.uint(c, t as u32);
+                            l.put(c, b"?");
+                        }
+                        Screen::Teach(p) => {
+                            let c = l.text(c, point_text(p));
                             l.put(c, b"?");
                         }
                         _ => {}
@@ -798,7 +853,14 @@ impl Ui {
                             l.put(1, n.as_bytes());
                         }
                     }
-                    Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) => {
+                    Screen::Changer => {
+                        if e == 0 {
+                            l.text(1, Text::Back);
+                        } else {
+                            station_line(e - 1, &m.settings.station, &mut l);
+                        }
+                    }
+                    Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) | Screen::Teach(_) => {
                         l.text(1, if e == 0 { Text::No } else { Text::Yes });
                     }
                     Screen::Settings => {
@@ -1008,7 +1070,7 @@ fn info_line(row: usize, v: &View, l: &mut Line) {
             l.text(1, Text::Info);
         }
         2 => {
-            l.put(1, crate::FIRMWARE_NAME.as_bytes());
+            l.text(1, Text::FirmwareName);
         }
         3 => {
             let c = l.text(1, Text::Version);
@@ -1158,6 +1220,17 @@ fn wrapped(msg: FStr, k: usize, l: &mut Line) {
     }
 }
 
+/// Point `p` of the station (`$170 + p`) and its machine coordinate, as
+/// `?` and `M114` show it (+Z up: the heights below the Z home switch
+/// are negative).
+#[inline(never)]
+fn station_line(p: u8, s: &crate::config::Station, l: &mut Line) {
+    l.text(1, point_text(p));
+    let (mm, axis, _) = s.points()[p as usize % STATION_POINTS as usize];
+    let user = if axis == 2 { -mm } else { mm };
+    l.micros_right(COLS, crate::math::round_i32(user * 1000.0));
+}
+
 #[inline(never)]
 fn settings_line(e: u8, s: &Settings, l: &mut Line) {
     let axis = (e % 3) as usize;
@@ -1205,8 +1278,9 @@ mod tests {
         assert_eq!(MenuId::Main.item(1), (Text::RunFromSd, Act::Files));
         assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
         assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
-        assert_eq!(MenuId::Tools.len(), 6);
+        assert_eq!(MenuId::Tools.len(), 7);
         assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
+        assert_eq!(MenuId::Tools.item(6), (Text::Changer, Act::Changer));
         assert_eq!(MenuId::Job.item(2), (Text::Abort, Act::Abort));
         assert_eq!(MenuId::Home.item(4), (Text::HomeX, Act::HomeX));
     }

@@ -110,6 +110,7 @@ crate::flash_texts! {
     NoFiles = "No files",
     Files = "Files",
     Version = "Version ",
+    FirmwareName = "MillFW",
     FreeRam = "Free RAM ",
     Bytes = " B",
     SdCard = "SD ",
@@ -142,6 +143,15 @@ crate::flash_texts! {
     ChangeCut = "Change interrupted:",
     HintConfirm = "Tools>Confirm spindle",
     HintBack = "Press: back",
+    // Tools > Changer: the station's points, and teaching one.
+    Changer = "Changer",
+    TeachQ = "Teach ",
+    PointX1 = "X1",
+    PointYA = "Y point A",
+    PointYB = "Y point B",
+    PointZ1 = "Z1",
+    PointZ2 = "Z2",
+    PointTravel = "Travel Z",
     // Lines the Tools menu runs (Machine::run_menu_line).
     LineG37D1 = "G37 D1",
     LineM61Q = "M61 Q",
