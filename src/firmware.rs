@@ -779,6 +779,11 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             let n = op.gcode(&mut l);
             let r = if unnumbered {
                 Err(interp::Error::Atc(mill::atc::Fault::NoNumber))
+            } else if op == ToolOp::ProbeZ {
+                // Down at most PROBE_Z_MM on the probe input (a miss is the
+                // probe-fail alarm, as G38.2), then the zero line.
+                m.probe_z_down(hw, mill::ui::menu::PROBE_Z_MM, mill::ui::menu::PROBE_Z_FEED)
+                    .and_then(|()| m.run_menu_line(&l.chars[..n], hw))
             } else {
                 m.run_menu_line(&l.chars[..n], hw)
             };

@@ -1053,6 +1053,23 @@ impl Machine {
         Ok(())
     }
 
+    /// The menu's Z probe: G38.2 straight down by `mm` (at most to the end
+    /// of the Z travel) from where the machine is, at `feed` (the probe input; a miss raises the probe-fail
+    /// alarm, as G38.2 does). Refused until homed.
+    #[inline(never)]
+    pub fn probe_z_down(&mut self, io: &mut impl Io, mm: f32, feed: f32) -> CmdResult {
+        if !self.motion_allowed() {
+            return Err(interp::Error::NotHomed);
+        }
+        // The internal frame counts Z down from the home switch: down by
+        // `mm`, no deeper than the Z travel.
+        let mut target = self.interp.pos_mm;
+        let depth = target[2] + mm;
+        let travel = self.settings.travel_mm[2];
+        target[2] = if depth < travel { depth } else { travel };
+        self.probe(io, target, feed, true)
+    }
+
     /// The menu's "teach": station point `p` (`$170 + p`: X1, Y point A,
     /// Y point B, Z1, Z2, the travel height) becomes where the machine is,
     /// through the same checks as `$170=…`. Refused until homed (the

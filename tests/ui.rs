@@ -1345,3 +1345,61 @@ fn the_changer_page_shows_the_station_and_teaches_a_point_where_the_machine_is()
     let m503 = ok(&mut vm, "M503");
     assert!(m503.iter().any(|l| l == "$170=30.500") && m503.iter().any(|l| l == "$175=3.000"), "{m503:?}");
 }
+
+/// The work offset of G54 from `$#`, X Y Z.
+fn g54(vm: &mut Vm) -> Vec<f64> {
+    let r = ok(vm, "$#");
+    let l = r.iter().find(|l| l.starts_with("[G54:")).expect("G54 line").clone();
+    l.trim_start_matches("[G54:").trim_end_matches(']').split(',').map(|v| v.parse().unwrap()).collect()
+}
+
+/// Jog › Zero <axis> sets the active work system's zero where the machine
+/// is (G10 L20 P0, the same line as over serial); Jog › Probe Z zero probes
+/// down on the probe input and sets Z zero where it touched. Both show the
+/// axis' work position after it, and a refusal in words.
+#[test]
+fn work_zero_from_the_jog_menu_and_a_z_zero_by_probing() {
+    let mut vm = tools_vm();
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X10 Y12 Z-5");
+    ok(&mut vm, "M400");
+    main_menu_entry(&mut vm, 3);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..7], ["[ Jog]", "[ < Back]", " Axis X", " Step 1 mm", " Jog now", " Zero X", " Probe Z zero"], "{s:?}");
+    golden(&vm, "jog_menu");
+    // Zero X.
+    turn(&mut vm, 4);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Zero]", "", " X              0.000"], "{s:?}");
+    assert_eq!(g54(&mut vm)[0], 10.0);
+    press(&mut vm); // back to the Jog menu, on Zero X
+    assert_eq!(screen(&vm)[5], "[ Zero X]", "{:?}", screen(&vm));
+    // Probe Z: the probe touches 3.2 mm below where it started.
+    turn(&mut vm, 1);
+    let z0 = vm.position(Axis::Z);
+    press(&mut vm);
+    vm.run_until(|v| v.position(Axis::Z) >= z0 + 320, 10.0).unwrap();
+    vm.set_input(Input::ToolSetter, Some(true));
+    vm.run_for(1.0).unwrap();
+    vm.set_input(Input::ToolSetter, None);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Probe Z zero]", "", " Z              0.000"], "{s:?}");
+    let off = g54(&mut vm);
+    assert!((off[2] + 8.2).abs() < 0.02, "G54 Z {} where the probe touched, about 3.2 below Z -5", off[2]);
+    golden(&vm, "probe_z_zero_done");
+    // Status: WPos X 0 and Z 0 here.
+    let st = status(&mut vm);
+    assert!(st.contains("WPos:0.000,12.000,0.0"), "{st}");
+    // A probe that touches nothing: the probe-fail alarm, said in words.
+    press(&mut vm);
+    ok(&mut vm, "G53 G0 Z-20");
+    ok(&mut vm, "M400");
+    settle(&mut vm);
+    press(&mut vm);
+    vm.run_for(15.0).unwrap();
+    let s = screen(&vm);
+    assert!(s[2..7].join(" ").contains("probe"), "{s:?}");
+}

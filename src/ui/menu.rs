@@ -63,6 +63,10 @@ pub enum Act {
     Unlock,
     /// Tools > Changer: the station's points.
     Changer,
+    /// Jog > Zero <axis>: the work zero of the jog axis here.
+    ZeroAxis,
+    /// Jog > Probe Z zero: probe down, Z zero where it touches.
+    ProbeZ,
     /// The last variant (`act_from_u8` checks against it).
     OptStop,
 }
@@ -98,7 +102,7 @@ fn act_from_u8(b: u8) -> Option<Act> {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 34] = [
+static ITEMS: [[u8; 2]; 36] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -119,6 +123,8 @@ static ITEMS: [[u8; 2]; 34] = [
     item(Text::Axis, Act::JogAxis),
     item(Text::Step, Act::JogStep),
     item(Text::JogNow, Act::JogNow),
+    item(Text::ZeroAxis, Act::ZeroAxis),
+    item(Text::ProbeZ, Act::ProbeZ),
     // Home
     item(Text::Back, Act::Back),
     item(Text::HomeAll, Act::HomeAll),
@@ -143,7 +149,7 @@ static ITEMS: [[u8; 2]; 34] = [
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 7] = [0, 8, 13, 17, 22, 29, 34];
+static MENU_START: [u8; 7] = [0, 8, 13, 19, 24, 31, 36];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
@@ -241,7 +247,17 @@ pub enum ToolOp {
     Measure { diameter: bool },
     /// `M61 Q<t>`: the spindle holds tool t (after an interrupted change).
     Confirm(u8),
+    /// Jog menu: `G10 L20 P0 <axis>0`, the active work system's zero of
+    /// axis 0..3 where the machine is.
+    Zero(u8),
+    /// Jog menu: probe Z down (G38.2 on the probe input, at most
+    /// [`PROBE_Z_MM`]), then the Z work zero where it touched.
+    ProbeZ,
 }
+
+/// How far the menu's Z probe goes down at most, mm, and its feed, mm/min.
+pub const PROBE_Z_MM: f32 = 20.0;
+pub const PROBE_Z_FEED: f32 = 100.0;
 
 impl ToolOp {
     /// Write the G-code line into `l` from column 0; returns its length.
@@ -264,6 +280,21 @@ impl ToolOp {
                     3
                 }
             }
+            // The probe itself is the firmware's (`Machine::probe`); the
+            // line is what follows it.
+            ToolOp::Zero(_) | ToolOp::ProbeZ => {
+                let a = if let ToolOp::Zero(a) = self { a } else { 2 };
+                let c = l.text(0, Text::LineZero);
+                l.put(c, &[b"XYZ"[a as usize % 3], b'0'])
+            }
+        }
+    }
+
+    /// The menu it came from.
+    fn menu(self) -> MenuId {
+        match self {
+            ToolOp::Zero(_) | ToolOp::ProbeZ => MenuId::Jog,
+            _ => MenuId::Tools,
         }
     }
 
@@ -274,6 +305,8 @@ impl ToolOp {
             ToolOp::Measure { diameter: false } => (Text::MeasureLength, 2),
             ToolOp::Measure { diameter: true } => (Text::MeasureDia, 3),
             ToolOp::Confirm(_) => (Text::ConfirmSpindle, 5),
+            ToolOp::Zero(_) => (Text::ZeroAxis, 4),
+            ToolOp::ProbeZ => (Text::ProbeZ, 5),
         }
     }
 }
@@ -511,7 +544,7 @@ impl Ui {
             }
             Screen::Reply(op) => {
                 if press && !matches!(self.reply, Reply::Pending) {
-                    self.back_to(MenuId::Tools, op.entry().1);
+                    self.back_to(op.menu(), op.entry().1);
                 }
                 Cmd::None
             }
@@ -616,7 +649,7 @@ impl Ui {
                 let (confirm, t) = match op {
                     ToolOp::Confirm(t) => (true, t),
                     ToolOp::Change(t) => (false, t),
-                    ToolOp::Measure { .. } => (false, 0),
+                    ToolOp::Measure { .. } | ToolOp::Zero(_) | ToolOp::ProbeZ => (false, 0),
                 };
                 self.go(Screen::PickTool(confirm));
                 self.scroll(t as i8 + 1, TOOL_ENTRIES);
@@ -711,6 +744,8 @@ impl Ui {
                 }
                 Cmd::None
             }
+            Act::ZeroAxis => self.run_tool(ToolOp::Zero(self.jog_axis % 3), v),
+            Act::ProbeZ => self.run_tool(ToolOp::ProbeZ, v),
             Act::HomeAll | Act::HomeZ | Act::HomeY | Act::HomeX => {
                 // Homing is also the way out of an alarm.
                 if !idle && !(v.state == State::Alarm && !v.job_active()) {
@@ -885,7 +920,7 @@ impl Ui {
                 l.uint_right(COLS - 1, v.override_pct as u32);
                 l.text(COLS - 1, Text::Pct);
             }
-            Act::JogAxis => {
+            Act::JogAxis | Act::ZeroAxis => {
                 l.put(c + 1, &[b"XYZ"[self.jog_axis as usize % 3]]);
             }
             Act::OptStop => {
@@ -1182,6 +1217,12 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
             l.text(1, Text::TableHead);
         }
         (Reply::Ok, 3) if matches!(op, ToolOp::Measure { .. }) => table_line(t, v, m, l),
+        // A work zero: the axis' work position now (0.000).
+        (Reply::Ok, 2) if matches!(op, ToolOp::Zero(_) | ToolOp::ProbeZ) => {
+            let a = if let ToolOp::Zero(a) = op { a as usize % 3 } else { 2 };
+            l.put(1, &[b"XYZ"[a]]);
+            l.micros_right(COLS, v.wpos_um[a]);
+        }
         (Reply::Ok, 2) => {
             tool_and_note(l, m, t, Some(Text::InSpindle));
         }
@@ -1279,6 +1320,8 @@ mod tests {
         assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
         assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
         assert_eq!(MenuId::Tools.len(), 7);
+        assert_eq!(MenuId::Jog.len(), 6);
+        assert_eq!(MenuId::Jog.item(4), (Text::ZeroAxis, Act::ZeroAxis));
         assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
         assert_eq!(MenuId::Tools.item(6), (Text::Changer, Act::Changer));
         assert_eq!(MenuId::Job.item(2), (Text::Abort, Act::Abort));

@@ -143,6 +143,10 @@ crate::flash_texts! {
     ChangeCut = "Change interrupted:",
     HintConfirm = "Tools>Confirm spindle",
     HintBack = "Press: back",
+    // Jog menu: work zero.
+    ZeroAxis = "Zero",
+    ProbeZ = "Probe Z zero",
+    LineZero = "G10 L20 P0 ",
     // Tools > Changer: the station's points, and teaching one.
     Changer = "Changer",
     TeachQ = "Teach ",
