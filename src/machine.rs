@@ -436,7 +436,7 @@ impl Machine {
         self.settings_loaded();
         self.interp.load_settings(&self.settings);
         self.apply_watch(io, 0, false);
-        uwriteln!(io, "start").ok();
+        uwriteln!(io, "{}", F!("start")).ok();
         self.firmware_line(io);
         uwriteln!(io, "{}{}", F!("echo:reset cause: "), reset_cause).ok();
         if !loaded {
@@ -547,7 +547,7 @@ impl Machine {
                 uwriteln!(io, "Error:{}{}{}", F!("gave up on line "), n, F!(" after 3 failed tries; it is NOT run")).ok();
             }
             crate::protocol::Retry::Resend(n) => {
-                uwriteln!(io, "Error:{}, Last Line: {}", msg, self.chk.last_line()).ok();
+                uwriteln!(io, "{}{}{}{}", F!("Error:"), msg, F!(", Last Line: "), self.chk.last_line()).ok();
                 uwriteln!(io, "{}{}", F!("Resend:"), n).ok();
             }
         }
@@ -565,7 +565,7 @@ impl Machine {
                 // A line sent after one that failed (the host had several in
                 // flight): not a new try of the failed line.
                 let e = crate::protocol::ProtoError::LineNumber;
-                uwriteln!(io, "Error:{}, Last Line: {}", e.message(), self.chk.last_line()).ok();
+                uwriteln!(io, "{}{}{}{}", F!("Error:"), e.message(), F!(", Last Line: "), self.chk.last_line()).ok();
                 uwriteln!(io, "{}{}", F!("Resend:"), self.chk.resend_line()).ok();
             }
             Err(e) => {
@@ -649,7 +649,7 @@ impl Machine {
                 uwrite!(io, "alarm {}{}", why, F!("; home or M999")).ok();
             }
             interp::Error::Parse(p) => {
-                uwrite!(io, "{} at col {}", p.kind.message(), p.col).ok();
+                uwrite!(io, "{}{}{}", p.kind.message(), F!(" at col "), p.col).ok();
             }
             interp::Error::Sd(t) => {
                 // SD card errors print their own text.
@@ -918,7 +918,7 @@ impl Machine {
         let pos = if tripped { io.stepper().trip_position } else { io.stepper().position };
         self.resync_after_stop(io);
         let mm = self.steps_to_mm(pos);
-        uwrite!(io, "[PRB:").ok();
+        uwrite!(io, "{}", F!("[PRB:")).ok();
         self.write_xyz(io, self.interp.work_user(mm));
         uwriteln!(io, ":{}]", if tripped { 1u8 } else { 0u8 }).ok();
         if !tripped && must_trip {
@@ -1640,10 +1640,10 @@ impl Machine {
         let st = io.stepper();
         // Steps are being produced: never `Idle`, whatever else is going on.
         let state = if self.state == State::Idle && st.busy { State::Run } else { self.state };
-        uwrite!(io, "<{}|MPos:", state.name()).ok();
+        uwrite!(io, "<{}{}", state.name(), F!("|MPos:")).ok();
         let mpos = self.steps_to_mm(st.position);
         self.write_xyz(io, crate::frame::user_from_internal(mpos));
-        uwrite!(io, "|WPos:").ok();
+        uwrite!(io, "{}", F!("|WPos:")).ok();
         let wpos = self.interp.work_user(mpos);
         self.write_xyz(io, wpos);
         uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
@@ -1665,7 +1665,7 @@ impl Machine {
         self.report_count = self.report_count.wrapping_add(1);
         match self.report_count % 10 {
             0 => {
-                uwrite!(io, "|WCO:").ok();
+                uwrite!(io, "{}", F!("|WCO:")).ok();
                 let m = crate::frame::user_from_internal(mpos);
                 let mut wco = m;
                 for a in 0..3 {
