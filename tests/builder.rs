@@ -245,10 +245,10 @@ fn tool_numbers_that_clash_are_refused_and_nothing_is_stored() {
     for (line, want) in [
         ("G10 L1 P20 Q5", "that pocket holds another tool"),
         ("G10 L1 P3 Q5", "that pocket holds another tool"),
-        ("G10 L1 P20 Q13", "G10 L1 P<tool 1-255> Q<pocket 1-12"),
-        ("G10 L1 P256 Q1", "G10 L1 P<tool 1-255>"),
-        ("G10 L1 P0 Q1", "G10 L1 P<tool 1-255>"),
-        ("G10 L1 P2.5 Q1", "G10 L1 P<tool 1-255>"),
+        ("G10 L1 P20 Q13", "G10 L1 P<tool 1-254> Q<pocket 1-12"),
+        ("G10 L1 P255 Q1", "G10 L1 P<tool 1-254>"),
+        ("G10 L1 P0 Q1", "G10 L1 P<tool 1-254>"),
+        ("G10 L1 P2.5 Q1", "G10 L1 P<tool 1-254>"),
     ] {
         let e = refused(&mut vm, line);
         assert!(e.contains(want), "{line}: {e}");

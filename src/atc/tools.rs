@@ -318,6 +318,24 @@ mod tests {
     use super::*;
 
     #[test]
+    fn tool_numbers_round_trip_blank_is_the_factory_numbering_and_a_duplicate_is_refused() {
+        let mut t = ToolTable::EMPTY;
+        assert_eq!((t.pocket_of(5), t.number_of(5), t.pocket_of(13)), (Some(5), 5, None));
+        t.set_number(5, 0);
+        t.set_number(5, 20);
+        t.set_number(7, 0);
+        t.set_number(11, 7);
+        assert_eq!((t.pocket_of(20), t.pocket_of(7), t.number_of(7), t.pocket_of(5)), (Some(5), Some(11), 0, None));
+        let img = t.numbers_to_bytes();
+        assert_eq!(ToolTable::numbers_from_bytes(&img), Some(t.numbers));
+        assert_eq!(ToolTable::numbers_from_bytes(&[0xFF; ToolTable::NUMBERS_LEN]), None);
+        // Two pockets numbered 3 (pocket 3's own number, and 3 given to 4).
+        let mut d = ToolTable::EMPTY;
+        d.numbers[3] = 3;
+        assert_eq!(ToolTable::numbers_from_bytes(&d.numbers_to_bytes()), None);
+    }
+
+    #[test]
     fn tool_state_round_trips_and_blank_is_refused() {
         let s = ToolState { spindle: 3, occupied: ALL_POCKETS & !pocket_bit(3) & !pocket_bit(7) };
         assert_eq!(ToolState::from_bytes(&s.to_bytes()), Some(s));

@@ -1462,9 +1462,9 @@ impl Interp {
             1 if lv == 1.0 => {
                 if let Some(q) = l.word(Word::Q) {
                     // `G10 L1 P<tool> Q<pocket>`: the tool table's numbering.
-                    let (tool, pocket) = (whole_in(p, 1, 255), whole_in(q, 0, crate::atc::N_POCKETS as i32));
+                    let (tool, pocket) = (whole_in(p, 1, 254), whole_in(q, 0, crate::atc::N_POCKETS as i32));
                     let (Some(tool), Some(pocket)) = (tool, pocket) else {
-                        return Err(Error::BadWord(F!("G10 L1 P<tool 1-255> Q<pocket 1-12, 0 takes the tool out>")));
+                        return Err(Error::BadWord(F!("G10 L1 P<tool 1-254> Q<pocket 1-12, 0 takes the tool out>")));
                     };
                     return Ok(Some(Command::AssignTool { tool, pocket }));
                 }
