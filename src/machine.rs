@@ -575,6 +575,9 @@ impl Machine {
             Ok(cmd) => {
                 self.note_host(cmd);
                 self.serial_line = true;
+                if self.numbered {
+                    self.planner.line_tag = self.chk.last_line() as u16;
+                }
                 self.last_busy_ms = io.millis();
                 self.line_aborts = self.aborts;
                 let sd = crate::hostcodes::sd_code(cmd);
@@ -710,6 +713,12 @@ impl Machine {
         }
         let mut line = crate::gcode::Line::default();
         crate::gcode::parse_into(text, &mut line).map_err(interp::Error::Parse)?;
+        // A serial line's block number (`N10 G1 …`, grbl senders): its moves
+        // carry it for `?`'s `Ln:` (a Marlin host's N is the checker's, set
+        // in `run_raw_line`; an SD job tags its own lines).
+        if self.serial_line && !self.numbered {
+            self.planner.line_tag = block_number(text);
+        }
         self.run_line(&line, io)
     }
 
@@ -1648,6 +1657,11 @@ impl Machine {
         self.write_xyz(io, wpos);
         uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
         let (feed, rpm) = self.interp.feed_and_speed();
+        // Ln: the block number of the move being prepared (grbl with line
+        // numbers on); none for unnumbered lines.
+        if let Some(b) = self.planner.current_block().filter(|b| b.line != 0) {
+            uwrite!(io, "{}{}", F!("|Ln:"), b.line).ok();
+        }
         uwrite!(io, "|FS:{},{}", feed as i32, rpm as i32).ok();
         // Pn: the inputs that read triggered (grbl's letters; C is the
         // carousel's home switch, P the tool setter, G38's probe input).
@@ -1907,4 +1921,18 @@ fn home_axes(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
         m.homed |= 1 << axis;
     }
     Ok(())
+}
+
+/// The block number a line starts with (`N10 G1 …`; the parser skips it),
+/// low 16 bits; 0 without one.
+fn block_number(text: &[u8]) -> u16 {
+    let mut it = text.iter().skip_while(|&&b| b == b' ');
+    if !matches!(it.next(), Some(b'N' | b'n')) {
+        return 0;
+    }
+    let mut n: u16 = 0;
+    for &b in it.take_while(|b| b.is_ascii_digit()) {
+        n = n.wrapping_mul(10).wrapping_add(u16::from(b - b'0'));
+    }
+    n
 }

@@ -223,6 +223,39 @@ fn the_status_report_carries_grbls_fields() {
     assert_eq!(seen_ov.as_deref(), Some("120,100,100"));
 }
 
+/// `Ln:` in `?`: the block number (`N…`) of the move being run, from a
+/// grbl sender's `N10 G1 …` and from a Marlin host's numbered lines; none
+/// for lines without a number.
+#[test]
+fn the_status_report_names_the_block_number_of_the_move_being_run() {
+    let mut vm = boot_homed();
+    ok(&mut vm, "$$");
+    let ln = |st: &str| st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ln:")).map(str::to_string);
+    vm.send_line("N10 G1 X20 F600");
+    vm.send_line("N11 G1 X2");
+    vm.run_for(0.3).unwrap();
+    let st = status(&mut vm);
+    assert_eq!(ln(&st).as_deref(), Some("10"), "{st}");
+    vm.run_until(|v| v.position(Axis::X) >= 1990, 10.0).unwrap();
+    vm.run_for(0.3).unwrap();
+    let st = status(&mut vm);
+    assert_eq!(ln(&st).as_deref(), Some("11"), "{st}");
+    vm.run_until(|v| v.position(Axis::X) <= 200, 10.0).unwrap();
+    settle(&mut vm, 0.3);
+    ok(&mut vm, "G1 X10");
+    vm.run_for(0.2).unwrap();
+    let st = status(&mut vm);
+    assert!(st.starts_with("<Run") && ln(&st).is_none(), "{st}");
+    ok(&mut vm, "M400");
+    // A Marlin host's numbered, checksummed line.
+    let numbered = |l: &str| format!("{l}*{}", checksum(l));
+    ok(&mut vm, &numbered("N0 M110 N0"));
+    ok(&mut vm, &numbered("N1 G1 X30"));
+    vm.run_for(0.2).unwrap();
+    let st = status(&mut vm);
+    assert_eq!(ln(&st).as_deref(), Some("1"), "{st}");
+}
+
 /// grbl's other `$` commands: startup blocks (stored, checked, run at
 /// boot with their echo), `$I=`, `$RST=`, `$SLP`, `$HX`.
 #[test]
