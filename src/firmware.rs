@@ -446,6 +446,7 @@ impl Hw {
         v.feed = feed.clamp(0.0, 65535.0) as u16;
         v.override_pct = m.interp.feed_override_pct;
         v.opt_stop = m.settings.optional_stop;
+        v.wcs = m.interp.wcs;
         v.rpm = rpm.clamp(0.0, 65535.0) as u16;
         v.job = self.job.phase;
         v.job_pct = self.job.percent();

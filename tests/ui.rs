@@ -1366,7 +1366,7 @@ fn work_zero_from_the_jog_menu_and_a_z_zero_by_probing() {
     main_menu_entry(&mut vm, 3);
     press(&mut vm);
     let s = screen(&vm);
-    assert_eq!(s[0..7], ["[ Jog]", "[ < Back]", " Axis X", " Step 1 mm", " Jog now", " Zero X", " Probe Z zero"], "{s:?}");
+    assert_eq!(s[0..8], ["[ Jog]", "[ < Back]", " Axis X", " Step 1 mm", " Jog now", " Zero X", " Probe Z zero", " Work G54"], "{s:?}");
     golden(&vm, "jog_menu");
     // Zero X.
     turn(&mut vm, 4);
@@ -1393,8 +1393,17 @@ fn work_zero_from_the_jog_menu_and_a_z_zero_by_probing() {
     // Status: WPos X 0 and Z 0 here.
     let st = status(&mut vm);
     assert!(st.contains("WPos:0.000,12.000,0.0"), "{st}");
-    // A probe that touches nothing: the probe-fail alarm, said in words.
+    // The next work system: G55 active, its own offsets (zero here).
     press(&mut vm);
+    turn(&mut vm, 1);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Work G5]", "", " Work G55"], "{s:?}");
+    assert!(ok(&mut vm, "$G").iter().any(|l| l.contains(" G55 ")), "the modal state says G55");
+    press(&mut vm);
+    assert_eq!(screen(&vm)[7], "[ Work G55]", "{:?}", screen(&vm));
+    // A probe that touches nothing: the probe-fail alarm, said in words.
+    turn(&mut vm, -1);
     ok(&mut vm, "G53 G0 Z-20");
     ok(&mut vm, "M400");
     settle(&mut vm);

@@ -67,6 +67,8 @@ pub enum Act {
     ZeroAxis,
     /// Jog > Probe Z zero: probe down, Z zero where it touches.
     ProbeZ,
+    /// Jog > Work G5x: the next work system (G54 … G59, round).
+    WorkSystem,
     /// The last variant (`act_from_u8` checks against it).
     OptStop,
 }
@@ -102,7 +104,7 @@ fn act_from_u8(b: u8) -> Option<Act> {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 36] = [
+static ITEMS: [[u8; 2]; 37] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -125,6 +127,7 @@ static ITEMS: [[u8; 2]; 36] = [
     item(Text::JogNow, Act::JogNow),
     item(Text::ZeroAxis, Act::ZeroAxis),
     item(Text::ProbeZ, Act::ProbeZ),
+    item(Text::WorkSystem, Act::WorkSystem),
     // Home
     item(Text::Back, Act::Back),
     item(Text::HomeAll, Act::HomeAll),
@@ -149,7 +152,7 @@ static ITEMS: [[u8; 2]; 36] = [
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 7] = [0, 8, 13, 19, 24, 31, 36];
+static MENU_START: [u8; 7] = [0, 8, 13, 20, 25, 32, 37];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
@@ -253,6 +256,8 @@ pub enum ToolOp {
     /// Jog menu: probe Z down (G38.2 on the probe input, at most
     /// [`PROBE_Z_MM`]), then the Z work zero where it touched.
     ProbeZ,
+    /// Jog menu: `G54` + n, work system n (0..6) active.
+    Wcs(u8),
 }
 
 /// How far the menu's Z probe goes down at most, mm, and its feed, mm/min.
@@ -287,13 +292,14 @@ impl ToolOp {
                 let c = l.text(0, Text::LineZero);
                 l.put(c, &[b"XYZ"[a as usize % 3], b'0'])
             }
+            ToolOp::Wcs(n) => l.put(0, &[b'G', b'5', b'4' + n % 6]),
         }
     }
 
     /// The menu it came from.
     fn menu(self) -> MenuId {
         match self {
-            ToolOp::Zero(_) | ToolOp::ProbeZ => MenuId::Jog,
+            ToolOp::Zero(_) | ToolOp::ProbeZ | ToolOp::Wcs(_) => MenuId::Jog,
             _ => MenuId::Tools,
         }
     }
@@ -307,6 +313,7 @@ impl ToolOp {
             ToolOp::Confirm(_) => (Text::ConfirmSpindle, 5),
             ToolOp::Zero(_) => (Text::ZeroAxis, 4),
             ToolOp::ProbeZ => (Text::ProbeZ, 5),
+            ToolOp::Wcs(_) => (Text::WorkSystem, 6),
         }
     }
 }
@@ -361,6 +368,8 @@ pub struct View {
     pub override_pct: u16,
     /// Optional stop on: M1 pauses (`$152`).
     pub opt_stop: bool,
+    /// The active work system, 0 (G54) … 5 (G59).
+    pub wcs: u8,
     /// Spindle speed, rpm (0 = off).
     pub rpm: u16,
     pub job: Phase,
@@ -387,6 +396,7 @@ impl View {
             feed: 0,
             override_pct: 100,
             opt_stop: false,
+            wcs: 0,
             rpm: 0,
             job: Phase::Idle,
             job_pct: 0,
@@ -649,7 +659,7 @@ impl Ui {
                 let (confirm, t) = match op {
                     ToolOp::Confirm(t) => (true, t),
                     ToolOp::Change(t) => (false, t),
-                    ToolOp::Measure { .. } | ToolOp::Zero(_) | ToolOp::ProbeZ => (false, 0),
+                    ToolOp::Measure { .. } | ToolOp::Zero(_) | ToolOp::ProbeZ | ToolOp::Wcs(_) => (false, 0),
                 };
                 self.go(Screen::PickTool(confirm));
                 self.scroll(t as i8 + 1, TOOL_ENTRIES);
@@ -746,6 +756,7 @@ impl Ui {
             }
             Act::ZeroAxis => self.run_tool(ToolOp::Zero(self.jog_axis % 3), v),
             Act::ProbeZ => self.run_tool(ToolOp::ProbeZ, v),
+            Act::WorkSystem => self.run_tool(ToolOp::Wcs((v.wcs + 1) % 6), v),
             Act::HomeAll | Act::HomeZ | Act::HomeY | Act::HomeX => {
                 // Homing is also the way out of an alarm.
                 if !idle && !(v.state == State::Alarm && !v.job_active()) {
@@ -922,6 +933,9 @@ impl Ui {
             }
             Act::JogAxis | Act::ZeroAxis => {
                 l.put(c + 1, &[b"XYZ"[self.jog_axis as usize % 3]]);
+            }
+            Act::WorkSystem => {
+                l.put(c, &[b'4' + v.wcs % 6]);
             }
             Act::OptStop => {
                 l.text(COLS - 3, if v.opt_stop { Text::On } else { Text::Off });
@@ -1217,6 +1231,11 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
             l.text(1, Text::TableHead);
         }
         (Reply::Ok, 3) if matches!(op, ToolOp::Measure { .. }) => table_line(t, v, m, l),
+        // A work system chosen: the one now active.
+        (Reply::Ok, 2) if matches!(op, ToolOp::Wcs(_)) => {
+            let c = l.text(1, Text::WorkSystem);
+            l.put(c, &[b'4' + v.wcs % 6]);
+        }
         // A work zero: the axis' work position now (0.000).
         (Reply::Ok, 2) if matches!(op, ToolOp::Zero(_) | ToolOp::ProbeZ) => {
             let a = if let ToolOp::Zero(a) = op { a as usize % 3 } else { 2 };
@@ -1320,7 +1339,7 @@ mod tests {
         assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
         assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
         assert_eq!(MenuId::Tools.len(), 7);
-        assert_eq!(MenuId::Jog.len(), 6);
+        assert_eq!(MenuId::Jog.len(), 7);
         assert_eq!(MenuId::Jog.item(4), (Text::ZeroAxis, Act::ZeroAxis));
         assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
         assert_eq!(MenuId::Tools.item(6), (Text::Changer, Act::Changer));

@@ -146,6 +146,7 @@ crate::flash_texts! {
     // Jog menu: work zero.
     ZeroAxis = "Zero",
     ProbeZ = "Probe Z zero",
+    WorkSystem = "Work G5",
     LineZero = "G10 L20 P0 ",
     // Tools > Changer: the station's points, and teaching one.
     Changer = "Changer",
