@@ -263,49 +263,9 @@ impl Settings {
 
     /// Every value zero: only a placeholder for building a `Machine` in
     /// place (`Machine::init`), never used.
-    pub const ZEROED: Settings = Settings {
-        steps_per_mm: [0.0; N_AXES],
-        max_feed_mm_per_min: [0.0; N_AXES],
-        accel_mm_per_s2: [0.0; N_AXES],
-        travel_mm: [0.0; 3],
-        invert_dir_mask: 0,
-        invert_input_mask: 0,
-        junction_deviation_mm: 0.0,
-        arc_tolerance_mm: 0.0,
-        backlash_mm: [0.0; 3],
-        homing_seek_mm_per_min: 0.0,
-        homing_feed_mm_per_min: 0.0,
-        homing_pulloff_mm: 0.0,
-        soft_limits: false,
-        hard_limits: false,
-        spindle_max_rpm: 0.0,
-        auto_tool_offset: false,
-        homing_lock: false,
-        immediate_tool_change: false,
-        optional_stop: false,
-        card_out_retract_mm: 0.0,
-        wcs_mm: [[0.0; 3]; N_WCS],
-        dwell_p_ms: false,
-        g80_keeps_motion: false,
-        station: Station {
-            x1: 0.0,
-            y_a: 0.0,
-            y_b: 0.0,
-            z1: 0.0,
-            z2: 0.0,
-            z_safe: 0.0,
-            feed_y_in: 0.0,
-            feed_z_clamp: 0.0,
-            feed_z_release: 0.0,
-            feed_y_out: 0.0,
-            pocket_offset: 0.0,
-            keep_out_half_width: 0.0,
-            keep_out_top: 0.0,
-        },
-        spindle_min_rpm: 0.0,
-        spin_up_s: 0.0,
-        spin_down_s: 0.0,
-    };
+    // SAFETY: every field is an f32, a bool or a u8 (arrays and `Station`
+    // of them): all-zero bytes are a valid value of each (0.0, false, 0).
+    pub const ZEROED: Settings = unsafe { core::mem::zeroed() };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
     pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V5 + 1 + 4 * 16;
@@ -474,8 +434,9 @@ impl Settings {
         self.is_sane()
     }
 
-    /// The station's values in EEPROM image order.
-    fn station_fields(&self) -> [f32; 13] {
+    /// The station's values in EEPROM image order, which is `$170`…`$180`,
+    /// then `$183`, `$184`.
+    pub fn station_fields(&self) -> [f32; 13] {
         let s = &self.station;
         [
             s.x1,
@@ -619,6 +580,17 @@ impl Reader<'_> {
 mod tests {
     use super::*;
 
+    /// The image an older firmware wrote: `version`, the first `len - 2`
+    /// bytes of today's image `new` after the version, its own checksum
+    /// (the rest blank).
+    fn old_image(new: &[u8], version: u8, len: usize) -> [u8; Settings::IMAGE_LEN] {
+        let mut old = [0xFFu8; Settings::IMAGE_LEN];
+        old[0] = version;
+        old[1..len - 1].copy_from_slice(&new[1..len - 1]);
+        old[len - 1] = checksum(&old[..len - 1]);
+        old
+    }
+
     #[test]
     fn defaults_round_trip_through_the_eeprom_image() {
         let mut s = Settings::DEFAULT;
@@ -639,10 +611,7 @@ mod tests {
         s.dwell_p_ms = true;
         s.g80_keeps_motion = false;
         let new = s.to_bytes();
-        let mut old = [0xFFu8; Settings::IMAGE_LEN];
-        old[0] = 3;
-        old[1..Settings::IMAGE_LEN_V3 - 1].copy_from_slice(&new[1..Settings::IMAGE_LEN_V3 - 1]);
-        old[Settings::IMAGE_LEN_V3 - 1] = checksum(&old[..Settings::IMAGE_LEN_V3 - 1]);
+        let mut old = old_image(&new, 3, Settings::IMAGE_LEN_V3);
         let loaded = Settings::from_bytes(&old).unwrap();
         assert_eq!(loaded.steps_per_mm[2], 400.0);
         assert!(loaded.optional_stop);
@@ -658,12 +627,7 @@ mod tests {
         let mut s = Settings::DEFAULT;
         s.dwell_p_ms = true;
         s.card_out_retract_mm = 7.5;
-        let new = s.to_bytes();
-        let n = Settings::IMAGE_LEN_V4;
-        let mut old = [0xFFu8; Settings::IMAGE_LEN];
-        old[0] = 4;
-        old[1..n - 1].copy_from_slice(&new[1..n - 1]);
-        old[n - 1] = checksum(&old[..n - 1]);
+        let old = old_image(&s.to_bytes(), 4, Settings::IMAGE_LEN_V4);
         let loaded = Settings::from_bytes(&old).unwrap();
         assert!(loaded.dwell_p_ms);
         assert_eq!(loaded.card_out_retract_mm, Settings::DEFAULT.card_out_retract_mm);
@@ -675,11 +639,7 @@ mod tests {
         s.card_out_retract_mm = 7.5;
         s.invert_input_mask = 0b11111;
         let new = s.to_bytes();
-        let n = Settings::IMAGE_LEN_V5;
-        let mut old = [0xFFu8; Settings::IMAGE_LEN];
-        old[0] = 5;
-        old[1..n - 1].copy_from_slice(&new[1..n - 1]);
-        old[n - 1] = checksum(&old[..n - 1]);
+        let old = old_image(&new, 5, Settings::IMAGE_LEN_V5);
         let loaded = Settings::from_bytes(&old).unwrap();
         assert_eq!(loaded.card_out_retract_mm, 7.5);
         assert_eq!(loaded.invert_input_mask, 0);

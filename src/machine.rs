@@ -717,7 +717,7 @@ impl Machine {
         // carry it for `?`'s `Ln:` (a Marlin host's N is the checker's, set
         // in `run_raw_line`; an SD job tags its own lines).
         if self.serial_line && !self.numbered {
-            self.planner.line_tag = block_number(text);
+            self.planner.line_tag = crate::protocol::block_number(text);
         }
         self.run_line(&line, io)
     }
@@ -1923,16 +1923,3 @@ fn home_axes(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     Ok(())
 }
 
-/// The block number a line starts with (`N10 G1 …`; the parser skips it),
-/// low 16 bits; 0 without one.
-fn block_number(text: &[u8]) -> u16 {
-    let mut it = text.iter().skip_while(|&&b| b == b' ');
-    if !matches!(it.next(), Some(b'N' | b'n')) {
-        return 0;
-    }
-    let mut n: u16 = 0;
-    for &b in it.take_while(|b| b.is_ascii_digit()) {
-        n = n.wrapping_mul(10).wrapping_add(u16::from(b - b'0'));
-    }
-    n
-}

@@ -746,6 +746,15 @@ fn m110_param(cmd: &[u8]) -> Option<i32> {
     m110_param_of(cmd)
 }
 
+/// The block number a line starts with (`N10 G1 …`; the parser skips it),
+/// low 16 bits; 0 without one (or a negative one).
+pub fn block_number(text: &[u8]) -> u16 {
+    match trim(text).split_first() {
+        Some((b'N' | b'n', rest)) => parse_i32(rest).map_or(0, |(v, _)| if v < 0 { 0 } else { v as u16 }),
+        _ => 0,
+    }
+}
+
 /// [`m110_param`] past its first-byte test.
 #[inline(never)]
 fn m110_param_of(cmd: &[u8]) -> Option<i32> {
@@ -876,6 +885,16 @@ pub fn rx_fast_mode(scan: &MCodeScanner, store: &RxStore, text: &RxText) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_block_number_a_line_starts_with() {
+        assert_eq!(block_number(b"N10 G1 X5"), 10);
+        assert_eq!(block_number(b"  n7G0"), 7);
+        assert_eq!(block_number(b"N70000 G0"), (70000u32 & 0xFFFF) as u16);
+        assert_eq!(block_number(b"G1 N10"), 0);
+        assert_eq!(block_number(b"N-5 G0"), 0);
+        assert_eq!(block_number(b"N G0"), 0);
+    }
 
     /// Feed `bytes`, collecting each result with its line text.
     fn assemble(a: &mut LineAssembler, bytes: &[u8]) -> Vec<(Assembled, Vec<u8>)> {

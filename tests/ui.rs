@@ -314,13 +314,19 @@ fn a_running_job_shows_its_values_and_the_button_resumes_it_from_m0() {
 
 // ------------------------------------------------- job control and faults
 
+/// `head`, then `lines` moves on X at F1200 (20 mm/s) alternating between
+/// `xs[0]` and `xs[1]`, then `tail`.
+fn back_and_forth(head: &str, xs: [u32; 2], lines: usize, tail: &str) -> String {
+    let mut s = String::from(head);
+    for i in 0..lines {
+        s += &format!("G1 X{} F1200\n", xs[i % 2]);
+    }
+    s + tail
+}
+
 /// A long back-and-forth job on X at F1200 (1200 mm/min = 20 mm/s), spindle on.
 fn long_job(lines: usize) -> String {
-    let mut s = String::from("G21 G90\nM3 S8000\n");
-    for i in 0..lines {
-        s += if i % 2 == 0 { "G1 X20 F1200\n" } else { "G1 X2 F1200\n" };
-    }
-    s + "M5\nM2\n"
+    back_and_forth("G21 G90\nM3 S8000\n", [20, 2], lines, "M5\nM2\n")
 }
 
 #[test]
@@ -1175,11 +1181,7 @@ fn unlock_from_the_alarm_menu_clears_the_alarm_and_moves_nothing() {
 /// Z 5 mm into the work, then X back and forth (18 mm at 20 mm/s each),
 /// spindle on: line 3 goes to X20, line 5 on alternate X2 / X20.
 fn cutting_job(lines: usize) -> String {
-    let mut s = String::from("G21 G90\nM3 S8000\nG0 X20 Y5\nG1 Z-5 F600\n");
-    for i in 0..lines {
-        s += if i % 2 == 0 { "G1 X2 F1200\n" } else { "G1 X20 F1200\n" };
-    }
-    s + "G0 Z0\nM5\nM2\n"
+    back_and_forth("G21 G90\nM3 S8000\nG0 X20 Y5\nG1 Z-5 F600\n", [2, 20], lines, "G0 Z0\nM5\nM2\n")
 }
 
 #[test]

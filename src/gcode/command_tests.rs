@@ -9,8 +9,12 @@ use crate::config::Settings;
 /// Every command of `text`, with the target of each move (`None` for the
 /// others), as a controller that carries each out at once would see them.
 fn commands(i: &mut Interp, s: &Settings, text: &str) -> Result<Vec<(Command, Option<[f32; N_AXES]>)>, Error> {
-    let atc = Atc::new();
-    let cx = Ctx { settings: s, atc: &atc, alarm: false, estop: false, status_only: false };
+    commands_with(i, s, &Atc::new(), text)
+}
+
+/// [`commands`] with the changer state `atc` (its tool table).
+fn commands_with(i: &mut Interp, s: &Settings, atc: &Atc, text: &str) -> Result<Vec<(Command, Option<[f32; N_AXES]>)>, Error> {
+    let cx = Ctx { settings: s, atc, alarm: false, estop: false, status_only: false };
     let l = crate::gcode::parse(text.as_bytes()).expect("parses");
     i.begin_line();
     let mut out = Vec::new();
@@ -123,22 +127,7 @@ fn the_context_locks_motion_in_an_alarm_but_not_homing() {
 fn commands_t1(i: &mut Interp, s: &Settings, text: &str) -> Result<Vec<(Command, Option<[f32; N_AXES]>)>, Error> {
     let mut atc = Atc::new();
     atc.table.diameter_um[0] = 1000;
-    let cx = Ctx { settings: s, atc: &atc, alarm: false, estop: false, status_only: false };
-    let l = crate::gcode::parse(text.as_bytes()).expect("parses");
-    i.begin_line();
-    let mut out = Vec::new();
-    while let Some(c) = i.next(&cx, &l)? {
-        let t = match c {
-            Command::Move { .. } => {
-                let t = *i.target();
-                i.target_reached();
-                Some(t)
-            }
-            _ => None,
-        };
-        out.push((c, t));
-    }
-    Ok(out)
+    commands_with(i, s, &atc, text)
 }
 
 /// The XY ends of the moves of `lines`, run one after another.

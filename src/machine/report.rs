@@ -101,21 +101,8 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
     d.num(s.card_out_retract_mm);
     d.text("\n");
     d.out(F!("echo:Tool change station X1 YA YB, Z1 Z2 travel (mm below Z home), feeds, pocket offset:\n"));
-    let st = &s.station;
-    let values = [
-        st.x1,
-        st.y_a,
-        st.y_b,
-        st.z1,
-        st.z2,
-        st.z_safe,
-        st.feed_y_in,
-        st.feed_z_clamp,
-        st.feed_z_release,
-        st.feed_y_out,
-        st.pocket_offset,
-    ];
-    for (i, v) in values.into_iter().enumerate() {
+    // `$170`…`$180`: the first eleven of the station's fields.
+    for (i, v) in s.station_fields().into_iter().take(11).enumerate() {
         d.out(F!("$"));
         d.int(170 + i as i32);
         d.out(F!("="));
