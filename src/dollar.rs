@@ -40,50 +40,136 @@ pub enum Field<'a> {
     Mask(&'a mut u8, u8),
 }
 
-/// The setting numbered `n`, and what it means.
-pub fn field(s: &mut Settings, n: u8) -> Option<(Field<'_>, FStr)> {
-    use Field::*;
-    Some(match n {
-        3 => (Mask(&mut s.invert_dir_mask, 0b1111), F!("direction invert mask, bit 0 X .. bit 3 E")),
-        5 => (Mask(&mut s.invert_input_mask, 0b11111), F!("input invert mask (normally-closed): bit 0-2 X Y Z home, 3 carousel home, 4 tool setter")),
-        11 => (Num(&mut s.junction_deviation_mm), F!("junction deviation, mm")),
-        12 => (Num(&mut s.arc_tolerance_mm), F!("arc tolerance, mm")),
-        20 => (Flag(&mut s.soft_limits), F!("soft limits, 0/1")),
-        21 => (Flag(&mut s.hard_limits), F!("hard limits, 0/1")),
-        22 => (Flag(&mut s.homing_lock), F!("homing lock: no motion until homed or unlocked, 0/1")),
-        24 => (Num(&mut s.homing_feed_mm_per_min), F!("homing locate feed, mm/min")),
-        25 => (Num(&mut s.homing_seek_mm_per_min), F!("homing seek feed, mm/min")),
-        27 => (Num(&mut s.homing_pulloff_mm), F!("homing pull-off, mm")),
-        30 => (Num(&mut s.spindle_max_rpm), F!("spindle rpm at 100 % PWM")),
-        31 => (Num(&mut s.spindle_min_rpm), F!("spindle minimum rpm when on")),
-        100..=103 => (Num(&mut s.steps_per_mm[(n - 100) as usize]), F!("steps/mm (E: steps/pocket)")),
-        110..=113 => (Num(&mut s.max_feed_mm_per_min[(n - 110) as usize]), F!("max rate, mm/min")),
-        120..=123 => (Num(&mut s.accel_mm_per_s2[(n - 120) as usize]), F!("acceleration, mm/s^2")),
-        130..=132 => (Num(&mut s.travel_mm[(n - 130) as usize]), F!("max travel, mm")),
-        140..=142 => (Num(&mut s.backlash_mm[(n - 140) as usize]), F!("backlash, mm")),
-        150 => (Flag(&mut s.auto_tool_offset), F!("apply tool length offset after a change, 0/1")),
-        151 => (Flag(&mut s.immediate_tool_change), F!("T alone changes the tool at once (Repetier), 0/1")),
-        152 => (Flag(&mut s.optional_stop), F!("optional stop: M1 pauses, 0/1")),
-        153 => (Flag(&mut s.dwell_p_ms), F!("G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1")),
-        154 => (Flag(&mut s.g80_keeps_motion), F!("G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1")),
-        160 => (Num(&mut s.card_out_retract_mm), F!("card pulled mid-job: retract Z to this far below its home switch, mm")),
-        170 => (Num(&mut s.station.x1), F!("tool change X1 (in front of the magazine), mm")),
-        171 => (Num(&mut s.station.y_a), F!("tool change Y point A (outside the magazine), mm")),
-        172 => (Num(&mut s.station.y_b), F!("tool change Y point B (in the pocket), mm")),
-        173 => (Num(&mut s.station.z1), F!("tool change Z1 (above the tool in its pocket), mm below Z home")),
-        174 => (Num(&mut s.station.z2), F!("tool change Z2 (clamp / release), mm below Z home")),
-        175 => (Num(&mut s.station.z_safe), F!("tool change travel height, mm below Z home")),
-        176 => (Num(&mut s.station.feed_y_in), F!("tool change feed Y in, mm/min")),
-        177 => (Num(&mut s.station.feed_z_clamp), F!("tool change feed Z down to clamp, mm/min")),
-        178 => (Num(&mut s.station.feed_z_release), F!("tool change feed Z release and up, mm/min")),
-        179 => (Num(&mut s.station.feed_y_out), F!("tool change feed Y out, mm/min")),
-        183 => (Num(&mut s.station.keep_out_half_width), F!("tool magazine keep-out zone: half width in X around X1, mm (0: none)")),
-        184 => (Num(&mut s.station.keep_out_top), F!("tool magazine keep-out zone: top, mm below Z home")),
-        181 => (Num(&mut s.spin_up_s), F!("spindle spin-up delay after M3, s")),
-        182 => (Num(&mut s.spin_down_s), F!("spindle spin-down delay after M5 and before a tool change, s")),
-        180 => (Num(&mut s.station.pocket_offset), F!("carousel: pocket 1 at this + 1 pitches from home, 0-17")),
-        _ => return None,
-    })
+/// One setting's value, read out of [`Settings`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Value {
+    Num(f32),
+    Flag(bool),
+    /// A bit mask, and the highest value it may take.
+    Mask(u8, u8),
+}
+
+impl Value {
+    /// The value in thousandths (the unit the menu edits in; a flag or a
+    /// mask is a whole number).
+    pub fn micros(self) -> i32 {
+        match self {
+            Value::Num(x) => Micros::from_mm(x).0,
+            Value::Flag(b) => b as i32 * 1000,
+            Value::Mask(m, _) => m as i32 * 1000,
+        }
+    }
+}
+
+/// The settings table, written once: `field` (to set one), `value` (to read
+/// one and what it means), and the list of numbers in flash (`count`,
+/// `nth`), all from the same lines. `$s` and `$n` are the functions' parameters, named at the
+/// call so the places can use them.
+macro_rules! settings_table {
+    ($s:ident, $n:ident; $($num:pat => $kind:ident($place:expr $(, $max:expr)?), $what:literal;)*) => {
+        /// The setting numbered `n`, to set it.
+        #[inline(never)] // flash: one copy of the table
+        pub fn field($s: &mut Settings, $n: u8) -> Option<Field<'_>> {
+            Some(match $n {
+                $($num => Field::$kind(&mut $place $(, $max)?),)*
+                _ => return None,
+            })
+        }
+
+        /// The value of setting `n`, and what it means.
+        #[inline(never)] // flash: one copy of the table
+        pub fn value($s: &Settings, $n: u8) -> Option<(Value, FStr)> {
+            Some(match $n {
+                $($num => (Value::$kind($place $(, $max)?), F!($what)),)*
+                _ => return None,
+            })
+        }
+
+        /// True if setting `n` exists.
+        const fn exists($n: u8) -> bool {
+            matches!($n, $($num)|*)
+        }
+    };
+}
+
+settings_table! { s, n;
+    3 => Mask(s.invert_dir_mask, 0b1111), "direction invert mask, bit 0 X .. bit 3 E";
+    5 => Mask(s.invert_input_mask, 0b11111), "input invert mask (normally-closed): bit 0-2 X Y Z home, 3 carousel home, 4 tool setter";
+    11 => Num(s.junction_deviation_mm), "junction deviation, mm";
+    12 => Num(s.arc_tolerance_mm), "arc tolerance, mm";
+    20 => Flag(s.soft_limits), "soft limits, 0/1";
+    21 => Flag(s.hard_limits), "hard limits, 0/1";
+    22 => Flag(s.homing_lock), "homing lock: no motion until homed or unlocked, 0/1";
+    24 => Num(s.homing_feed_mm_per_min), "homing locate feed, mm/min";
+    25 => Num(s.homing_seek_mm_per_min), "homing seek feed, mm/min";
+    27 => Num(s.homing_pulloff_mm), "homing pull-off, mm";
+    30 => Num(s.spindle_max_rpm), "spindle rpm at 100 % PWM";
+    31 => Num(s.spindle_min_rpm), "spindle minimum rpm when on";
+    100..=103 => Num(s.steps_per_mm[(n - 100) as usize]), "steps/mm (E: steps/pocket)";
+    110..=113 => Num(s.max_feed_mm_per_min[(n - 110) as usize]), "max rate, mm/min";
+    120..=123 => Num(s.accel_mm_per_s2[(n - 120) as usize]), "acceleration, mm/s^2";
+    130..=132 => Num(s.travel_mm[(n - 130) as usize]), "max travel, mm";
+    140..=142 => Num(s.backlash_mm[(n - 140) as usize]), "backlash, mm";
+    150 => Flag(s.auto_tool_offset), "apply tool length offset after a change, 0/1";
+    151 => Flag(s.immediate_tool_change), "T alone changes the tool at once (Repetier), 0/1";
+    152 => Flag(s.optional_stop), "optional stop: M1 pauses, 0/1";
+    153 => Flag(s.dwell_p_ms), "G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1";
+    154 => Flag(s.g80_keeps_motion), "G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1";
+    160 => Num(s.card_out_retract_mm), "card pulled mid-job: retract Z to this far below its home switch, mm";
+    170 => Num(s.station.x1), "tool change X1 (in front of the magazine), mm";
+    171 => Num(s.station.y_a), "tool change Y point A (outside the magazine), mm";
+    172 => Num(s.station.y_b), "tool change Y point B (in the pocket), mm";
+    173 => Num(s.station.z1), "tool change Z1 (above the tool in its pocket), mm below Z home";
+    174 => Num(s.station.z2), "tool change Z2 (clamp / release), mm below Z home";
+    175 => Num(s.station.z_safe), "tool change travel height, mm below Z home";
+    176 => Num(s.station.feed_y_in), "tool change feed Y in, mm/min";
+    177 => Num(s.station.feed_z_clamp), "tool change feed Z down to clamp, mm/min";
+    178 => Num(s.station.feed_z_release), "tool change feed Z release and up, mm/min";
+    179 => Num(s.station.feed_y_out), "tool change feed Y out, mm/min";
+    180 => Num(s.station.pocket_offset), "carousel: pocket 1 at this + 1 pitches from home, 0-17";
+    181 => Num(s.spin_up_s), "spindle spin-up delay after M3, s";
+    182 => Num(s.spin_down_s), "spindle spin-down delay after M5 and before a tool change, s";
+    183 => Num(s.station.keep_out_half_width), "tool magazine keep-out zone: half width in X around X1, mm (0: none)";
+    184 => Num(s.station.keep_out_top), "tool magazine keep-out zone: top, mm below Z home";
+}
+
+/// How many settings there are.
+const COUNT: usize = {
+    let mut c = 0;
+    let mut n = 0;
+    while n < 256 {
+        if exists(n as u8) {
+            c += 1;
+        }
+        n += 1;
+    }
+    c
+};
+
+crate::in_flash! {
+    /// Every setting's number, ascending.
+    static NUMBERS: [u8; COUNT] = {
+        let mut t = [0u8; COUNT];
+        let (mut i, mut n) = (0, 0);
+        while n < 256 {
+            if exists(n as u8) {
+                t[i] = n as u8;
+                i += 1;
+            }
+            n += 1;
+        }
+        t
+    };
+}
+
+/// How many settings there are (the menu's Settings list).
+pub fn count() -> u8 {
+    COUNT as u8
+}
+
+/// The number of the `i`-th setting in ascending order (`i` < [`count`]).
+pub fn nth(i: u8) -> u8 {
+    NUMBERS.row(i as usize).unwrap_or(0)
 }
 
 /// A parsed `$` command.
@@ -220,7 +306,7 @@ fn parse_value(b: &[u8]) -> Option<f32> {
 
 /// Set setting `n` of `s` to `v`. The caller checks `s.is_sane()` after.
 pub fn set(s: &mut Settings, n: u8, v: f32) -> Result<(), DollarError> {
-    let (f, _) = field(s, n).ok_or(DollarError::Unknown)?;
+    let f = field(s, n).ok_or(DollarError::Unknown)?;
     match f {
         Field::Num(x) => *x = v,
         Field::Flag(x) => {
@@ -242,15 +328,14 @@ pub fn set(s: &mut Settings, n: u8, v: f32) -> Result<(), DollarError> {
 
 /// `$$`: every setting, one `$<n>=<value> (<meaning>)` line each.
 pub fn list(s: &Settings, w: &mut impl uWrite) {
-    let mut copy = *s;
-    // The match in `field` is the table: no list to keep in step with it.
-    for n in 0..=255u8 {
-        if let Some((f, what)) = field(&mut copy, n) {
+    for i in 0..count() {
+        let n = nth(i);
+        if let Some((v, what)) = value(s, n) {
             uwrite!(w, "${}=", n).ok();
-            match f {
-                Field::Num(x) => uwrite!(w, "{}", Micros::from_mm(*x)),
-                Field::Flag(x) => uwrite!(w, "{}", *x as u8),
-                Field::Mask(x, _) => uwrite!(w, "{}", *x),
+            match v {
+                Value::Num(x) => uwrite!(w, "{}", Micros::from_mm(x)),
+                Value::Flag(x) => uwrite!(w, "{}", x as u8),
+                Value::Mask(x, _) => uwrite!(w, "{}", x),
             }
             .ok();
             uwriteln!(w, " ({})", what).ok();

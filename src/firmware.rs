@@ -384,6 +384,10 @@ impl Io for Hw {
         let (detents, presses) = board::take_encoder();
         if detents != 0 || presses != 0 {
             let cmd = self.ui.step(detents, presses != 0, &self.view);
+            if let Cmd::Edit(e) = cmd {
+                self.ui.edit_um = e.current(m);
+            }
+            self.ui.fit_edit(m);
             self.command_now(cmd);
             // Show the change at once.
             self.display.frame_start_ms = board::millis().wrapping_sub(FRAME_MS);
@@ -760,6 +764,14 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             Ok(())
         }
         Cmd::Teach(p) => m.teach_station(hw, p),
+        Cmd::Store(e, um) => {
+            let r = store_edit(m, hw, e, um);
+            hw.ui.reply = match r {
+                Ok(()) => Reply::Ok,
+                Err(e) => Reply::Err(e.message()),
+            };
+            r
+        }
         Cmd::Tool(op) => {
             if matches!(op, mill::ui::menu::ToolOp::Confirm(_)) && m.alarm.is_some() {
                 // Confirming the spindle is a way out of the alarm.
@@ -803,6 +815,39 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
         uwriteln!(hw, "{}", mill::F!("echo:menu:")).ok();
         m.report_error(hw, e);
     }
+}
+
+/// The menu's edit stored through the serial lines: `$n=<value>`, or for
+/// a pocket's tool number `G10 L1 P<old> Q0` then `G10 L1 P<new> Q<p>`
+/// (the old number put back if the new one is refused).
+#[inline(never)]
+fn store_edit(m: &mut Machine, hw: &mut Hw, e: mill::ui::menu::Edit, um: i32) -> mill::machine::CmdResult {
+    use mill::ui::menu::Edit;
+    let mut l = Line::blank();
+    let Edit::Pocket(p) = e else {
+        let n = e.gcode(um, None, &mut l);
+        return m.run_menu_line(&l.chars[..n], hw);
+    };
+    let (old, new) = (m.atc.table.number_of(p), (um / 1000) as u8);
+    if old == new {
+        return Ok(());
+    }
+    if old != 0 {
+        let n = e.gcode(um, Some(old), &mut l);
+        m.run_menu_line(&l.chars[..n], hw)?;
+    }
+    if new == 0 {
+        return Ok(());
+    }
+    let mut l = Line::blank();
+    let n = e.gcode(um, None, &mut l);
+    let r = m.run_menu_line(&l.chars[..n], hw);
+    if r.is_err() && old != 0 {
+        let mut l = Line::blank();
+        let n = e.gcode(old as i32 * 1000, None, &mut l);
+        m.run_menu_line(&l.chars[..n], hw).ok();
+    }
+    r
 }
 
 /// While the TX ring is full: keep the watchdog fed.

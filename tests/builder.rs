@@ -9,7 +9,10 @@
 //! checked on the recorded steps.
 
 mod common;
+#[path = "common/panel.rs"]
+mod panel;
 use common::*;
+use panel::{golden, press, screen, turn};
 use sim::{AtcConfig, Axis, Input, OpticalBeam, Tool, ToolSetter, Vm, VmConfig};
 
 /// Every switch normally-closed and the setter's output inverted: the
@@ -236,6 +239,174 @@ fn tool_numbers_are_not_pockets_a_shop_numbered_changer_runs_t20_t7_t0() {
     settle(&mut vm, 0.5);
     let m503 = ok(&mut vm, "M503");
     assert!(m503.iter().any(|l| l == "G10 L1 P20 Q5") && m503.iter().any(|l| l == "$170=30.000"), "{m503:?}");
+}
+
+/// Screen rows as one text, the word-wrapping undone.
+fn words(s: &[String]) -> String {
+    s.join(" ").split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// The edit screen's Value row, as a number (`[ Value   23.000]`, `T20`).
+fn value_shown(vm: &Vm) -> f64 {
+    let row = screen(vm)[5].trim_matches(|c| c == '[' || c == ']').to_string();
+    let v = row.split_whitespace().last().unwrap_or_else(|| panic!("{row}"));
+    if v == "none" {
+        return 0.0;
+    }
+    v.trim_start_matches('T').parse().unwrap_or_else(|_| panic!("value row {row:?}"))
+}
+
+/// On an edit screen, the Value entry selected: turn it to `to` (tenths
+/// with the step 0.1) and save; returns the reply screen.
+fn edit_and_save(vm: &mut Vm, to: f64) -> Vec<String> {
+    let delta = ((to - value_shown(vm)) * 10.0).round() as i32;
+    let (whole, tenths) = (delta / 10, delta % 10);
+    if whole != 0 {
+        press(vm);
+        turn(vm, whole);
+        press(vm);
+    }
+    if tenths != 0 {
+        // The step: 1 → 10 → 100 → 1000 → 0.001 → 0.01 → 0.1.
+        turn(vm, 1);
+        for _ in 0..6 {
+            press(vm);
+        }
+        assert!(screen(vm)[6].contains("0.100"), "{:?}", screen(vm));
+        turn(vm, -1);
+        press(vm);
+        turn(vm, tenths);
+        press(vm);
+    }
+    assert!((value_shown(vm) - to).abs() < 1e-6, "{to}: {:?}", screen(vm));
+    turn(vm, 2);
+    press(vm);
+    vm.run_for(0.5).unwrap();
+    screen(vm)
+}
+
+/// The Settings list open, `at` its selected entry: edit `$n` to `v`, check
+/// the reply, and come back to the list (now on `$n`'s entry).
+fn set_from_menu(vm: &mut Vm, at: &mut i32, n: u8, v: f64) {
+    let entry = (0..mill::dollar::count()).position(|i| mill::dollar::nth(i) == n).unwrap() as i32 + 1;
+    turn(vm, entry - *at);
+    press(vm);
+    assert_eq!(screen(vm)[0], format!("[ ${n}]"), "{:?}", screen(vm));
+    let r = edit_and_save(vm, v);
+    assert_eq!(r[0], "[ Settings]", "{r:?}");
+    let want = if v.fract() == 0.0 && (n == 3 || n == 5) { format!("{v}") } else { format!("{v:.3}") };
+    assert!(r[2].starts_with(&format!(" ${n} ")) && r[2].ends_with(&format!(" {want}")), "${n}={v}: {r:?}");
+    press(vm); // back to the edit screen
+    turn(vm, -1);
+    press(vm); // the list, on $n
+    *at = entry;
+}
+
+/// In Tools › Tool numbers, `at` the selected entry: give pocket `p` tool
+/// number `t` (0 = none); returns the reply screen, back on the list.
+fn number_from_menu(vm: &mut Vm, at: &mut i32, p: i32, t: f64) -> Vec<String> {
+    turn(vm, p - *at);
+    press(vm);
+    assert_eq!(screen(vm)[0], format!("[ Pocket {p}]"), "{:?}", screen(vm));
+    let r = edit_and_save(vm, t);
+    press(vm);
+    turn(vm, -1);
+    press(vm);
+    *at = p;
+    r
+}
+
+/// The machine of `the_station_and_the_carousel…` and the shop's tool
+/// numbers, set up with the encoder alone: every `$` value on Settings,
+/// the numbers on Tools › Tool numbers. After a power cycle everything is
+/// still set, and the job with T20, T7 and T0 runs.
+#[test]
+fn the_same_setup_from_the_menu_with_the_encoder_survives_a_power_cycle() {
+    let mut cfg = other_machine();
+    shop_tools(&mut cfg.machine.atc);
+    // Pocket 7 keeps its tool, without a number (the menu has no M61 P S).
+    cfg.machine.atc.pockets[6] = Some(Tool { id: 107, ..AtcConfig::default_tool(7) });
+    let mut vm = boot_with(cfg);
+    vm.run_for(0.5).unwrap();
+    // Menu › Settings.
+    press(&mut vm);
+    turn(&mut vm, 6);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Settings]", "[ < Back]", " $3                 0"], "{s:?}");
+    golden(&vm, "settings_list");
+    let mut at = 0;
+    for (n, v) in [(5, 31.0), (3, 8.0), (170, 30.0), (171, 25.0), (172, 40.0), (173, 38.0), (174, 42.5), (180, 4.0)] {
+        set_from_menu(&mut vm, &mut at, n, v);
+        if n == 174 {
+            // The list shows the stored value.
+            assert_eq!(screen(&vm).iter().filter(|l| l.starts_with("[ $174")).count(), 1, "{:?}", screen(&vm));
+        }
+    }
+    // A station point outside the travel: refused, named, nothing stored.
+    let eeprom = vm.eeprom();
+    let entry = (0..mill::dollar::count()).position(|i| mill::dollar::nth(i) == 172).unwrap() as i32 + 1;
+    turn(&mut vm, entry - at);
+    press(&mut vm);
+    golden(&vm, "settings_edit");
+    let r = edit_and_save(&mut vm, 50.0);
+    assert!(words(&r[2..7]).contains("tool change station point outside the travel"), "{r:?}");
+    assert_eq!(vm.eeprom(), eeprom, "nothing stored");
+    press(&mut vm);
+    turn(&mut vm, -1);
+    press(&mut vm);
+    at = entry;
+    turn(&mut vm, -at);
+    press(&mut vm); // < Back: the main menu, on Settings
+    // Tools › Tool numbers: T20 in pocket 5, pocket 7 without a number,
+    // T7 in pocket 11.
+    turn(&mut vm, -1);
+    press(&mut vm);
+    turn(&mut vm, 7);
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..3], ["[ Tool numbers]", "[ < Back]", " Pocket 1          T1"], "{s:?}");
+    let mut at = 0;
+    let r = number_from_menu(&mut vm, &mut at, 5, 20.0);
+    assert_eq!(r[2], " Pocket 5         T20", "{r:?}");
+    // T20 a second time: refused, pocket 11 keeps its number.
+    let r = number_from_menu(&mut vm, &mut at, 11, 20.0);
+    assert!(words(&r[2..7]).contains("another pocket"), "{r:?}");
+    let r = number_from_menu(&mut vm, &mut at, 7, 0.0);
+    assert_eq!(r[2], " Pocket 7        none", "{r:?}");
+    let r = number_from_menu(&mut vm, &mut at, 11, 7.0);
+    assert_eq!(r[2], " Pocket 11         T7", "{r:?}");
+    golden(&vm, "tool_numbers");
+    // After a power cycle: everything still set, on the screen and in M503.
+    vm.power_cycle();
+    vm.run_for(1.0).unwrap();
+    vm.take_lines();
+    let list = ok(&mut vm, "$$");
+    for want in ["$5=31", "$3=8", "$170=30.000", "$171=25.000", "$172=40.000", "$173=38.000", "$174=42.500", "$180=4.000"] {
+        assert!(list.iter().any(|l| l.starts_with(&format!("{want} "))), "{want} in $$: {list:?}");
+    }
+    let m503 = ok(&mut vm, "M503");
+    for want in ["G10 L1 P20 Q5", "G10 L1 P7 Q11"] {
+        assert!(m503.iter().any(|l| l == want), "{want} in M503: {m503:?}");
+    }
+    assert!(!m503.iter().any(|l| l.ends_with(" Q7") || l.starts_with("G10 L1 P11 ")), "pocket 7 without a number, T11 gone: {m503:?}");
+    // The job: homes through the NC switches and changes T20, T7, T0 at the
+    // moved station with the carousel reversed.
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X10 Y10");
+    for (t, pocket) in [(20u8, 5usize), (7, 11), (0, 0)] {
+        ok(&mut vm, &format!("T{t} M6"));
+        let (spindle, pockets) = changer(&vm);
+        assert_eq!(spindle, (t != 0).then_some(t), "the VM's spindle after T{t} M6");
+        if pocket != 0 {
+            assert_eq!(pockets[pocket - 1], None, "pocket {pocket} empty while T{t} is in the spindle");
+        }
+        assert!(vm.atc().collisions.is_empty(), "{:?}", vm.atc().collisions);
+    }
+    let (_, pockets) = changer(&vm);
+    assert_eq!((pockets[4], pockets[10], pockets[6]), (Some(20), Some(7), Some(107)), "{pockets:?}");
+    ok(&mut vm, "M400");
+    assert_eq!(steps(&vm)[..2], [1000, 1000]);
 }
 
 #[test]

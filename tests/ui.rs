@@ -9,10 +9,11 @@
 mod common;
 #[path = "common/motion.rs"]
 mod motion_util;
+#[path = "common/panel.rs"]
+mod panel;
 use common::*;
-use sim::oled;
+use panel::{golden, press, redraw, screen, turn};
 use sim::{AtcConfig, Axis, CardKind, FatKind, Flow, Input, OpticalBeam, SdCard, SdImage, StreamOptions, Tool, ToolSetter, Vm, VmConfig};
-use std::path::PathBuf;
 
 // ------------------------------------------------------------- helpers
 
@@ -173,62 +174,9 @@ fn during_an_sd_job_status_answers_and_motion_is_refused() {
 
 // ------------------------------------------------------- display, menu
 
-/// Read the OLED's 8 text lines back from its display RAM with the
-/// firmware's own font: `[text]` marks an inverted (highlighted) line.
-fn screen(vm: &Vm) -> Vec<String> {
-    use mill::ui::font::{column, CELL_W};
-    let ram = vm.oled().ram();
-    (0..8)
-        .map(|page| {
-            let row = &ram[page][oled::COLUMN_OFFSET..oled::COLUMN_OFFSET + 128];
-            let inverted = row[126] == 0xFF;
-            let mut s = String::new();
-            for cell in 0..21 {
-                let cols: Vec<u8> = (0..CELL_W).map(|c| row[cell * CELL_W + c] ^ if inverted { 0xFF } else { 0 }).collect();
-                let ch = (0x20u8..0x7F).find(|&ch| (0..CELL_W).all(|c| column(ch, c) == cols[c])).unwrap_or(b'~');
-                s.push(ch as char);
-            }
-            let s = s.trim_end().to_string();
-            if inverted {
-                format!("[{s}]")
-            } else {
-                s
-            }
-        })
-        .collect()
-}
-
-/// Let the firmware react and draw (a frame is at most 200 ms apart).
+/// Let the firmware react and draw.
 fn settle(vm: &mut Vm) {
-    vm.run_for(0.35).unwrap();
-}
-
-fn press(vm: &mut Vm) {
-    vm.press_button(0.05).unwrap();
-    settle(vm);
-}
-
-fn turn(vm: &mut Vm, detents: i32) {
-    vm.turn_encoder(detents, 0.1).unwrap();
-    settle(vm);
-}
-
-/// Compare what the display shows with `tests/golden/<name>.png`; on a
-/// difference save the picture to `target/ui-shots/` and fail.
-/// `MILL_UPDATE_GOLDEN=1` writes the golden file instead.
-fn golden(vm: &Vm, name: &str) {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let golden = dir.join("tests/golden").join(format!("{name}.png"));
-    let shot = dir.join("target/ui-shots").join(format!("{name}.png"));
-    vm.screenshot(&shot, 2).unwrap();
-    if std::env::var_os("MILL_UPDATE_GOLDEN").is_some() {
-        vm.screenshot(&golden, 2).unwrap();
-        return;
-    }
-    let want = oled::read_png(&golden).unwrap_or_else(|e| panic!("{}: {e} (MILL_UPDATE_GOLDEN=1 to create it)", golden.display()));
-    let got = vm.oled().pixels();
-    let diff = want.iter().zip(&got).filter(|(a, b)| a != b).count();
-    assert_eq!(diff, 0, "{name}: {diff} pixels differ from {}; see {}\n{}", golden.display(), shot.display(), screen(vm).join("\n"));
+    redraw(vm);
 }
 
 /// Open the main menu from the status screen and go to entry `i`.
@@ -727,11 +675,11 @@ fn jog_home_settings_and_info_from_the_menu() {
     vm.run_for(2.0).unwrap();
     assert!(vm.position(Axis::X) >= 0 && vm.position(Axis::X) < 300, "{}", vm.position(Axis::X));
     settle(&mut vm);
-    // Settings (view) and Info.
+    // Settings (every `$` setting, edited in tests/builder.rs) and Info.
     main_menu_entry(&mut vm, 6);
     press(&mut vm);
     let s = screen(&vm);
-    assert_eq!(s[0..2], ["[ Settings]", "X   100 steps/mm"], "{s:?}");
+    assert_eq!(s[0..4], ["[ Settings]", "[ < Back]", " $3                 0", " $5                 0"], "{s:?}");
     press(&mut vm);
     turn(&mut vm, 1);
     press(&mut vm);

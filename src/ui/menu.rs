@@ -10,7 +10,10 @@
 //!           | Measure length (G37) ──► reply | Measure len+dia (G37 D1) ──► reply
 //!           | Tool table (view, scrolling)
 //!           | Confirm spindle ──► < Back, T0..T12 ──► "Spindle holds Tn?" No/Yes ──► reply
-//!    Settings (view, scrolling), Info (version, free RAM, card)
+//!           | Changer (station points, teach) | Tool numbers ──► < Back, pockets 1..12 ──► edit
+//!    Settings: < Back, every `$` setting (scrolling) ──► edit
+//!    Info (version, free RAM, card)
+//!    edit: what it is | < Back | Value (press, turn, press) | Step | Save ──► reply
 //! ```
 //!
 //! [`Ui::step`] takes what the encoder did (detents, presses) and returns a
@@ -28,7 +31,7 @@ use super::render::{Line, COLS, ROWS};
 use super::sd::{Name, Outcome, Phase};
 use super::text::Text;
 use crate::atc::{Journal, N_POCKETS};
-use crate::config::Settings;
+use crate::dollar;
 use crate::flash::FStr;
 use crate::machine::{Alarm, Machine, State};
 
@@ -69,6 +72,8 @@ pub enum Act {
     ProbeZ,
     /// Jog > Work G5x: the next work system (G54 … G59, round).
     WorkSystem,
+    /// Tools > Tool numbers: the tool number kept in each pocket.
+    ToolNumbers,
     /// The last variant (`act_from_u8` checks against it).
     OptStop,
 }
@@ -104,7 +109,7 @@ fn act_from_u8(b: u8) -> Option<Act> {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static ITEMS: [[u8; 2]; 37] = [
+static ITEMS: [[u8; 2]; 38] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -142,6 +147,7 @@ static ITEMS: [[u8; 2]; 37] = [
     item(Text::ToolTable, Act::ToolTable),
     item(Text::ConfirmSpindle, Act::ConfirmSpindle),
     item(Text::Changer, Act::Changer),
+    item(Text::ToolNumbers, Act::ToolNumbers),
     // Alarm
     item(Text::Status, Act::Back),
     item(Text::Unlock, Act::Unlock),
@@ -152,7 +158,7 @@ static ITEMS: [[u8; 2]; 37] = [
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 7] = [0, 8, 13, 20, 25, 32, 37];
+static MENU_START: [u8; 7] = [0, 8, 13, 20, 25, 33, 38];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
@@ -207,6 +213,8 @@ pub enum Screen {
     Override,
     /// Jogging: each detent moves the axis one step.
     Jogging,
+    /// Every `$` setting (entry 0 "< Back", entry i is setting
+    /// `dollar::nth(i - 1)`) with its value.
     Settings,
     Info,
     /// The tool list (entry 0 "< Back", entry i is T(i - 1)): for a change,
@@ -223,6 +231,91 @@ pub enum Screen {
     Changer,
     /// "Teach <point>?" No/Yes: store the current position as the point.
     Teach(u8),
+    /// The tool number of each pocket (entry 0 "< Back", entry i is
+    /// pocket i).
+    Numbers,
+    /// Editing a value: what it is, then < Back | Value | Step | Save; true
+    /// while the encoder turns the value ([`Ui::edit_um`]).
+    Edit(Edit, bool),
+}
+
+/// What an edit screen changes.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Edit {
+    /// Setting `$n`, stored by running the line `$n=<value>`.
+    Setting(u8),
+    /// The tool number kept in pocket p (1..=12; 0 = none), stored by
+    /// running `G10 L1 P<tool> Q<p>` (after `G10 L1 P<old> Q0`).
+    Pocket(u8),
+}
+
+/// Entries of the edit screen: < Back, Value, Step, Save.
+const EDIT_ENTRIES: u8 = 4;
+/// The edit screen's first entry row (rows 1..3 say what is edited).
+const EDIT_ROW: usize = 4;
+
+impl Edit {
+    /// The value as it is now, in thousandths.
+    pub fn current(self, m: &Machine) -> i32 {
+        match self {
+            Edit::Setting(n) => dollar::value(&m.settings, n).map_or(0, |(v, _)| v.micros()),
+            Edit::Pocket(p) => m.atc.table.number_of(p) as i32 * 1000,
+        }
+    }
+
+    /// A whole number (a flag, a mask, a tool number)?
+    fn integer(self, m: &Machine) -> bool {
+        match self {
+            Edit::Setting(n) => !matches!(dollar::value(&m.settings, n), Some((dollar::Value::Num(_), _))),
+            Edit::Pocket(_) => true,
+        }
+    }
+
+    /// The range the encoder may turn the value through, thousandths
+    /// (the machine checks the value itself when it is stored).
+    fn range(self, m: &Machine) -> (i32, i32) {
+        match self {
+            Edit::Setting(n) => match dollar::value(&m.settings, n) {
+                Some((dollar::Value::Flag(_), _)) => (0, 1000),
+                Some((dollar::Value::Mask(_, max), _)) => (0, max as i32 * 1000),
+                _ => (-99_999_999, 99_999_999),
+            },
+            Edit::Pocket(_) => (0, 254_000),
+        }
+    }
+
+    /// Where the edit came from: that list, with this entry selected.
+    fn back(self) -> (Screen, u8) {
+        match self {
+            Edit::Setting(n) => (Screen::Settings, (0..dollar::count()).find(|&i| dollar::nth(i) == n).unwrap_or(0) + 1),
+            Edit::Pocket(p) => (Screen::Numbers, p),
+        }
+    }
+
+    /// The line that stores `um`: `$n=<value>`, or for a pocket
+    /// `G10 L1 P<tool> Q<pocket>` (`Q0` with `P` = the pocket's old
+    /// number when `clear`, to free the pocket first). Written into `l`
+    /// from column 0; returns its length.
+    pub fn gcode(self, um: i32, clear: Option<u8>, l: &mut Line) -> usize {
+        match self {
+            Edit::Setting(n) => {
+                let c = l.put(0, b"$");
+                let c = l.uint(c, n as u32);
+                let c = l.put(c, b"=");
+                l.micros(c, um)
+            }
+            Edit::Pocket(p) => {
+                let c = l.text(0, Text::LineG10L1P);
+                let (t, q) = match clear {
+                    Some(old) => (old, 0),
+                    None => ((um / 1000) as u32 as u8, p),
+                };
+                let c = l.uint(c, t as u32);
+                let c = l.put(c, b" Q");
+                l.uint(c, q as u32)
+            }
+        }
+    }
 }
 
 /// The station's points on the Changer screen, `$170`–`$175`.
@@ -258,6 +351,8 @@ pub enum ToolOp {
     ProbeZ,
     /// Jog menu: `G54` + n, work system n (0..6) active.
     Wcs(u8),
+    /// An edit stored (the line is [`Edit::gcode`]'s).
+    Store(Edit),
 }
 
 /// How far the menu's Z probe goes down at most, mm, and its feed, mm/min.
@@ -293,6 +388,7 @@ impl ToolOp {
                 l.put(c, &[b"XYZ"[a as usize % 3], b'0'])
             }
             ToolOp::Wcs(n) => l.put(0, &[b'G', b'5', b'4' + n % 6]),
+            ToolOp::Store(_) => 0,
         }
     }
 
@@ -314,6 +410,8 @@ impl ToolOp {
             ToolOp::Zero(_) => (Text::ZeroAxis, 4),
             ToolOp::ProbeZ => (Text::ProbeZ, 5),
             ToolOp::Wcs(_) => (Text::WorkSystem, 6),
+            ToolOp::Store(Edit::Setting(_)) => (Text::Settings, 6),
+            ToolOp::Store(Edit::Pocket(_)) => (Text::ToolNumbers, 7),
         }
     }
 }
@@ -354,6 +452,12 @@ pub enum Cmd {
     Unlock,
     /// Store the current position as station point `i` (`$170 + i`).
     Teach(u8),
+    /// An edit screen opened: put the value as it is into
+    /// [`Ui::edit_um`] ([`Edit::current`]).
+    Edit(Edit),
+    /// Store the edited value, thousandths ([`Edit::gcode`]); the firmware
+    /// puts the outcome in [`Ui::reply`].
+    Store(Edit, i32),
 }
 
 /// A snapshot of what the screens show, taken once per frame.
@@ -427,6 +531,15 @@ impl Default for View {
     }
 }
 
+/// 10^k.
+fn pow10(k: u8) -> i32 {
+    let mut p = 1;
+    for _ in 0..k {
+        p *= 10;
+    }
+    p
+}
+
 /// Jog steps, µm.
 const JOG_STEPS_UM: [i32; 3] = [100, 1000, 10_000];
 
@@ -443,6 +556,10 @@ pub struct Ui {
     pub override_pct: u16,
     /// Outcome of the last Tools command (shown on [`Screen::Reply`]).
     pub reply: Reply,
+    /// The value on the edit screen, thousandths, and its step: 10^k
+    /// thousandths.
+    pub edit_um: i32,
+    pub edit_step: u8,
 }
 
 impl Default for Ui {
@@ -453,14 +570,12 @@ impl Default for Ui {
 
 /// List rows below the title.
 const LIST_ROWS: u8 = (ROWS - 1) as u8;
-/// Entries on the Settings screen.
-const SETTINGS_LINES: u8 = 13;
 /// Entries of the tool lists: "< Back", T0..T12.
 const TOOL_ENTRIES: u8 = N_POCKETS as u8 + 2;
 
 impl Ui {
     pub const fn new() -> Ui {
-        Ui { screen: Screen::Status, sel: 0, top: 0, jog_axis: 0, jog_step: 1, override_pct: 100, reply: Reply::Ok }
+        Ui { screen: Screen::Status, sel: 0, top: 0, jog_axis: 0, jog_step: 1, override_pct: 100, reply: Reply::Ok, edit_um: 0, edit_step: 3 }
     }
 
     fn go(&mut self, s: Screen) {
@@ -478,7 +593,9 @@ impl Ui {
             Screen::PickTool(_) => TOOL_ENTRIES,
             Screen::Changer => STATION_POINTS + 1,
             Screen::Teach(_) => 2,
-            Screen::Settings => SETTINGS_LINES,
+            Screen::Settings => dollar::count() + 1,
+            Screen::Numbers => N_POCKETS as u8 + 1,
+            Screen::Edit(..) => EDIT_ENTRIES,
             _ => 0,
         }
     }
@@ -554,8 +671,19 @@ impl Ui {
             }
             Screen::Reply(op) => {
                 if press && !matches!(self.reply, Reply::Pending) {
+                    if let ToolOp::Store(e) = op {
+                        return self.open_edit(e);
+                    }
                     self.back_to(op.menu(), op.entry().1);
                 }
+                Cmd::None
+            }
+            Screen::Edit(e, true) => {
+                // Turning sets the value; a press ends it.
+                if press {
+                    self.screen = Screen::Edit(e, false);
+                }
+                self.edit_um = self.edit_um.saturating_add(detents as i32 * pow10(self.edit_step));
                 Cmd::None
             }
             _ => {
@@ -566,6 +694,29 @@ impl Ui {
                 } else {
                     Cmd::None
                 }
+            }
+        }
+    }
+
+    /// Open the edit screen of `e` on its Value entry; the firmware loads
+    /// the value ([`Cmd::Edit`]).
+    fn open_edit(&mut self, e: Edit) -> Cmd {
+        self.go(Screen::Edit(e, false));
+        self.sel = 1;
+        self.edit_step = 3;
+        Cmd::Edit(e)
+    }
+
+    /// Keep the edited value in its range and the step within its kind's
+    /// (0.001 … 1000 for a number, 1 … 100 for a whole one): called after
+    /// every [`Ui::step`], with the machine that knows the setting.
+    pub fn fit_edit(&mut self, m: &Machine) {
+        if let Screen::Edit(e, _) = self.screen {
+            let (lo, hi) = e.range(m);
+            self.edit_um = self.edit_um.clamp(lo, hi);
+            let (first, last) = if e.integer(m) { (3, 5) } else { (0, 6) };
+            if !(first..=last).contains(&self.edit_step) {
+                self.edit_step = first;
             }
         }
     }
@@ -623,9 +774,45 @@ impl Ui {
                 }
             }
             Screen::Settings => {
-                self.back_to(MenuId::Main, 6);
-                Cmd::None
+                if sel == 0 {
+                    self.back_to(MenuId::Main, 6);
+                    return Cmd::None;
+                }
+                self.open_edit(Edit::Setting(dollar::nth(sel - 1)))
             }
+            Screen::Numbers => {
+                if sel == 0 {
+                    self.back_to(MenuId::Tools, 7);
+                    return Cmd::None;
+                }
+                self.open_edit(Edit::Pocket(sel))
+            }
+            Screen::Edit(e, _) => match sel {
+                0 => {
+                    let (list, entry) = e.back();
+                    self.go(list);
+                    self.scroll(entry as i8, self.entries(v));
+                    Cmd::None
+                }
+                1 => {
+                    self.screen = Screen::Edit(e, true);
+                    Cmd::None
+                }
+                // The next step ([`Ui::fit_edit`] wraps it round).
+                2 => {
+                    self.edit_step += 1;
+                    Cmd::None
+                }
+                _ => {
+                    self.go(Screen::Reply(ToolOp::Store(e)));
+                    if !v.may_run_tool() {
+                        self.reply = Reply::Err(Text::NotIdle.as_fstr());
+                        return Cmd::None;
+                    }
+                    self.reply = Reply::Pending;
+                    Cmd::Store(e, self.edit_um)
+                }
+            },
             Screen::PickTool(confirm) => {
                 if sel == 0 {
                     self.back_to(MenuId::Tools, if confirm { 5 } else { 1 });
@@ -659,7 +846,7 @@ impl Ui {
                 let (confirm, t) = match op {
                     ToolOp::Confirm(t) => (true, t),
                     ToolOp::Change(t) => (false, t),
-                    ToolOp::Measure { .. } | ToolOp::Zero(_) | ToolOp::ProbeZ | ToolOp::Wcs(_) => (false, 0),
+                    ToolOp::Measure { .. } | ToolOp::Zero(_) | ToolOp::ProbeZ | ToolOp::Wcs(_) | ToolOp::Store(_) => (false, 0),
                 };
                 self.go(Screen::PickTool(confirm));
                 self.scroll(t as i8 + 1, TOOL_ENTRIES);
@@ -789,6 +976,10 @@ impl Ui {
                 self.go(Screen::Changer);
                 Cmd::None
             }
+            Act::ToolNumbers => {
+                self.go(Screen::Numbers);
+                Cmd::None
+            }
             Act::ConfirmSpindle => {
                 if v.interrupted.is_some() {
                     self.go(Screen::PickTool(true));
@@ -836,8 +1027,15 @@ impl Ui {
                         Screen::ToolTable => Text::TableHead,
                         Screen::Changer => Text::Changer,
                         Screen::Teach(_) => Text::TeachQ,
+                        Screen::Numbers => Text::ToolNumbers,
+                        Screen::Edit(Edit::Pocket(_), _) => Text::Pocket,
                         _ => Text::Settings,
                     };
+                    if let Screen::Edit(Edit::Setting(n), _) = self.screen {
+                        let c = l.put(1, b"$");
+                        l.uint(c, n as u32);
+                        return l;
+                    }
                     let c = l.text(1, t);
                     match self.screen {
                         Screen::ConfirmRun(i) => {
@@ -852,6 +1050,9 @@ impl Ui {
                         Screen::Teach(p) => {
                             let c = l.text(c, point_text(p));
                             l.put(c, b"?");
+                        }
+                        Screen::Edit(Edit::Pocket(p), _) => {
+                            l.uint(c, p as u32);
                         }
                         _ => {}
                     }
@@ -879,6 +1080,10 @@ impl Ui {
                     }
                     Screen::ToolTable => {
                         table_line(e + 1, v, m, &mut l);
+                        return l;
+                    }
+                    Screen::Edit(ed, adjusting) => {
+                        self.edit_line(row, ed, adjusting, m, &mut l);
                         return l;
                     }
                     _ => {}
@@ -909,9 +1114,14 @@ impl Ui {
                     Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) | Screen::Teach(_) => {
                         l.text(1, if e == 0 { Text::No } else { Text::Yes });
                     }
-                    Screen::Settings => {
-                        l.invert = false;
-                        settings_line(e, &m.settings, &mut l);
+                    Screen::Settings | Screen::Numbers if e == 0 => {
+                        l.text(1, Text::Back);
+                    }
+                    Screen::Settings => setting_line(dollar::nth(e - 1), m, &mut l),
+                    Screen::Numbers => {
+                        let c = l.text(1, Text::Pocket);
+                        l.uint(c, e as u32);
+                        number_text(m.atc.table.number_of(e), COLS, &mut l);
                     }
                     Screen::PickTool(confirm) => pick_line(e, confirm, v, m, &mut l),
                     _ => {}
@@ -919,6 +1129,50 @@ impl Ui {
             }
         }
         l
+    }
+
+    /// Row `row` of the edit screen: what is edited (rows 1-3), then
+    /// < Back | Value | Step | Save.
+    #[inline(never)]
+    fn edit_line(&self, row: usize, ed: Edit, adjusting: bool, m: &Machine, l: &mut Line) {
+        if row < EDIT_ROW {
+            let what = match ed {
+                Edit::Setting(n) => dollar::value(&m.settings, n).map(|(_, w)| w),
+                Edit::Pocket(_) => Some(Text::NumberHelp.as_fstr()),
+            };
+            if let Some(w) = what {
+                wrapped(w, row - 1, l);
+            }
+            return;
+        }
+        let e = (row - EDIT_ROW) as u8;
+        l.invert = e == self.sel;
+        let integer = ed.integer(m);
+        match e {
+            0 => {
+                l.text(1, Text::Back);
+            }
+            1 => {
+                l.text(1, if adjusting { Text::TurnToSet } else { Text::Value });
+                match ed {
+                    Edit::Pocket(_) => number_text((self.edit_um / 1000) as u8, COLS, l),
+                    _ if integer => l.uint_right(COLS, (self.edit_um / 1000) as u32),
+                    _ => l.micros_right(COLS, self.edit_um),
+                }
+            }
+            2 => {
+                l.text(1, Text::Step);
+                let p = pow10(self.edit_step);
+                if integer {
+                    l.uint_right(COLS, (p / 1000) as u32);
+                } else {
+                    l.micros_right(COLS, p);
+                }
+            }
+            _ => {
+                l.text(1, Text::Save);
+            }
+        }
     }
 
     #[inline(never)]
@@ -1242,6 +1496,16 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
             l.put(1, &[b"XYZ"[a]]);
             l.micros_right(COLS, v.wpos_um[a]);
         }
+        // Stored: the setting or the pocket as it is now.
+        (Reply::Ok, 2) if matches!(op, ToolOp::Store(_)) => match op {
+            ToolOp::Store(Edit::Pocket(p)) => {
+                let c = l.text(1, Text::Pocket);
+                l.uint(c, p as u32);
+                number_text(m.atc.table.number_of(p), COLS, l);
+            }
+            ToolOp::Store(Edit::Setting(n)) => setting_line(n, m, l),
+            _ => {}
+        },
         (Reply::Ok, 2) => {
             tool_and_note(l, m, t, Some(Text::InSpindle));
         }
@@ -1291,22 +1555,28 @@ fn station_line(p: u8, s: &crate::config::Station, l: &mut Line) {
     l.micros_right(COLS, crate::math::round_i32(user * 1000.0));
 }
 
+/// Setting `$n` and its value, as `$$` lists it (a flag or a mask as a
+/// whole number).
 #[inline(never)]
-fn settings_line(e: u8, s: &Settings, l: &mut Line) {
-    let axis = (e % 3) as usize;
-    l.put(0, &[b"XYZ"[axis]]);
-    let (v, t) = match e / 3 {
-        0 => (s.steps_per_mm[axis], Text::StepsMm),
-        1 => (s.max_feed_mm_per_min[axis], Text::MaxFeed),
-        2 => (s.accel_mm_per_s2[axis], Text::Accel),
-        _ => (s.travel_mm[axis], Text::Travel),
-    };
-    if e >= 12 {
-        l.put(0, b" ");
-        return;
+fn setting_line(n: u8, m: &Machine, l: &mut Line) {
+    let c = l.put(1, b"$");
+    l.uint(c, n as u32);
+    match dollar::value(&m.settings, n) {
+        Some((dollar::Value::Num(x), _)) => l.micros_right(COLS, crate::math::round_i32(x * 1000.0)),
+        Some((v, _)) => l.uint_right(COLS, (v.micros() / 1000) as u32),
+        None => {}
     }
-    l.uint_right(7, crate::math::round_i32(v).max(0) as u32);
-    l.text(7, t);
+}
+
+/// Tool number `t` as `T20`, or "none" for 0, right-aligned before `end`.
+fn number_text(t: u8, end: usize, l: &mut Line) {
+    if t == 0 {
+        l.text(end - 4, Text::NoNumber);
+    } else {
+        let w = if t >= 100 { 4 } else if t >= 10 { 3 } else { 2 };
+        let c = l.put(end - w, b"T");
+        l.uint(c, t as u32);
+    }
 }
 
 #[cfg(test)]
@@ -1338,11 +1608,12 @@ mod tests {
         assert_eq!(MenuId::Main.item(1), (Text::RunFromSd, Act::Files));
         assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
         assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
-        assert_eq!(MenuId::Tools.len(), 7);
+        assert_eq!(MenuId::Tools.len(), 8);
         assert_eq!(MenuId::Jog.len(), 7);
         assert_eq!(MenuId::Jog.item(4), (Text::ZeroAxis, Act::ZeroAxis));
         assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
         assert_eq!(MenuId::Tools.item(6), (Text::Changer, Act::Changer));
+        assert_eq!(MenuId::Tools.item(7), (Text::ToolNumbers, Act::ToolNumbers));
         assert_eq!(MenuId::Job.item(2), (Text::Abort, Act::Abort));
         assert_eq!(MenuId::Home.item(4), (Text::HomeX, Act::HomeX));
     }
@@ -1507,9 +1778,138 @@ mod tests {
         assert_eq!(s[4], " Free RAM 1234 B");
         ui.go(Screen::Settings);
         let s = screen(&ui, &v);
-        assert_eq!(s[1], "X   100 steps/mm");
+        assert_eq!(s[1..4], ["[ < Back]", " $3                 0", " $5                 0"], "{s:?}");
         ui.step(0, true, &v);
         assert_eq!(ui.screen, Screen::Menu(MenuId::Main));
+    }
+
+    /// What the firmware does after each encoder step (`firmware.rs`).
+    fn edit_step(ui: &mut Ui, d: i8, press: bool, v: &View, m: &Machine) -> Cmd {
+        let c = ui.step(d, press, v);
+        if let Cmd::Edit(e) = c {
+            ui.edit_um = e.current(m);
+        }
+        ui.fit_edit(m);
+        c
+    }
+
+    #[test]
+    fn every_setting_is_listed_in_order_and_read_like_dollar_dollar() {
+        let mut s = crate::config::Settings::default();
+        let n: Vec<u8> = (0..dollar::count()).map(dollar::nth).collect();
+        let listed: Vec<u8> = (0..=255).filter(|&k| dollar::field(&mut s, k).is_some()).collect();
+        assert_eq!(n, listed);
+        assert!(n.len() > 30, "{n:?}");
+        let m = Machine::new();
+        let mut ui = Ui::new();
+        ui.go(Screen::Settings);
+        let i = n.iter().position(|&k| k == 110).unwrap() as i8;
+        ui.scroll(i + 1, dollar::count() + 1);
+        let s = screen_of(&ui, &View::new(), &m);
+        assert_eq!(s[7], format!("[ $110{:>16}]", format!("{:.3}", m.settings.max_feed_mm_per_min[0])), "{s:?}");
+    }
+
+    #[test]
+    fn a_setting_is_edited_with_the_encoder_and_stored_through_its_dollar_line() {
+        let m = Machine::new();
+        let v = View::new();
+        let mut ui = Ui::new();
+        ui.go(Screen::Settings);
+        let i = (0..dollar::count()).position(|k| dollar::nth(k) == 170).unwrap() as i8;
+        assert_eq!(edit_step(&mut ui, i + 1, true, &v, &m), Cmd::Edit(Edit::Setting(170)));
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!(s[0], "[ $170]");
+        assert_eq!(s[1..4].join(" ").split_whitespace().collect::<Vec<_>>().join(" "), "tool change X1 (in front of the magazine), mm");
+        assert_eq!(s[4..8], [" < Back", "[ Value         23.000]", " Step           1.000", " Save"], "{s:?}");
+        // Press: the value turns; 7 detents of 1, then the step 0.1 (4
+        // presses round from 1: 10, 100, 1000, 0.001 … 0.1) and 5 more.
+        edit_step(&mut ui, 0, true, &v, &m);
+        assert_eq!(screen_of(&ui, &v, &m)[5], "[ Turn >        23.000]");
+        edit_step(&mut ui, 7, true, &v, &m);
+        assert_eq!(screen_of(&ui, &v, &m)[5], "[ Value         30.000]");
+        edit_step(&mut ui, 1, false, &v, &m);
+        for _ in 0..6 {
+            edit_step(&mut ui, 0, true, &v, &m);
+        }
+        assert_eq!(screen_of(&ui, &v, &m)[6], "[ Step           0.100]");
+        edit_step(&mut ui, -1, true, &v, &m);
+        edit_step(&mut ui, 5, true, &v, &m);
+        assert_eq!(screen_of(&ui, &v, &m)[5], "[ Value         30.500]");
+        // Save: the line `$170=30.500`, the same as over serial.
+        let c = edit_step(&mut ui, 2, true, &v, &m);
+        assert_eq!(c, Cmd::Store(Edit::Setting(170), 30_500));
+        let mut l = Line::blank();
+        let n = Edit::Setting(170).gcode(30_500, None, &mut l);
+        assert_eq!(&l.chars[..n], b"$170=30.500");
+        assert_eq!(ui.screen, Screen::Reply(ToolOp::Store(Edit::Setting(170))));
+        // The reply; a press goes back to the edit screen.
+        ui.reply = Reply::Ok;
+        edit_step(&mut ui, 0, true, &v, &m);
+        assert_eq!(ui.screen, Screen::Edit(Edit::Setting(170), false));
+        // Back: the list, on $170.
+        edit_step(&mut ui, -1, true, &v, &m);
+        assert_eq!(ui.screen, Screen::Settings);
+        assert_eq!(dollar::nth(ui.sel - 1), 170);
+    }
+
+    #[test]
+    fn flags_and_masks_turn_within_their_range_in_whole_steps() {
+        let m = Machine::new();
+        let v = View::new();
+        let mut ui = Ui::new();
+        ui.go(Screen::Settings);
+        // $5 (mask, 0..31).
+        edit_step(&mut ui, 2, true, &v, &m);
+        assert_eq!(ui.screen, Screen::Edit(Edit::Setting(5), false));
+        edit_step(&mut ui, 0, true, &v, &m);
+        edit_step(&mut ui, 40, false, &v, &m);
+        assert_eq!(ui.edit_um, 31_000);
+        assert_eq!(screen_of(&ui, &v, &m)[5], "[ Turn >            31]");
+        edit_step(&mut ui, -50, true, &v, &m);
+        assert_eq!(ui.edit_um, 0);
+        // The step goes 1, 10, 100, 1.
+        edit_step(&mut ui, 1, false, &v, &m);
+        for want in ["10", "100", "1"] {
+            edit_step(&mut ui, 0, true, &v, &m);
+            assert_eq!(screen_of(&ui, &v, &m)[6], format!("[ Step{want:>16}]"));
+        }
+    }
+
+    #[test]
+    fn a_pockets_tool_number_is_edited_and_stored_as_g10_l1_lines() {
+        let m = Machine::new();
+        let v = View::new();
+        let mut ui = Ui::new();
+        tools_entry(&mut ui, &v, 7);
+        assert_eq!(ui.screen, Screen::Numbers);
+        let s = screen_of(&ui, &v, &m);
+        assert_eq!(s[0..3], ["[ Tool numbers]", "[ < Back]", " Pocket 1          T1"], "{s:?}");
+        edit_step(&mut ui, 5, true, &v, &m);
+        assert_eq!(ui.screen, Screen::Edit(Edit::Pocket(5), false));
+        assert_eq!(screen_of(&ui, &v, &m)[0], "[ Pocket 5]");
+        assert_eq!(screen_of(&ui, &v, &m)[5], "[ Value             T5]");
+        edit_step(&mut ui, 0, true, &v, &m);
+        edit_step(&mut ui, 15, true, &v, &m);
+        assert_eq!(ui.edit_um, 20_000);
+        edit_step(&mut ui, 2, false, &v, &m);
+        assert_eq!(edit_step(&mut ui, 0, true, &v, &m), Cmd::Store(Edit::Pocket(5), 20_000));
+        let line = |clear| {
+            let mut l = Line::blank();
+            let n = Edit::Pocket(5).gcode(20_000, clear, &mut l);
+            String::from_utf8(l.chars[..n].to_vec()).unwrap()
+        };
+        assert_eq!(line(Some(5)), "G10 L1 P5 Q0");
+        assert_eq!(line(None), "G10 L1 P20 Q5");
+        // 0 reads "none"; no further than 254.
+        let mut ui = Ui::new();
+        ui.go(Screen::Numbers);
+        edit_step(&mut ui, 1, true, &v, &m);
+        edit_step(&mut ui, 0, true, &v, &m);
+        edit_step(&mut ui, -3, false, &v, &m);
+        assert_eq!(screen_of(&ui, &v, &m)[5], "[ Turn >          none]");
+        ui.edit_step = 5;
+        edit_step(&mut ui, 9, false, &v, &m);
+        assert_eq!(ui.edit_um, 254_000);
     }
 
     /// Open the Tools menu from the status screen and press entry `i`.

@@ -78,29 +78,16 @@ impl Line {
 
     /// Put `um` micrometres as `-12.345` right-aligned, ending before `end`.
     pub fn micros_right(&mut self, end: usize, um: i32) {
-        let neg = um < 0;
-        let mut a = um.unsigned_abs();
         let mut buf = [b' '; 14];
-        let mut i = buf.len();
-        // Three decimals, the point, then at least one digit.
-        for k in 0.. {
-            let (q, r) = crate::math::div10(a);
-            i -= 1;
-            buf[i] = b'0' + r;
-            a = q;
-            if k == 2 {
-                i -= 1;
-                buf[i] = b'.';
-            } else if k > 2 && a == 0 {
-                break;
-            }
-        }
-        if neg {
-            i -= 1;
-            buf[i] = b'-';
-        }
-        let len = buf.len() - i;
-        self.put(end.saturating_sub(len), &buf[i..]);
+        let i = micros_text(um, &mut buf);
+        self.put(end.saturating_sub(buf.len() - i), &buf[i..]);
+    }
+
+    /// Put `um` micrometres as `-12.345` at `at`; returns the column after it.
+    pub fn micros(&mut self, at: usize, um: i32) -> usize {
+        let mut buf = [b' '; 14];
+        let i = micros_text(um, &mut buf);
+        self.put(at, &buf[i..])
     }
 
     /// 16-bit hash of the line (text and inversion), to skip unchanged pages.
@@ -146,6 +133,30 @@ fn digits(mut v: u32, d: &mut [u8; 10]) -> usize {
             return n;
         }
     }
+}
+
+/// `um` micrometres as `-12.345` at the end of `buf`; returns where it starts.
+fn micros_text(um: i32, buf: &mut [u8; 14]) -> usize {
+    let mut a = um.unsigned_abs();
+    let mut i = buf.len();
+    // Three decimals, the point, then at least one digit.
+    for k in 0.. {
+        let (q, r) = crate::math::div10(a);
+        i -= 1;
+        buf[i] = b'0' + r;
+        a = q;
+        if k == 2 {
+            i -= 1;
+            buf[i] = b'.';
+        } else if k > 2 && a == 0 {
+            break;
+        }
+    }
+    if um < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    i
 }
 
 #[cfg(test)]

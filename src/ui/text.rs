@@ -116,10 +116,6 @@ crate::flash_texts! {
     SdCard = "SD ",
     CardIn = "card in",
     CardOut = "no card",
-    StepsMm = " steps/mm",
-    MaxFeed = " mm/min max",
-    Accel = " mm/s2",
-    Travel = " mm travel",
     Mm = " mm",
     Pct = "%",
     NotIdle = "Machine busy",
@@ -160,6 +156,15 @@ crate::flash_texts! {
     // Lines the Tools menu runs (Machine::run_menu_line).
     LineG37D1 = "G37 D1",
     LineM61Q = "M61 Q",
+    // Settings and tool numbers: the edit screen.
+    ToolNumbers = "Tool numbers",
+    Pocket = "Pocket ",
+    NoNumber = "none",
+    NumberHelp = "Tool number kept in this pocket (0: none)",
+    Value = "Value",
+    TurnToSet = "Turn >",
+    Save = "Save",
+    LineG10L1P = "G10 L1 P",
 }
 
 #[cfg(test)]
