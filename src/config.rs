@@ -13,7 +13,7 @@ use crate::N_AXES;
 /// Versions 3 (before the dwell and G80 flags), 4 (before the card-out
 /// retract height) and 5 (before the input invert mask) still load, the
 /// fields they lack at their defaults.
-pub const SETTINGS_VERSION: u8 = 6;
+pub const SETTINGS_VERSION: u8 = 7;
 
 /// Number of work coordinate systems, G54..G59.
 pub const N_WCS: usize = 6;
@@ -84,6 +84,11 @@ pub struct Settings {
     /// Seconds to wait after the spindle stops (`M5`, and before a tool
     /// change releases the tool) (`$182`; Marlin's `…POWERDOWN_DELAY`).
     pub spin_down_s: f32,
+    /// `$10`, grbl's status report mask: bit 0 machine position (`MPos`,
+    /// else `WPos`), bit 1 the buffer field (`Bf`).
+    pub status_mask: u8,
+    /// `$13`: `?` and `$#` report inches (grbl).
+    pub report_inches: bool,
     /// G80 cancels only the canned cycle and the motion mode from before
     /// the cycle stays (Fanuc, Haas, Mach3: Fusion 360's Mach3 post moves
     /// with bare axis words after G80); off: G80 leaves no motion mode and
@@ -259,6 +264,8 @@ impl Settings {
         spindle_min_rpm: 0.0,
         spin_up_s: 0.0,
         spin_down_s: 0.0,
+        status_mask: 1,
+        report_inches: false,
     };
 
     /// Every value zero: only a placeholder for building a `Machine` in
@@ -268,7 +275,9 @@ impl Settings {
     pub const ZEROED: Settings = unsafe { core::mem::zeroed() };
 
     /// Size of the EEPROM image in bytes: version, fields, checksum.
-    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V5 + 1 + 4 * 16;
+    pub const IMAGE_LEN: usize = Self::IMAGE_LEN_V6 + 2;
+    /// Size of a version 6 image: no status report mask or inch flag.
+    const IMAGE_LEN_V6: usize = Self::IMAGE_LEN_V5 + 1 + 4 * 16;
     /// Size of a version 5 image: no input invert mask.
     const IMAGE_LEN_V5: usize = Self::IMAGE_LEN_V4 + 4;
     /// Size of a version 4 image: no card-out retract height.
@@ -341,6 +350,8 @@ impl Settings {
         w.f32(self.spindle_min_rpm);
         w.f32(self.spin_up_s);
         w.f32(self.spin_down_s);
+        w.u8(self.status_mask);
+        w.u8(self.report_inches as u8);
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
@@ -384,6 +395,7 @@ impl Settings {
     fn image_len(b: &[u8]) -> Option<usize> {
         let len = match b.first() {
             Some(&SETTINGS_VERSION) => Self::IMAGE_LEN,
+            Some(6) => Self::IMAGE_LEN_V6,
             Some(5) => Self::IMAGE_LEN_V5,
             Some(4) => Self::IMAGE_LEN_V4,
             Some(3) => Self::IMAGE_LEN_V3,
@@ -420,7 +432,7 @@ impl Settings {
         if len >= Self::IMAGE_LEN_V5 {
             self.card_out_retract_mm = r.f32();
         }
-        if len == Self::IMAGE_LEN {
+        if len >= Self::IMAGE_LEN_V6 {
             self.invert_input_mask = r.u8();
             let mut v = [0.0; 13];
             for x in v.iter_mut() {
@@ -430,6 +442,10 @@ impl Settings {
             self.spindle_min_rpm = r.f32();
             self.spin_up_s = r.f32();
             self.spin_down_s = r.f32();
+        }
+        if len == Self::IMAGE_LEN {
+            self.status_mask = r.u8();
+            self.report_inches = r.u8() != 0;
         }
         self.is_sane()
     }
@@ -631,6 +647,21 @@ mod tests {
         let loaded = Settings::from_bytes(&old).unwrap();
         assert!(loaded.dwell_p_ms);
         assert_eq!(loaded.card_out_retract_mm, Settings::DEFAULT.card_out_retract_mm);
+    }
+
+    #[test]
+    fn a_version_6_image_loads_with_grbls_status_report_defaults() {
+        let mut s = Settings::DEFAULT;
+        s.spin_down_s = 2.5;
+        s.status_mask = 2;
+        s.report_inches = true;
+        let new = s.to_bytes();
+        let old = old_image(&new, 6, Settings::IMAGE_LEN_V6);
+        let loaded = Settings::from_bytes(&old).unwrap();
+        assert_eq!(loaded.spin_down_s, 2.5);
+        assert_eq!((loaded.status_mask, loaded.report_inches), (1, false));
+        let back = Settings::from_bytes(&new).unwrap();
+        assert_eq!((back.status_mask, back.report_inches), (2, true));
     }
 
     #[test]

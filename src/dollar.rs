@@ -15,7 +15,7 @@
 //!  $I            `[VER:1.1h.MillFW:<version>]`, `[OPT:VNH,15,255]`
 //! ```
 //!
-//! The numbers follow grbl where grbl has the setting ($3, $5, $11, $31, $12, $20,
+//! The numbers follow grbl where grbl has the setting ($3, $5, $10, $11, $12, $13, $31, $20,
 //! $21, $22, $24, $25, $27, $30, $100–$132) and continue in grbl's style for the
 //! rest ($103/$113/$123 for the carousel on E0, $140–$142 backlash, $150
 //! automatic tool offset, $151 Repetier's immediate T, $152 optional stop,
@@ -95,8 +95,10 @@ macro_rules! settings_table {
 settings_table! { s, n;
     3 => Mask(s.invert_dir_mask, 0b1111), "direction invert mask, bit 0 X .. bit 3 E";
     5 => Mask(s.invert_input_mask, 0b11111), "input invert mask (normally-closed): bit 0-2 X Y Z home, 3 carousel home, 4 tool setter";
+    10 => Mask(s.status_mask, 0b11), "status report: bit 0 MPos (else WPos), bit 1 Bf";
     11 => Num(s.junction_deviation_mm), "junction deviation, mm";
     12 => Num(s.arc_tolerance_mm), "arc tolerance, mm";
+    13 => Flag(s.report_inches), "report positions and feeds in inches (? and $#), 0/1";
     20 => Flag(s.soft_limits), "soft limits, 0/1";
     21 => Flag(s.hard_limits), "hard limits, 0/1";
     22 => Flag(s.homing_lock), "homing lock: no motion until homed or unlocked, 0/1";
@@ -397,25 +399,59 @@ pub fn modes(i: &crate::gcode::interp::Interp, tool: u8, w: &mut impl uWrite) {
 
 /// `$#`: grbl 1.1's offset lines (work offsets in machine mm), in the
 /// user frame (+Z up, `crate::frame`).
-pub fn params(i: &crate::gcode::interp::Interp, w: &mut impl uWrite) {
+/// With `inches` (`$13=1`) every value in inches, as grbl.
+pub fn params(i: &crate::gcode::interp::Interp, inches: bool, w: &mut impl uWrite) {
     use crate::frame::{axis_user_from_internal, user_from_internal, Z};
     for (n, v) in i.wcs_mm.iter().enumerate() {
         uwrite!(w, "{}{}:", F!("[G5"), 4 + n as u8).ok();
-        xyz(w, user_from_internal(*v));
+        xyz(w, user_from_internal(*v), inches);
     }
     uwrite!(w, "{}", F!("[G28:")).ok();
-    xyz(w, [0.0; 3]);
+    xyz(w, [0.0; 3], inches);
     uwrite!(w, "{}", F!("[G30:")).ok();
-    xyz(w, [0.0; 3]);
+    xyz(w, [0.0; 3], inches);
     uwrite!(w, "{}", F!("[G92:")).ok();
-    xyz(w, user_from_internal(i.g92_mm));
-    uwriteln!(w, "{}{}]", F!("[TLO:"), Micros::from_mm(axis_user_from_internal(Z, i.tlo_mm))).ok();
-    uwriteln!(w, "{}", F!("[PRB:0.000,0.000,0.000:0]")).ok();
+    xyz(w, user_from_internal(i.g92_mm), inches);
+    uwrite!(w, "{}", F!("[TLO:")).ok();
+    coord(w, axis_user_from_internal(Z, i.tlo_mm), inches);
+    uwriteln!(w, "]").ok();
+    uwrite!(w, "{}", F!("[PRB:")).ok();
+    coords(w, &[0.0; 3], inches);
+    uwriteln!(w, ":0]").ok();
 }
 
-/// `x,y,z]` and the line end, three decimals.
-fn xyz(w: &mut impl uWrite, v: [f32; 3]) {
-    uwriteln!(w, "{},{},{}]", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
+/// `x,y,z]` and the line end.
+fn xyz(w: &mut impl uWrite, v: [f32; 3], inches: bool) {
+    coords(w, &v, inches);
+    uwriteln!(w, "]").ok();
+}
+
+/// `x,y,z` as grbl reports coordinates: mm with three decimals, or with
+/// `inches` (`$13=1`) inches with four.
+pub fn coords(w: &mut impl uWrite, v: &[f32], inches: bool) {
+    for (a, &x) in v.iter().take(3).enumerate() {
+        if a > 0 {
+            uwrite!(w, ",").ok();
+        }
+        coord(w, x, inches);
+    }
+}
+
+/// One coordinate of [`coords`].
+fn coord(w: &mut impl uWrite, mm: f32, inches: bool) {
+    if inches {
+        // Ten-thousandths of an inch, printed as thousandths with one more
+        // digit: the value ×10 000 is an integer, so Micros of it / 10.
+        let t = crate::math::round_i32(mm * (10_000.0 / 25.4));
+        let m = Micros(t / 10);
+        let d = t.unsigned_abs() % 10;
+        if t < 0 && t / 10 == 0 {
+            uwrite!(w, "-").ok();
+        }
+        uwrite!(w, "{}{}", m, d as u8).ok();
+    } else {
+        uwrite!(w, "{}", Micros::from_mm(mm)).ok();
+    }
 }
 
 /// `$I`: grbl 1.1's build info lines (options: V variable spindle, N line
@@ -447,7 +483,9 @@ mod tests {
         s.hard_limits = false;
         list(&s, &mut out);
         let lines: Vec<&str> = out.0.lines().collect();
-        assert_eq!(lines.len(), 51);
+        assert_eq!(lines.len(), 53);
+        assert!(lines.contains(&"$10=1 (status report: bit 0 MPos (else WPos), bit 1 Bf)"), "{lines:?}");
+        assert!(lines.contains(&"$13=0 (report positions and feeds in inches (? and $#), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$153=0 (G4 P in milliseconds (Mach3, UCCNC, Marlin), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$154=1 (G80 keeps the motion mode from before the cycle (Fanuc, Mach3), 0/1)"), "{lines:?}");
         assert!(lines.contains(&"$151=0 (T alone changes the tool at once (Repetier), 0/1)"), "{lines:?}");
@@ -526,7 +564,7 @@ mod tests {
         i.g92_mm = [0.0, 1.0, 0.0];
         i.tlo_mm = -19.5;
         let mut out = S(String::new());
-        params(&i, &mut out);
+        params(&i, false, &mut out);
         let l: Vec<&str> = out.0.lines().collect();
         assert_eq!(l.len(), 11);
         // Internal Z grows downward; reports are +Z up (crate::frame).
@@ -537,6 +575,13 @@ mod tests {
         assert_eq!(l[8], "[G92:0.000,1.000,0.000]");
         assert_eq!(l[9], "[TLO:19.500]");
         assert_eq!(l[10], "[PRB:0.000,0.000,0.000:0]");
+        // `$13=1`: inches with four decimals (grbl's).
+        let mut out = S(String::new());
+        params(&i, true, &mut out);
+        let l: Vec<&str> = out.0.lines().collect();
+        assert_eq!(l[0], "[G54:0.0591,-0.0787,-0.0098]");
+        assert_eq!(l[9], "[TLO:0.7677]");
+        assert_eq!(l[10], "[PRB:0.0000,0.0000,0.0000:0]");
         let mut out = S(String::new());
         info(&mut out, "shop mill 2");
         let l: Vec<&str> = out.0.lines().collect();

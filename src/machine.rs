@@ -1015,7 +1015,7 @@ impl Machine {
         match dollar::parse(text).map_err(bad)? {
             dollar::Command::List => dollar::list(&self.settings, io),
             dollar::Command::Modes => dollar::modes(&self.interp, self.atc.spindle_tool(), io),
-            dollar::Command::Params => dollar::params(&self.interp, io),
+            dollar::Command::Params => dollar::params(&self.interp, self.settings.report_inches, io),
             dollar::Command::Info => startup::info(io),
             dollar::Command::InfoSet => startup::set_info(io, after_eq(text))?,
             dollar::Command::StartupList => startup::list(io),
@@ -1649,20 +1649,35 @@ impl Machine {
         let st = io.stepper();
         // Steps are being produced: never `Idle`, whatever else is going on.
         let state = if self.state == State::Idle && st.busy { State::Run } else { self.state };
-        uwrite!(io, "<{}{}", state.name(), F!("|MPos:")).ok();
+        // `$10` bit 0: the machine position, else the work position;
+        // bit 1: the buffer field (grbl's).
+        let mask = self.settings.status_mask;
         let mpos = self.steps_to_mm(st.position);
-        self.write_xyz(io, crate::frame::user_from_internal(mpos));
-        uwrite!(io, "{}", F!("|WPos:")).ok();
         let wpos = self.interp.work_user(mpos);
-        self.write_xyz(io, wpos);
-        uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
+        let inches = self.settings.report_inches;
+        if mask & 1 != 0 {
+            uwrite!(io, "<{}{}", state.name(), F!("|MPos:")).ok();
+            dollar::coords(io, &crate::frame::user_from_internal(mpos), inches);
+        } else {
+            uwrite!(io, "<{}{}", state.name(), F!("|WPos:")).ok();
+            dollar::coords(io, &wpos, inches);
+        }
+        if mask & 2 != 0 {
+            uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
+        }
         let (feed, rpm) = self.interp.feed_and_speed();
         // Ln: the block number of the move being prepared (grbl with line
         // numbers on); none for unnumbered lines.
         if let Some(b) = self.planner.current_block().filter(|b| b.line != 0) {
             uwrite!(io, "{}{}", F!("|Ln:"), b.line).ok();
         }
-        uwrite!(io, "|FS:{},{}", feed as i32, rpm as i32).ok();
+        uwrite!(io, "{}", F!("|FS:")).ok();
+        if inches {
+            uwrite!(io, "{}", crate::fixed::Tenths(crate::math::round_i32(feed * (10.0 / 25.4)))).ok();
+        } else {
+            uwrite!(io, "{}", feed as i32).ok();
+        }
+        uwrite!(io, ",{}", rpm as i32).ok();
         // Pn: the inputs that read triggered (grbl's letters; C is the
         // carousel's home switch, P the tool setter, G38's probe input).
         // Letters are built as bytes: a `&str` per letter would sit in RAM.
@@ -1685,7 +1700,7 @@ impl Machine {
                 for a in 0..3 {
                     wco[a] = m[a] - wpos[a];
                 }
-                self.write_xyz(io, wco);
+                dollar::coords(io, &wco, inches);
             }
             1 => {
                 uwrite!(io, "{}{}{}", F!("|Ov:"), self.interp.feed_override_pct, F!(",100,100")).ok();

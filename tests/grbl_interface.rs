@@ -190,7 +190,7 @@ fn the_status_report_carries_grbls_fields() {
     let mut ov = None;
     for _ in 0..10 {
         let st = status(&mut vm);
-        assert!(st.starts_with("<Idle|MPos:") && st.contains("|Bf:") && st.contains("|FS:"), "{st}");
+        assert!(st.starts_with("<Idle|MPos:") && !st.contains("|Bf:") && !st.contains("WPos") && st.contains("|FS:"), "{st}");
         // The carousel's home switch (C) is closed at 0°; nothing else is.
         assert!(!st.contains("|A:"), "{st}");
         let pn = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Pn:")).unwrap_or("");
@@ -221,6 +221,39 @@ fn the_status_report_carries_grbls_fields() {
         }
     }
     assert_eq!(seen_ov.as_deref(), Some("120,100,100"));
+}
+
+/// `$10` chooses the position (bit 0: MPos, else WPos) and the buffer
+/// field (bit 1), `$13` reports in inches: as grbl 1.1 (its default
+/// `$10=1`: MPos, no Bf).
+#[test]
+fn dollar_10_picks_the_position_and_bf_and_dollar_13_reports_inches() {
+    let mut vm = boot_homed();
+    ok(&mut vm, "G10 L20 P1 X5 Y6 Z0");
+    ok(&mut vm, "G1 F600");
+    let fields = |st: &str| st.trim_matches(['<', '>']).split('|').map(|f| f.split(':').next().unwrap().to_string()).collect::<Vec<_>>();
+    let st = status(&mut vm);
+    assert_eq!(fields(&st)[..3], ["Idle", "MPos", "FS"], "{st}");
+    ok(&mut vm, "$10=2");
+    let st = status(&mut vm);
+    assert_eq!(fields(&st)[..4], ["Idle", "WPos", "Bf", "FS"], "{st}");
+    assert!(st.contains("|WPos:5.000,6.000,0.000|") && st.contains("|FS:600,0"), "{st}");
+    ok(&mut vm, "$10=3");
+    let st = status(&mut vm);
+    assert!(st.starts_with("<Idle|MPos:1.000,1.000,-1.000|Bf:"), "{st}");
+    // Inches: positions with four decimals, the feed with one.
+    ok(&mut vm, "$10=0");
+    ok(&mut vm, "$13=1");
+    let st = status(&mut vm);
+    assert!(st.contains("|WPos:0.1969,0.2362,0.0000|") && st.contains("|FS:23.6,0"), "{st}");
+    let p = ok(&mut vm, "$#");
+    assert!(p.iter().any(|l| l == "[G54:-0.1575,-0.1969,-0.0394]"), "{p:?}");
+    // Bad values: refused, nothing changed.
+    for bad in ["$10=4", "$10=-1", "$13=2"] {
+        let e = refused(&mut vm, bad);
+        assert!(e.contains("bad value") || e.contains("out of range"), "{bad}: {e}");
+    }
+    assert!(ok(&mut vm, "$$").iter().any(|l| l.starts_with("$10=0 ")));
 }
 
 /// `Ln:` in `?`: the block number (`N…`) of the move being run, from a

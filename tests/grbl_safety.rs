@@ -144,7 +144,10 @@ fn a_probe_that_touches_nothing_is_an_alarm_and_stops_what_follows() {
     // Nothing was zeroed: the work position is the machine position.
     ok(&mut vm, "M999");
     let st = status(&mut vm);
-    assert!(st.contains("|MPos:30.000,30.000,-10.000|WPos:30.000,30.000,-10.000|"), "{st}");
+    assert!(st.contains("|MPos:30.000,30.000,-10.000|"), "{st}");
+    ok(&mut vm, "$10=0");
+    let st = status(&mut vm);
+    assert!(st.contains("|WPos:30.000,30.000,-10.000|"), "{st}");
     // The position is still exact, so the machine stays homed.
     run(&mut vm, "G0 Z-2");
     assert_eq!(xyz_now(&vm), at(30.0, 30.0, -2.0));

@@ -20,7 +20,7 @@ fn setting(vm: &mut sim::Vm, n: u32) -> String {
 fn dollar_settings_list_set_persist_and_drive_the_motion() {
     let mut vm = boot();
     let lines = ok(&mut vm, "$$");
-    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 51, "{lines:?}");
+    assert_eq!(lines.iter().filter(|l| l.starts_with('$')).count(), 53, "{lines:?}");
     assert_eq!(setting(&mut vm, 100), "100.000");
     assert_eq!(setting(&mut vm, 130), "45.000");
 
@@ -73,7 +73,7 @@ fn eeprom_settings_written_before_the_dialect_flags_still_load() {
     ok(&mut vm, "$153=1");
     ok(&mut vm, "$154=0");
     let now = vm.eeprom();
-    assert_eq!(now[0], 6, "version 6 now");
+    assert_eq!(now[0], 7, "version 7 now");
     let mut old = now[..LEN_V3].to_vec();
     old[0] = 3;
     old[LEN_V3 - 1] = image_checksum(&old[..LEN_V3 - 1]);
@@ -88,4 +88,22 @@ fn eeprom_settings_written_before_the_dialect_flags_still_load() {
     assert_eq!((setting(&mut vm, 153), setting(&mut vm, 154)), ("0".to_string(), "1".to_string()), "the new flags at their defaults");
     let m503 = ok(&mut vm, "M503").join("\n");
     assert!(m503.contains("echo:Dialect: $153=0 (G4 P in seconds) $154=1 (G80 keeps the motion mode)"), "{m503}");
+
+    // The image the firmware wrote before `$10`/`$13` (version 6: two
+    // bytes shorter) loads with grbl's defaults for them.
+    const LEN_V6: usize = 248;
+    ok(&mut vm, "$10=3");
+    ok(&mut vm, "$13=1");
+    ok(&mut vm, "$182=1.5");
+    let now = vm.eeprom();
+    let mut old = now[..LEN_V6].to_vec();
+    old[0] = 6;
+    old[LEN_V6 - 1] = image_checksum(&old[..LEN_V6 - 1]);
+    old.extend_from_slice(&[0xFF, 0xFF, 0xFF]);
+    vm.set_eeprom_at(0, &old);
+    vm.power_cycle();
+    vm.wait_for_start(3.0).unwrap();
+    vm.run_for(0.05).unwrap();
+    assert_eq!(setting(&mut vm, 182), "1.500", "the old image's values");
+    assert_eq!((setting(&mut vm, 10), setting(&mut vm, 13)), ("1".to_string(), "0".to_string()));
 }

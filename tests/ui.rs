@@ -1341,6 +1341,7 @@ fn work_zero_from_the_jog_menu_and_a_z_zero_by_probing() {
     assert!((off[2] + 8.2).abs() < 0.02, "G54 Z {} where the probe touched, about 3.2 below Z -5", off[2]);
     golden(&vm, "probe_z_zero_done");
     // Status: WPos X 0 and Z 0 here.
+    ok(&mut vm, "$10=0");
     let st = status(&mut vm);
     assert!(st.contains("WPos:0.000,12.000,0.0"), "{st}");
     // The next work system: G55 active, its own offsets (zero here).
