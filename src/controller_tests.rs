@@ -584,6 +584,53 @@ fn feed_hold_decelerates_to_a_stop_and_resume_ends_exactly_at_the_target() {
     assert!(r.status().starts_with("<Idle|"));
 }
 
+/// grbl's feed override bytes in the middle of a move act on it at once:
+/// 0x92 ×5 (50 %) halves the step rate within a few ms, 0x90 brings it
+/// back, and the move still ends exactly at its target; queued moves follow
+/// too, and `Ov:` reports it.
+///
+/// Checked to fail: with `apply_overrides` not called from `Machine::idle`
+/// (the rate never changes), and with `set_overrides` changing the
+/// percentage without re-planning the queued blocks (the executing move
+/// keeps its speed).
+#[test]
+fn feed_override_bytes_change_the_speed_of_the_move_in_progress() {
+    let mut r = ready_rig();
+    let n0 = r.io.step_count() as usize;
+    for k in 0..5 {
+        r.io.at(At::Step(n0 as u64 + 1000 + k), Event::Override(0x92));
+    }
+    r.io.at(At::Step(n0 as u64 + 2500), Event::Override(0x90));
+    r.send("G1 X40 F1200");
+    r.send("G1 X44");
+    let done = r.idle_until(400_000, |m, io| m.motion_done(io));
+    assert!(done);
+    let xs: Vec<u64> = r.io.steps[n0..].iter().map(|s| s.cycle).collect();
+    let dt: Vec<u64> = xs.windows(2).map(|w| w[1] - w[0]).collect();
+    // 1200 mm/min = 2000 steps/s (8000 cycles a step); at 50 %: 16000.
+    assert!((7900..=8100).contains(&dt[900]), "cruise before: {}", dt[900]);
+    // Reached within the motion already handed to the stepper (at most
+    // 40 ms, `MAX_QUEUED_CYCLES`, plus the segment in progress: grbl's
+    // segment buffer holds about as much) and the deceleration (15 ms).
+    let slow = 1000 + dt[1000..2500].iter().position(|&d| d >= 15_800).expect("slowed to 50 %");
+    let ms = (xs[slow] - xs[1000]) as f64 / 16_000.0;
+    assert!(ms < 80.0, "50 % reached {ms:.1} ms after the bytes");
+    assert!((15_800..=16_200).contains(&dt[2400]), "cruise at 50 %: {}", dt[2400]);
+    assert!((7900..=8100).contains(&dt[2700]), "back at 100 %: {}", dt[2700]);
+    assert_eq!(r.xyz(), [4400, 500, 300]);
+    assert_eq!(r.counted(), [4400, 500, 300]);
+    // The queued move after it ran at 100 % too, and M220 is the same value.
+    r.ok("M220 S130");
+    for _ in 0..12 {
+        let st = r.status();
+        if st.contains("|Ov:") {
+            assert!(st.contains("|Ov:130,100,100"), "{st}");
+            return;
+        }
+    }
+    panic!("no Ov: field in 12 reports");
+}
+
 /// The stepper is producing steps (or has some queued).
 fn stepping(io: &FakeBoard) -> bool {
     crate::machine::Io::stepper(io).busy

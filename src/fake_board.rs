@@ -89,6 +89,8 @@ pub enum Event {
     Abort,
     /// Force an input closed/open (`Some`) or give it back to the model (`None`).
     Force(Input, Option<bool>),
+    /// A grbl realtime override byte (0x90–0xA1) received.
+    Override(u8),
 }
 
 /// When a scripted event happens.
@@ -406,6 +408,10 @@ impl FakeBoard {
                     Input::ToolSetter => 4,
                 };
                 self.forced[k] = v;
+            }
+            Event::Override(b) => {
+                self.rt.motion_ovr |= crate::overrides::motion_bit(b);
+                self.rt.accessory_ovr |= crate::overrides::accessory_bit(b);
             }
         }
     }

@@ -273,6 +273,8 @@ impl Io for Hw {
             reset: rt & board::realtime::RESET != 0,
             jog_cancel: rt & board::realtime::JOG_CANCEL != 0,
             reset_moving: rt & board::realtime::RESET_MOVING != 0,
+            motion_ovr: board::take_overrides(&board::MOTION_OVR),
+            accessory_ovr: board::take_overrides(&board::ACCESSORY_OVR),
         }
     }
 
@@ -444,11 +446,11 @@ impl Hw {
         for a in 0..3 {
             v.wpos_um[a] = mill::math::round_i32(w[a] * 1000.0);
         }
-        let (feed, rpm) = m.interp.feed_and_speed();
+        let (feed, rpm) = m.feed_and_speed();
         v.state = m.state;
         v.tool = m.atc.spindle();
         v.feed = feed.clamp(0.0, 65535.0) as u16;
-        v.override_pct = m.interp.feed_override_pct;
+        v.override_pct = m.planner.feed_override();
         v.opt_stop = m.settings.optional_stop;
         v.wcs = m.interp.wcs;
         v.rpm = rpm.clamp(0.0, 65535.0) as u16;
@@ -744,7 +746,7 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             None => Err(interp::Error::Sd(SdError::NotFound.text().as_fstr())),
         },
         Cmd::Override(pct) => {
-            m.interp.feed_override_pct = pct;
+            m.set_feed_override(pct);
             Ok(())
         }
         Cmd::OptionalStop(on) => {

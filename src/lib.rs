@@ -23,7 +23,7 @@
 //!
 //! | layer | modules | what |
 //! |---|---|---|
-//! | 0 | `math`, `fixed`, `flash`, `config`, `protocol`, `axis` | arithmetic, settings, wire protocol |
+//! | 0 | `math`, `fixed`, `flash`, `config`, `protocol`, `overrides`, `axis` | arithmetic, settings, wire protocol |
 //! | 1 | `planner`, `stepper`, `frame` | motion pipeline, the Z flip |
 //! | 2 | `atc`, `toolsetter` | the tool changer's and the setter's pure logic |
 //! | 3 | `gcode` | parser, interpreter (pure: returns `Command`s), canned cycles |
@@ -51,6 +51,7 @@ pub mod hostcodes;
 pub mod machine;
 pub mod math;
 pub mod planner;
+pub mod overrides;
 pub mod protocol;
 pub mod stepper;
 pub mod toolsetter;

@@ -30,7 +30,7 @@ use crate::dollar;
 use crate::fixed::Micros;
 use crate::flash::FStr;
 use crate::gcode::interp::{self, Command, Interp};
-use crate::planner::{PlanError, Planner};
+use crate::planner::{PlanError, Planner, Speed};
 use crate::protocol::{Assembled, LineAssembler, LineChecker};
 use crate::stepper::rings::Watch;
 use crate::stepper::{Prep, StepperCmd};
@@ -63,6 +63,10 @@ pub struct Realtime {
     pub reset: bool,
     /// 0x85 (grbl's jog cancel) received.
     pub jog_cancel: bool,
+    /// grbl's realtime override bytes received since the last poll, as
+    /// request bits ([`crate::overrides::motion`], [`crate::overrides::accessory`]).
+    pub motion_ovr: u8,
+    pub accessory_ovr: u8,
     /// With `reset`: steps were still being produced when it arrived.
     pub reset_moving: bool,
 }
@@ -286,6 +290,11 @@ pub const RETRACT_FEED_MM_PER_MIN: f32 = 600.0;
 
 /// The controller.
 pub struct Machine {
+    /// The spindle override, percent (grbl's 0x99–0x9D), the duty the
+    /// program set (M3 S…), and the spindle stopped by 0x9E in a hold.
+    spindle_pct: u8,
+    spindle_duty: u8,
+    spindle_stopped: bool,
     pub settings: Settings,
     pub planner: Planner,
     pub prep: Prep,
@@ -415,7 +424,12 @@ impl Machine {
                 reset: false,
                 reset_moving: false,
                 jog_cancel: false,
+                motion_ovr: 0,
+                accessory_ovr: 0,
             },
+            spindle_pct: 100,
+            spindle_duty: 0,
+            spindle_stopped: false,
             numbered: false,
             sd_job: false,
             job_start_ms: 0,
@@ -761,7 +775,7 @@ impl Machine {
         match *cmd {
             Command::Move { feed_mm_per_min, rapid } => self.move_interp(io, feed_mm_per_min, rapid),
             Command::CycleMove { feed_mm_per_min, rapid } => self.cycle_move(io, feed_mm_per_min, rapid),
-            Command::Probe { feed_mm_per_min, must_trip } => self.probe(io, *self.interp.target(), feed_mm_per_min, must_trip),
+            Command::Probe { feed_mm_per_min, must_trip } => self.probe(io, *self.interp.target(), Speed::Feed(feed_mm_per_min), must_trip),
             Command::Dwell { ms } => {
                 self.keepalive(io);
                 self.wait_ms(io, ms)
@@ -797,6 +811,10 @@ impl Machine {
             Command::CarouselEnable { on } => carousel::enable(self, io, on),
             Command::CarouselHome { back, only_if_unhomed } => carousel::home_command(self, io, back, only_if_unhomed),
             Command::Spindle { on, duty } => self.spindle(io, on, duty),
+            Command::FeedOverride { pct } => {
+                self.set_feed_override(pct);
+                Ok(())
+            }
             Command::Coolant { m } => {
                 // One output for both M7 (mist) and M8 (flood), switched in
                 // step with the motion like the spindle (M9 in an alarm: at
@@ -881,7 +899,8 @@ impl Machine {
         self.wait_idle(io)?;
         let was = self.interp.spindle_on;
         self.interp.spindle_on = on;
-        io.spindle(duty);
+        self.spindle_duty = duty;
+        io.spindle(crate::overrides::spindle_duty(duty, self.spindle_pct));
         let delay_s = match (was, on) {
             (false, true) => self.settings.spin_up_s,
             (true, false) => self.settings.spin_down_s,
@@ -905,7 +924,7 @@ impl Machine {
 
     /// G38.2/G38.3: move toward `target` until the tool-setter input trips.
     #[inline(never)]
-    fn probe(&mut self, io: &mut impl Io, target: [f32; N_AXES], feed: f32, must_trip: bool) -> CmdResult {
+    fn probe(&mut self, io: &mut impl Io, target: [f32; N_AXES], speed: Speed, must_trip: bool) -> CmdResult {
         if self.alarm.is_some() {
             return Err(interp::Error::Alarm);
         }
@@ -920,7 +939,7 @@ impl Machine {
         self.state = State::Probe;
         self.apply_watch(io, 0, true);
         let steps = self.interp.steps_of(&self.settings, &target);
-        let r = self.queue_line(io, steps, feed, false).and_then(|_| self.wait_motion_or_trip(io));
+        let r = self.queue_line(io, steps, speed).and_then(|_| self.wait_motion_or_trip(io));
         self.apply_watch(io, 0, false);
         self.state = prev;
         let tripped = r?;
@@ -1076,7 +1095,7 @@ impl Machine {
         let depth = target[2] + mm;
         let travel = self.settings.travel_mm[2];
         target[2] = if depth < travel { depth } else { travel };
-        self.probe(io, target, feed, true)
+        self.probe(io, target, Speed::Fixed(feed), true)
     }
 
     /// The menu's "teach": station point `p` (`$170 + p`: X1, Y point A,
@@ -1165,7 +1184,7 @@ impl Machine {
     /// Queue a straight move to `target` (absolute steps). Waits for planner
     /// space while serving realtime requests.
     #[inline(never)]
-    pub fn queue_line(&mut self, io: &mut impl Io, target: [i32; N_AXES], feed_mm_per_min: f32, rapid: bool) -> CmdResult {
+    pub fn queue_line(&mut self, io: &mut impl Io, target: [i32; N_AXES], speed: Speed) -> CmdResult {
         if self.alarm.is_some() {
             return Err(interp::Error::Alarm);
         }
@@ -1173,7 +1192,7 @@ impl Machine {
         // them off again.
         io.drivers(true);
         loop {
-            match self.planner.accept_line(target, feed_mm_per_min, rapid, &self.settings) {
+            match self.planner.accept_line(target, speed, &self.settings) {
                 Ok(p) => {
                     if p.rate_capped {
                         uwriteln!(io, "{}", F!("echo:warning: feed capped to the maximum step rate")).ok();
@@ -1196,10 +1215,10 @@ impl Machine {
     /// lock guards X/Y/Z (the carousel alone has its own homing, G205); the
     /// commanded position follows once the planner took the move.
     #[inline(never)]
-    pub fn move_mm(&mut self, io: &mut impl Io, target: &[f32; N_AXES], feed_mm_per_min: f32, rapid: bool) -> CmdResult {
+    pub fn move_mm(&mut self, io: &mut impl Io, target: &[f32; N_AXES], speed: Speed) -> CmdResult {
         self.may_move_to(target)?;
         let steps = self.interp.steps_of(&self.settings, target);
-        self.queue_line(io, steps, feed_mm_per_min, rapid)?;
+        self.queue_line(io, steps, speed)?;
         self.interp.pos_mm = *target;
         Ok(())
     }
@@ -1210,7 +1229,8 @@ impl Machine {
     fn move_interp(&mut self, io: &mut impl Io, feed_mm_per_min: f32, rapid: bool) -> CmdResult {
         self.may_move_to(self.interp.target())?;
         let steps = self.interp.target_steps(&self.settings);
-        self.queue_line(io, steps, feed_mm_per_min, rapid)?;
+        let speed = if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) };
+        self.queue_line(io, steps, speed)?;
         self.interp.target_reached();
         Ok(())
     }
@@ -1246,7 +1266,7 @@ impl Machine {
         target[axis] += crate::frame::axis_internal_from_user(axis, delta_mm);
         self.interp.check_soft_limits(&self.settings, &target)?;
         let target = self.keep_out_clip(&target);
-        self.move_mm(io, &target, feed, false)
+        self.move_mm(io, &target, Speed::Fixed(feed))
     }
 
     /// The SD card was pulled mid-job and the job's moves are dropped: lift
@@ -1271,7 +1291,7 @@ impl Machine {
         let safe = self.settings.card_out_retract_mm;
         if target[2] > safe {
             target[2] = safe;
-            self.move_mm(io, &target, RETRACT_FEED_MM_PER_MIN, false)?;
+            self.move_mm(io, &target, Speed::Fixed(RETRACT_FEED_MM_PER_MIN))?;
             self.wait_idle(io)?;
         }
         Ok(())
@@ -1297,7 +1317,7 @@ impl Machine {
         }
         self.interp.check_soft_limits(&self.settings, &target)?;
         let target = self.keep_out_clip(&target);
-        self.move_mm(io, &target, feed, false)?;
+        self.move_mm(io, &target, Speed::Fixed(feed))?;
         self.state = State::Jog;
         Ok(())
     }
@@ -1423,8 +1443,16 @@ impl Machine {
                 self.state = State::Hold;
             }
         }
+        if rt.motion_ovr | rt.accessory_ovr != 0 {
+            self.apply_overrides(io, rt.motion_ovr, rt.accessory_ovr);
+        }
         if rt.resume && self.holding && !self.aborting {
             self.holding = false;
+            if self.spindle_stopped {
+                // 0x9E stopped it in the hold: back on before the motion.
+                self.spindle_stopped = false;
+                io.spindle(crate::overrides::spindle_duty(self.spindle_duty, self.spindle_pct));
+            }
             if self.prep.is_held() || !io.stepper().busy {
                 self.planner.cycle_reinitialize();
             }
@@ -1464,6 +1492,60 @@ impl Machine {
             self.state = State::Idle;
         }
         io.background(self);
+    }
+
+    /// grbl's realtime overrides: the feed and rapid overrides re-plan the
+    /// queued moves at once ([`Planner::set_overrides`]); the spindle
+    /// override scales the spindle's duty now; 0x9E stops the spindle in a
+    /// hold (again: on; `~` restores it); 0xA0/0xA1 toggle the coolant in
+    /// Idle, Run or Hold (grbl's states for them).
+    #[inline(never)]
+    fn apply_overrides(&mut self, io: &mut impl Io, motion: u8, accessory: u8) {
+        use crate::overrides::{accessory as acc, spindle_duty, Percent};
+        let mut p = Percent { feed: self.planner.feed_override(), rapid: self.planner.rapid_override(), spindle: self.spindle_pct };
+        p.apply_motion(motion);
+        p.apply_spindle(accessory);
+        self.planner.set_overrides(p.feed, p.rapid, &self.settings);
+        let on = self.interp.spindle_on;
+        if p.spindle != self.spindle_pct {
+            self.spindle_pct = p.spindle;
+            if on && !self.spindle_stopped {
+                io.spindle(spindle_duty(self.spindle_duty, p.spindle));
+            }
+        }
+        if accessory & acc::SPINDLE_STOP != 0 && self.holding && on {
+            self.spindle_stopped = !self.spindle_stopped;
+            io.spindle(if self.spindle_stopped { 0 } else { spindle_duty(self.spindle_duty, p.spindle) });
+        }
+        if accessory & (acc::FLOOD | acc::MIST) != 0 && matches!(self.state, State::Idle | State::Run | State::Hold) {
+            let m = if self.interp.coolant_m != 9 {
+                9
+            } else if accessory & acc::FLOOD != 0 {
+                8
+            } else {
+                7
+            };
+            self.interp.coolant_m = m;
+            io.coolant(m != 9);
+        }
+    }
+
+    /// The feed override (M220, the menu), for the queued moves too.
+    pub fn set_feed_override(&mut self, pct: u16) {
+        self.planner.set_overrides(pct, self.planner.rapid_override(), &self.settings);
+    }
+
+    /// The feed (programmed, times the feed override) and the spindle
+    /// speed (times the spindle override; 0 when off), for `FS:` and the
+    /// status screen.
+    pub fn feed_and_speed(&self) -> (f32, f32) {
+        let (f, s) = self.interp.feed_and_speed();
+        (f * self.planner.feed_override() as f32 * 0.01, s * self.spindle_pct as f32 * 0.01)
+    }
+
+    /// The feed, rapid and spindle overrides in force, percent (`Ov:`).
+    pub fn overrides(&self) -> crate::overrides::Percent {
+        crate::overrides::Percent { feed: self.planner.feed_override(), rapid: self.planner.rapid_override(), spindle: self.spindle_pct }
     }
 
     /// The abort's deceleration has ended: drop the queue, keep the
@@ -1510,6 +1592,9 @@ impl Machine {
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);
         self.spindle_off(io);
+        // grbl's soft reset puts every override back to 100 %.
+        self.planner.set_overrides(100, 100, &self.settings);
+        self.spindle_pct = 100;
         self.holding = false;
         self.aborting = false;
         self.last_rt.home_tripped = false;
@@ -1535,6 +1620,7 @@ impl Machine {
     /// Spindle and coolant off (and remembered as off): aborts, program end.
     pub fn spindle_off(&mut self, io: &mut impl Io) {
         self.interp.spindle_on = false;
+        self.spindle_stopped = false;
         self.interp.coolant_m = 9;
         io.spindle(0);
         io.coolant(false);
@@ -1665,7 +1751,7 @@ impl Machine {
         if mask & 2 != 0 {
             uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
         }
-        let (feed, rpm) = self.interp.feed_and_speed();
+        let (feed, rpm) = self.feed_and_speed();
         // Ln: the block number of the move being prepared (grbl with line
         // numbers on); none for unnumbered lines.
         if let Some(b) = self.planner.current_block().filter(|b| b.line != 0) {
@@ -1703,7 +1789,8 @@ impl Machine {
                 dollar::coords(io, &wco, inches);
             }
             1 => {
-                uwrite!(io, "{}{}{}", F!("|Ov:"), self.interp.feed_override_pct, F!(",100,100")).ok();
+                let o = self.overrides();
+                uwrite!(io, "{}{},{},{}", F!("|Ov:"), o.feed, o.rapid, o.spindle).ok();
             }
             _ => {}
         }
@@ -1833,7 +1920,7 @@ impl Machine {
         self.apply_watch(io, 1 << axis, false);
         let mut target = io.stepper().position;
         target[axis] += steps;
-        let r = self.queue_line(io, target, feed, false).and_then(|_| self.wait_motion_or_trip(io));
+        let r = self.queue_line(io, target, Speed::Fixed(feed)).and_then(|_| self.wait_motion_or_trip(io));
         self.apply_watch(io, 0, false);
         let tripped = r?;
         if tripped {
@@ -1861,7 +1948,7 @@ impl Machine {
     fn home_pulloff(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> CmdResult {
         let mut target = io.stepper().position;
         target[axis] += crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
-        self.queue_line(io, target, feed, false)?;
+        self.queue_line(io, target, Speed::Fixed(feed))?;
         self.wait_idle(io)?;
         if io.switches().home & (1 << axis) != 0 {
             return self.home_fail(io);

@@ -66,6 +66,16 @@ pub(crate) fn raise_in_isr(bits: u8) {
     unsafe { p.write_volatile(p.read_volatile() | bits) };
 }
 
+/// grbl's realtime override bytes received (request bits of
+/// `mill::overrides::motion` and `::accessory`), set by the RX interrupt.
+pub static MOTION_OVR: AtomicU8 = AtomicU8::new(0);
+pub static ACCESSORY_OVR: AtomicU8 = AtomicU8::new(0);
+
+/// Take and clear the pending requests of an override byte.
+pub fn take_overrides(o: &AtomicU8) -> u8 {
+    o.swap(0, Ordering::AcqRel)
+}
+
 /// Take and clear all pending realtime requests.
 pub fn take_realtime() -> u8 {
     REALTIME.swap(0, Ordering::AcqRel)

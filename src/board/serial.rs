@@ -460,9 +460,13 @@ extern "avr-interrupt" fn usart0_rx_slow() {
             b'!' => realtime::HOLD,
             b'~' => realtime::RESUME,
             0x85 => realtime::JOG_CANCEL,
-            // grbl's override commands and any other byte from 0x80 up:
-            // out of the stream, acted on by nothing yet.
-            0x80..=0xFF => 0,
+            // grbl's override commands (a bit each, for the main loop) and
+            // any other byte from 0x80 up: out of the stream.
+            0x80..=0xFF => {
+                or_in_isr(&super::MOTION_OVR, mill::overrides::motion_bit(b));
+                or_in_isr(&super::ACCESSORY_OVR, mill::overrides::accessory_bit(b));
+                0
+            }
             _ => {
                 // Ctrl-X: stop stepping now (grbl's mc_reset); the main loop
                 // flushes the queues and reports. Whether steps were still
@@ -488,6 +492,15 @@ extern "avr-interrupt" fn usart0_rx_slow() {
     let mode = rx_fast_mode(scan, store, text);
     // SAFETY: as above; volatile since only the assembly reads it.
     unsafe { addr_of_mut!(RX_SLOW).write_volatile(mode) };
+}
+
+/// Set `bits` in `a` from inside an ISR (see `raise_in_isr`).
+#[inline(always)]
+fn or_in_isr(a: &AtomicU8, bits: u8) {
+    let p = a.as_ptr();
+    // SAFETY: interrupts are off inside an ISR and ISRs do not nest; the
+    // main loop takes the byte with an atomic swap.
+    unsafe { p.write_volatile(p.read_volatile() | bits) };
 }
 
 // TX data register empty: send the next byte or switch the interrupt off.

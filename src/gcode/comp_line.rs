@@ -195,7 +195,7 @@ impl Interp {
     #[inline(always)] // see the note in comp.rs
     fn comp_flush(&mut self, cx: &Ctx, h: &Held, end: &P2, then: Phase) -> Result<(), Error> {
         let end3 = [end[0], end[1], h.z];
-        self.run.chord_feed = h.feed * self.feed_override_pct as f32 * 0.01;
+        self.run.chord_feed = h.feed;
         self.run.chord_rapid = h.rapid;
         self.run.then = then;
         if h.seg.turn == 0 {
@@ -240,7 +240,7 @@ impl Interp {
         self.run.phase = Phase::Tool;
         let (p, q, turn) = self.comp.corner_arc.take()?;
         let rapid = self.comp.held.is_some_and(|h| h.rapid);
-        let feed = self.feed_with_override();
+        let feed = self.feed_mm_per_min;
         let start = [self.pos_mm[0], self.pos_mm[1], self.pos_mm[2]];
         let end = [q[0], q[1], start[2]];
         let gap = (q[0] - start[0]) * (q[0] - start[0]) + (q[1] - start[1]) * (q[1] - start[1]);

@@ -205,8 +205,6 @@ pub struct Interp {
     pub cycle: cycles::Sticky,
     /// Programmed feed, mm/min (0 = none yet).
     pub feed_mm_per_min: f32,
-    /// Feed override, percent (M220).
-    pub feed_override_pct: u16,
     /// Spindle speed, rpm (S), and whether it is on.
     pub spindle_rpm: f32,
     pub spindle_on: bool,
@@ -233,9 +231,6 @@ pub struct Interp {
     /// The two caches above match the settings; cleared by
     /// [`Interp::settings_changed`].
     conv_fresh: bool,
-    /// (bits of the programmed feed, override %, the feed with the override,
-    /// mm/min). See [`Interp::feed_with_override`].
-    feed_cache: (u32, u16, f32),
     /// The line in progress: where [`Interp::next`] is, and an arc's or a
     /// canned cycle's state between its moves (~110 B, static: on the stack
     /// it would sit under every wait of the line).
@@ -260,7 +255,6 @@ impl Interp {
             retract: Retract::Initial,
             cycle: cycles::Sticky::NONE,
             feed_mm_per_min: 0.0,
-            feed_override_pct: 100,
             spindle_rpm: 0.0,
             spindle_on: false,
             coolant_m: 9,
@@ -272,7 +266,6 @@ impl Interp {
             steps_cache: [(0, 0); N_AXES],
             travel_steps: [0; 3],
             conv_fresh: false,
-            feed_cache: (0, 0, 0.0),
             run: LineRun::new(),
             comp: comp::State::OFF,
         }
@@ -315,17 +308,6 @@ impl Interp {
             self.travel_steps[a] = to_steps(s.travel_mm[a], s.steps_per_mm[a]);
         }
         self.conv_fresh = true;
-    }
-
-    /// The programmed feed with the override applied, mm/min (cached: both
-    /// rarely change between lines).
-    pub fn feed_with_override(&mut self) -> f32 {
-        let key = (self.feed_mm_per_min.to_bits(), self.feed_override_pct);
-        if (self.feed_cache.0, self.feed_cache.1) != key {
-            let f = self.feed_mm_per_min * self.feed_override_pct as f32 * 0.01;
-            self.feed_cache = (key.0, key.1, f);
-        }
-        self.feed_cache.2
     }
 
     /// Take the persistent parts (work offsets) from the settings.
@@ -416,10 +398,11 @@ impl Interp {
         Ok((t, feed))
     }
 
-    /// Programmed feed with override, and spindle rpm (0 when off).
+    /// Programmed feed (the planner applies the override), and spindle
+    /// rpm (0 when off).
     pub fn feed_and_speed(&self) -> (f32, f32) {
         let rpm = if self.spindle_on { self.spindle_rpm } else { 0.0 };
-        (self.feed_mm_per_min * self.feed_override_pct as f32 / 100.0, rpm)
+        (self.feed_mm_per_min, rpm)
     }
 }
 
@@ -503,6 +486,8 @@ pub enum Command {
     Report(Report),
     /// M999: leave the alarm state.
     ClearAlarm,
+    /// M220 S<percent>: the feed override, for the queued moves too.
+    FeedOverride { pct: u16 },
     /// M112.
     EmergencyStop,
     /// M2 / M30: drain, spindle and coolant off.
@@ -857,7 +842,7 @@ impl Interp {
     #[inline(always)]
     fn motion(&mut self) -> Option<Command> {
         let mo = self.run.motion?;
-        let feed = self.feed_with_override();
+        let feed = self.feed_mm_per_min;
         match mo {
             Motion::ArcCw | Motion::ArcCcw if matches!(self.run.progress, Progress::Arc(..)) => {
                 self.run.phase = Phase::Chords;
@@ -882,7 +867,7 @@ impl Interp {
     /// The cycle's next move or dwell, `None` when it is done.
     #[inline(never)]
     fn cycle_step(&mut self) -> Option<Command> {
-        let feed = self.feed_with_override();
+        let feed = self.feed_mm_per_min;
         let pos = self.pos_mm;
         let Progress::Cycle(run) = &mut self.run.progress else {
             return None;
@@ -1531,8 +1516,7 @@ impl Interp {
                 if !(10.0..=500.0).contains(&s) {
                     return Err(Error::BadWord(F!("M220 S must be 10-500")));
                 }
-                self.feed_override_pct = round_i32(s) as u16;
-                return Ok(None);
+                Command::FeedOverride { pct: round_i32(s) as u16 }
             }
             108 => return Ok(None),
             _ => return Err(Error::NotAvailable(F!("M code not supported"))),

@@ -16,6 +16,7 @@
 //! slow approach. The carousel stays there (0°).
 
 use super::{Alarm, CmdResult, Io, Machine, State};
+use crate::planner::Speed;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
 use crate::math::round_i32;
@@ -86,7 +87,7 @@ pub fn turn_to(m: &mut Machine, io: &mut impl Io, position: f32) -> CmdResult {
     let mut t = m.interp.pos_mm;
     t[axis::E] = position;
     let feed = m.settings.max_feed_mm_per_min[axis::E];
-    m.move_mm(io, &t, feed, false)?;
+    m.move_mm(io, &t, Speed::Fixed(feed))?;
     m.wait_motion_or_trip(io).map(|_| ())
 }
 
@@ -137,7 +138,7 @@ fn home_steps(m: &mut Machine, io: &mut impl Io) -> Result<bool, Error> {
 fn nudge(m: &mut Machine, io: &mut impl Io, pitches: f32, feed: f32) -> CmdResult {
     let mut target = io.stepper().position;
     target[axis::E] += round_i32(pitches * m.settings.steps_per_mm[axis::E]);
-    m.queue_line(io, target, feed, false)?;
+    m.queue_line(io, target, Speed::Fixed(feed))?;
     m.wait_motion_or_trip(io).map(|_| ())
 }
 

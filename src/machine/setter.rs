@@ -8,6 +8,7 @@
 //! - calibration: `[SETTER Z:<beam tip height, machine mm, +Z up> W:<beam width mm>]`.
 
 use super::{Alarm, Io, Machine, State};
+use crate::planner::Speed;
 use crate::atc::tools::EEPROM_SETTER_ADDR;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
@@ -141,7 +142,7 @@ fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(),
             t[i] = *v;
         }
     }
-    m.move_mm(io, &t, 0.0, true)?;
+    m.move_mm(io, &t, Speed::Rapid)?;
     m.wait_motion_or_trip(io).map(|_| ())
 }
 
@@ -177,7 +178,7 @@ fn probe(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: Option<f
     target[axis] += round_i32(mm * m.settings.steps_per_mm[axis]);
     m.apply_watch(io, 0, watch);
     let r = m
-        .queue_line(io, target, feed.unwrap_or(crate::toolsetter::SEEK_FAST_MM_PER_MIN), false)
+        .queue_line(io, target, Speed::Fixed(feed.unwrap_or(crate::toolsetter::SEEK_FAST_MM_PER_MIN)))
         .and_then(|_| m.wait_motion_or_trip(io));
     m.apply_watch(io, 0, false);
     let tripped = r?;

@@ -19,6 +19,7 @@
 //!   loaded or took out a tool by hand).
 
 use super::{carousel, Io, Machine, State};
+use crate::planner::Speed;
 use crate::atc::change::{Action, Change, Event, Request};
 use crate::atc::tools::{
     pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_SETTER_ADDR, EEPROM_STATE_ADDR,
@@ -164,7 +165,7 @@ fn perform(m: &mut Machine, io: &mut impl Io, a: Action) -> Result<(), Error> {
                     t[i] = *v;
                 }
             }
-            m.move_mm(io, &t, feed_mm_per_min.unwrap_or(0.0), feed_mm_per_min.is_none())?;
+            m.move_mm(io, &t, feed_mm_per_min.map_or(Speed::Rapid, Speed::Fixed))?;
             m.wait_motion_or_trip(io)?;
         }
         Action::HomeCarousel => carousel::home(m, io)?,

@@ -136,11 +136,17 @@ pub struct Block {
     /// [`Planner::line_tag`] when the block was queued (low 16 bits of the
     /// SD job's line number): which line a stop happened in.
     pub line: u16,
+    /// The programmed feed, mm/min (rounded), for a move that follows the
+    /// feed override ([`Speed::Feed`]); 0 for any other.
+    pub feed: u16,
 }
 
 impl Block {
     /// Flag: a backlash take-up block (see the module doc).
     pub const TAKE_UP: u8 = 1 << 0;
+    /// Flag: a rapid move ([`Speed::Rapid`]), which follows the rapid
+    /// override.
+    pub const RAPID: u8 = 1 << 1;
 
     const EMPTY: Block = Block {
         steps: [0; N_AXES],
@@ -154,7 +160,24 @@ impl Block {
         direction_bits: 0,
         flags: 0,
         line: 0,
+        feed: 0,
     };
+}
+
+/// How fast a move goes, and which override it follows (grbl 1.1's
+/// realtime overrides, [`Planner::set_overrides`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Speed {
+    /// Each axis at most at its max rate, times the rapid override (G0, the
+    /// tool changer's travels).
+    Rapid,
+    /// A programmed feed, mm/min, times the feed override (G1/G2/G3, canned
+    /// cycles, probing).
+    Feed(f32),
+    /// A feed, mm/min, that no override changes (jogs, homing, the tool
+    /// changer's and the setter's feed moves: grbl exempts its jogs and
+    /// homing too).
+    Fixed(f32),
 }
 
 /// What [`Planner::push_line`] did.
@@ -265,6 +288,10 @@ pub struct Planner {
     /// Copied into each block queued ([`Block::line`]); the SD job sets it
     /// to the line it hands out.
     pub line_tag: u16,
+    /// The feed override, percent (M220, grbl's 0x90-0x94, the menu), and
+    /// the rapid override (100, 50 or 25): [`Planner::set_overrides`].
+    feed_pct: u16,
+    rapid_pct: u8,
     /// Index of the executing (oldest) block.
     tail: u8,
     /// Index where the next block goes.
@@ -313,8 +340,9 @@ pub struct Planner {
     /// Settings-derived per-axis values.
     axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
-    /// steps and time per mm (s/mm). It holds a ring slot.
-    pending: Option<([i32; N_AXES], f32)>,
+    /// steps, time per mm (s/mm) and programmed feed ([`Block::feed`]). It
+    /// holds a ring slot.
+    pending: Option<([i32; N_AXES], f32, u16)>,
     /// `axis` matches the settings [`Planner::accept_line`] is given, until
     /// [`Planner::settings_changed`] (saves comparing 12 settings per move).
     axis_fresh: bool,
@@ -400,12 +428,89 @@ fn half(x: f32) -> f32 {
     }
 }
 
+/// The junction speed² between a block along `prev_unit` and the next along
+/// `unit` (grbl's junction deviation rule), (mm/s)²: `accel` is (this
+/// block's, the previous block's) acceleration, `cap` the smaller nominal
+/// speed² of the two: a junction at least as fast as that is
+/// [`JUNCTION_SPEED_SQR_STRAIGHT`] without the square root (`cap_cache`
+/// holds (bits of cap, cap²)). Used when a block is queued and when the
+/// overrides re-plan the ring.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn junction_sqr(
+    same_dir: bool,
+    prev_unit: &[f32; N_AXES],
+    unit: &[f32; N_AXES],
+    moving: u8,
+    accel: (f32, f32),
+    cap: f32,
+    cap_cache: &mut (u32, f32),
+    s: &Settings,
+) -> f32 {
+    if same_dir {
+        return JUNCTION_SPEED_SQR_STRAIGHT;
+    }
+    let mut cos_theta = 0.0f32;
+    for i in 0..N_AXES {
+        if moving & (1 << i) != 0 && prev_unit[i].to_bits() != 0 {
+            cos_theta -= prev_unit[i] * unit[i];
+        }
+    }
+    // |cos θ| beyond the limit, on the bit pattern (a soft-float
+    // compare costs ~50 cycles).
+    let cos_bits = cos_theta.to_bits();
+    let beyond = cos_bits & 0x7FFF_FFFF > JUNCTION_COS_LIMIT.to_bits();
+    if beyond && cos_bits & 0x8000_0000 == 0 {
+        0.0 // full reversal
+    } else if beyond {
+        JUNCTION_SPEED_SQR_STRAIGHT
+    } else {
+        let a = min_nn(accel.0, accel.1);
+        let ad = a * s.junction_deviation_mm;
+        let h = half(1.0 - cos_theta); // sin²(θ/2)
+        let mut reversing = 0u8;
+        for i in 0..N_AXES {
+            let (p, u) = (prev_unit[i].to_bits(), unit[i].to_bits());
+            if (p ^ u) & 0x8000_0000 != 0 && p & 0x7FFF_FFFF != 0 && u & 0x7FFF_FFFF != 0 {
+                reversing |= 1 << i;
+            }
+        }
+        // The deviation rule gives v² = a·δ·s / (1 − s), s = sin(θ/2).
+        // It reaches the cap L = min(nominal²) when s ≥ L / (a·δ + L),
+        // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the
+        // division (most junctions of a smooth curve).
+        if cap_cache.0 != cap.to_bits() {
+            *cap_cache = (cap.to_bits(), cap * cap);
+        }
+        let k = ad + cap;
+        if reversing == 0 && !lt_nn(h * (k * k), cap_cache.1) {
+            JUNCTION_SPEED_SQR_STRAIGHT
+        } else {
+            let sin_theta_d2 = sqrtf(h);
+            let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
+            // An axis that reverses here jumps from +v·u_prev to −v·u
+            // in one step, between a deceleration and an acceleration of
+            // the same sign: limit that jump to what the axis'
+            // acceleration gives in REVERSAL_STEP_S (see there).
+            for i in 0..N_AXES {
+                if reversing & (1 << i) != 0 {
+                    let dv = REVERSAL_STEP_S * s.accel_mm_per_s2[i] / (abs_f32(prev_unit[i]) + abs_f32(unit[i]));
+                    v_sqr = min_nn(v_sqr, dv * dv);
+                }
+            }
+            v_sqr
+        }
+    }
+}
+
 impl Planner {
     /// An empty planner at position 0.
     pub const fn new() -> Self {
         Planner {
             blocks: [Block::EMPTY; BLOCK_BUFFER_LEN],
             line_tag: 0,
+            feed_pct: 100,
+            rapid_pct: 100,
             tail: 0,
             head: 0,
             len: 0,
@@ -442,7 +547,12 @@ impl Planner {
         rapid: bool,
         s: &Settings,
     ) -> Result<Push, PlanError> {
-        self.push(target, feed_mm_per_min, rapid, s, false)
+        self.push(target, if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) }, s, false)
+    }
+
+    /// [`Planner::push_line`] at `speed`.
+    pub fn push_move(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
+        self.push(target, speed, s, false)
     }
 
     /// [`Planner::push_line`] for the firmware, which calls
@@ -455,34 +565,30 @@ impl Planner {
     /// prep's caller before taking segments). The firmware sends `ok` in
     /// between, so a host that waits for it (ping-pong) sends the next line
     /// while this one is planned (~10 k cycles on the AVR).
-    pub fn accept_line(
-        &mut self,
-        target: [i32; N_AXES],
-        feed_mm_per_min: f32,
-        rapid: bool,
-        s: &Settings,
-    ) -> Result<Push, PlanError> {
-        self.push(target, feed_mm_per_min, rapid, s, true)
+    pub fn accept_line(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
+        self.push(target, speed, s, true)
     }
 
-    /// [`Planner::push_line`] (`may_defer` false) or [`Planner::accept_line`].
-    fn push(
-        &mut self,
-        target: [i32; N_AXES],
-        feed_mm_per_min: f32,
-        rapid: bool,
-        s: &Settings,
-        may_defer: bool,
-    ) -> Result<Push, PlanError> {
+    /// [`Planner::push_move`] (`may_defer` false) or [`Planner::accept_line`].
+    fn push(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings, may_defer: bool) -> Result<Push, PlanError> {
+        let rapid = speed == Speed::Rapid;
+        let (feed_mm_per_min, pct, programmed) = match speed {
+            Speed::Rapid => (0.0, 100, 0),
+            Speed::Feed(f) => (f, self.feed_pct, (f + 0.5) as u16),
+            Speed::Fixed(f) => (f, 100, 0),
+        };
         let inv_feed = if rapid {
             0.0
         } else {
             if !(feed_mm_per_min > 0.0 && feed_mm_per_min.is_finite()) {
                 return Err(PlanError::BadFeed);
             }
-            let bits = feed_mm_per_min.to_bits();
+            // s/mm at the feed times the override: 6000 / (feed · percent).
+            // The key: the feed's bits (a feed is > 0: the sign bit is free)
+            // and whether the override applies; `set_overrides` clears it.
+            let bits = feed_mm_per_min.to_bits() | ((pct != 100) as u32) << 31;
             if self.feed_cache.0 != bits {
-                self.feed_cache = (bits, crate::math::div_cold(60.0, feed_mm_per_min));
+                self.feed_cache = (bits, crate::math::div_cold(6000.0, feed_mm_per_min * pct as f32));
             }
             self.feed_cache.1
         };
@@ -542,11 +648,11 @@ impl Planner {
         if may_defer && !take_up_any && !rapid && moving & 0b1000 == 0 && lt_nn(self.axis.defer_min_inv_feed, inv_feed) {
             // Never capped (see `AxisCache::defer_min_inv_feed`); floored or
             // not, which is not reported, prep runs it the same.
-            self.pending = Some((delta, inv_feed));
+            self.pending = Some((delta, inv_feed, programmed));
             push.queued = 1;
         } else {
             if take_up_any {
-                let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, s);
+                let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, 0, s);
                 for i in 0..3 {
                     self.backlash_offset[i] += take_up[i];
                 }
@@ -554,7 +660,8 @@ impl Planner {
                 push.rate_capped |= capped;
                 push.rate_floored |= floored;
             }
-            let (capped, floored) = self.queue_block(&delta, inv_feed, 0, s);
+            let flags = if rapid { Block::RAPID } else { 0 };
+            let (capped, floored) = self.queue_block(&delta, inv_feed, flags, programmed, s);
             push.queued += 1;
             push.rate_capped |= capped;
             push.rate_floored |= floored;
@@ -568,6 +675,100 @@ impl Planner {
         Ok(push)
     }
 
+    /// The feed override (percent) and the rapid override (100, 50 or 25)
+    /// from now on, for the queued moves too (grbl's realtime overrides:
+    /// `plan_update_velocity_profile_parameters`, then a re-plan from the
+    /// executing block). Each block that follows an override gets its
+    /// nominal speed again, from its programmed feed and its limits (per
+    /// axis and step rate, from its steps), and each junction its entry
+    /// limit; the executing block keeps its current speed, and prep
+    /// recomputes its profile ([`Planner::take_exec_replanned`]): it slows
+    /// down or speeds up at the block's acceleration. AVR cost: a square
+    /// root and two or three divisions per queued block, a few ms for a
+    /// full ring; only when an override changes.
+    #[inline(never)]
+    pub fn set_overrides(&mut self, feed_pct: u16, rapid_pct: u8, s: &Settings) {
+        if feed_pct == self.feed_pct && rapid_pct == self.rapid_pct {
+            return;
+        }
+        self.flush(s);
+        self.feed_pct = feed_pct;
+        self.rapid_pct = rapid_pct;
+        self.feed_cache = (0, 0.0);
+        let ax = &self.axis;
+        let mut prev: Option<([f32; N_AXES], f32, f32)> = None;
+        let mut i = self.tail;
+        for _ in 0..self.len {
+            let b = &mut self.blocks[i as usize];
+            // The unit vector and the length, from the steps.
+            let mut unit = [0f32; N_AXES];
+            let mut moving = 0u8;
+            let mut xyz_sqr = 0.0f32;
+            for a in 0..N_AXES {
+                if b.steps[a] != 0 {
+                    moving |= 1 << a;
+                    let v = b.steps[a] as f32 * ax.mm_per_step[a];
+                    unit[a] = if b.direction_bits & (1 << a) != 0 { -v } else { v };
+                    if a < 3 {
+                        xyz_sqr += v * v;
+                    }
+                }
+            }
+            let mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
+            let inv_mm = 1.0 / mm;
+            for u in unit.iter_mut() {
+                *u *= inv_mm;
+            }
+            if b.flags & Block::RAPID != 0 || b.feed != 0 {
+                let mut t_axes = 0.0f32;
+                for a in 0..N_AXES {
+                    if moving & (1 << a) != 0 {
+                        t_axes = max_nn(t_axes, abs_f32(unit[a]) * ax.inv_max_speed[a]);
+                    }
+                }
+                let mut t = if b.flags & Block::RAPID != 0 {
+                    t_axes * (100.0 / rapid_pct as f32)
+                } else {
+                    max_nn(t_axes, 6000.0 / (b.feed as f32 * feed_pct as f32))
+                };
+                let steps_per_mm = b.step_event_count as f32 * inv_mm;
+                if lt_nn(t * MAX_STEP_RATE_HZ, steps_per_mm) {
+                    t = steps_per_mm * INV_MAX_STEP_RATE;
+                } else if lt_nn(steps_per_mm, t * MIN_STEP_RATE_HZ) {
+                    t = steps_per_mm * INV_MIN_STEP_RATE;
+                }
+                let v = 1.0 / t;
+                b.nominal_speed_sqr = v * v;
+            }
+            let nominal = b.nominal_speed_sqr;
+            if let (Some((pu, pa, pn)), true) = (prev, i != self.tail) {
+                let mut same_dir = true;
+                for a in 0..N_AXES {
+                    same_dir &= unit[a].to_bits() == pu[a].to_bits();
+                }
+                let cap = min_nn(nominal, pn);
+                let j = junction_sqr(same_dir, &pu, &unit, moving, (b.acceleration, pa), cap, &mut self.cap_sqr_cache, s);
+                b.max_entry_speed_sqr = min_nn(j, cap);
+            }
+            prev = Some((unit, b.acceleration, nominal));
+            i = next_index(i);
+        }
+        if let Some((_, _, n)) = prev {
+            self.previous_nominal_speed_sqr = n;
+        }
+        self.replan();
+    }
+
+    /// The feed override in force, percent.
+    pub fn feed_override(&self) -> u16 {
+        self.feed_pct
+    }
+
+    /// The rapid override in force, percent.
+    pub fn rapid_override(&self) -> u8 {
+        self.rapid_pct
+    }
+
     /// The settings changed: the next [`Planner::accept_line`] compares them
     /// with what the per-axis cache was made from ([`Planner::push_line`]
     /// always does).
@@ -578,8 +779,8 @@ impl Planner {
     /// Plan the move [`Planner::accept_line`] left pending, if any (with the
     /// settings it was accepted under: the per-axis cache is as it was then).
     pub fn flush(&mut self, s: &Settings) {
-        if let Some((delta, inv_feed)) = self.pending.take() {
-            self.queue_block(&delta, inv_feed, 0, s);
+        if let Some((delta, inv_feed, programmed)) = self.pending.take() {
+            self.queue_block(&delta, inv_feed, 0, programmed, s);
         }
     }
 
@@ -589,7 +790,7 @@ impl Planner {
     ///
     /// AVR cost (simavr, 16 MHz, see the module doc): ~9–13 k cycles including
     /// the re-plan; every f32 multiply is ~170 cycles, a divide or sqrt ~500.
-    fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, s: &Settings) -> (bool, bool) {
+    fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
         let prev_unit = self.previous_unit_vec;
         let prev_nominal_sqr = self.previous_nominal_speed_sqr;
         let prev_accel = self.previous_acceleration;
@@ -600,6 +801,7 @@ impl Planner {
         // Built in place in its slot.
         let b = &mut self.blocks[self.head as usize];
         b.flags = flags;
+        b.feed = feed;
         b.step_event_count = 0;
         b.direction_bits = 0;
         b.entry_speed_sqr = 0.0;
@@ -705,6 +907,9 @@ impl Planner {
             (1.0 / inv_accel, t_axes)
         };
         let mut t = if lt_nn(t_axes, inv_feed) { inv_feed } else { t_axes };
+        if flags & Block::RAPID != 0 && self.rapid_pct != 100 {
+            t *= 100.0 / self.rapid_pct as f32;
+        }
         // Step-rate limits: the dominant axis makes step_event_count steps
         // over mm. At time per mm t the rate stays within them while the
         // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
@@ -735,62 +940,8 @@ impl Planner {
         b.max_entry_speed_sqr = if first {
             0.0
         } else {
-            let junction_sqr = if same_dir {
-                JUNCTION_SPEED_SQR_STRAIGHT
-            } else {
-                let mut cos_theta = 0.0f32;
-                for i in 0..N_AXES {
-                    if moving & (1 << i) != 0 && prev_unit[i].to_bits() != 0 {
-                        cos_theta -= prev_unit[i] * unit[i];
-                    }
-                }
-                // |cos θ| beyond the limit, on the bit pattern (a soft-float
-                // compare costs ~50 cycles).
-                let cos_bits = cos_theta.to_bits();
-                let beyond = cos_bits & 0x7FFF_FFFF > JUNCTION_COS_LIMIT.to_bits();
-                if beyond && cos_bits & 0x8000_0000 == 0 {
-                    0.0 // full reversal
-                } else if beyond {
-                    JUNCTION_SPEED_SQR_STRAIGHT
-                } else {
-                    let a = min_nn(acceleration, prev_accel);
-                    let ad = a * s.junction_deviation_mm;
-                    let h = half(1.0 - cos_theta); // sin²(θ/2)
-                    let mut reversing = 0u8;
-                    for i in 0..N_AXES {
-                        let (p, u) = (prev_unit[i].to_bits(), unit[i].to_bits());
-                        if (p ^ u) & 0x8000_0000 != 0 && p & 0x7FFF_FFFF != 0 && u & 0x7FFF_FFFF != 0 {
-                            reversing |= 1 << i;
-                        }
-                    }
-                    // The deviation rule gives v² = a·δ·s / (1 − s), s = sin(θ/2).
-                    // It reaches the cap L = min(nominal²) when s ≥ L / (a·δ + L),
-                    // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the
-                    // division (most junctions of a smooth curve).
-                    let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
-                    if self.cap_sqr_cache.0 != cap.to_bits() {
-                        self.cap_sqr_cache = (cap.to_bits(), cap * cap);
-                    }
-                    let k = ad + cap;
-                    if reversing == 0 && !lt_nn(h * (k * k), self.cap_sqr_cache.1) {
-                        JUNCTION_SPEED_SQR_STRAIGHT
-                    } else {
-                        let sin_theta_d2 = sqrtf(h);
-                        let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
-                        // An axis that reverses here jumps from +v·u_prev to −v·u
-                        // in one step, between a deceleration and an acceleration of
-                        // the same sign: limit that jump to what the axis'
-                        // acceleration gives in REVERSAL_STEP_S (see there).
-                        for i in 0..N_AXES {
-                            if reversing & (1 << i) != 0 {
-                                let dv = REVERSAL_STEP_S * s.accel_mm_per_s2[i] / (abs_f32(prev_unit[i]) + abs_f32(unit[i]));
-                                v_sqr = min_nn(v_sqr, dv * dv);
-                            }
-                        }
-                        v_sqr
-                    }
-                }
-            };
+            let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
+            let junction_sqr = junction_sqr(same_dir, &prev_unit, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
             min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
         };
         b.millimeters = mm;

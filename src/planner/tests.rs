@@ -503,7 +503,7 @@ fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_pla
     for k in 1..=12i32 {
         let t = [k * 37, k * k * 5, 0, 0];
         a.push_line(t, 3000.0, false, &st).unwrap();
-        assert_eq!(b.accept_line(t, 3000.0, false, &st).unwrap().queued, 1);
+        assert_eq!(b.accept_line(t, Speed::Feed(3000.0), &st).unwrap().queued, 1);
         // The pending move holds its slot and the position already moved.
         assert_eq!((b.len(), b.position()), (a.len(), a.position()));
     }
@@ -512,9 +512,9 @@ fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_pla
     b.settle();
     assert_eq!(blocks(&a), blocks(&b));
     // Rapids and E moves are planned at once (they may be rate-capped).
-    b.accept_line([0, 0, 0, 0], 1.0, true, &st).unwrap();
+    b.accept_line([0, 0, 0, 0], Speed::Rapid, &st).unwrap();
     assert_eq!(blocks(&b).len(), 13);
-    b.accept_line([0, 0, 0, 100], 600.0, false, &st).unwrap();
+    b.accept_line([0, 0, 0, 100], Speed::Feed(600.0), &st).unwrap();
     assert_eq!(blocks(&b).len(), 14);
     b.clear();
     assert!(b.is_empty());
@@ -533,4 +533,97 @@ fn a_move_at_one_steps_per_mm_gets_its_length_from_the_cached_root() {
         let want = (((dx * dx + dy * dy + dz * dz) as f64).sqrt() / 100.0) as f32;
         assert_close(b.millimeters, want, 1e-6);
     }
+}
+
+/// A path of chords, corners and a rapid, in steps (X Y Z E): feed moves
+/// at `feed`, one rapid, one fixed-feed move.
+fn override_path() -> Vec<([i32; N_AXES], Speed)> {
+    let mut v = Vec::new();
+    let mut rng = 0x2545_F491u32;
+    let mut p = [0i32; N_AXES];
+    for i in 0..14 {
+        rng ^= rng << 13;
+        rng ^= rng >> 17;
+        rng ^= rng << 5;
+        p[0] += 50 + (rng % 400) as i32;
+        p[1] += (rng >> 8) as i32 % 300 - 150;
+        p[2] += if i % 5 == 0 { 40 } else { 0 };
+        let speed = match i {
+            3 => Speed::Rapid,
+            9 => Speed::Fixed(900.0),
+            _ => Speed::Feed(1200.0 + 100.0 * (i % 4) as f32),
+        };
+        v.push((p, speed));
+    }
+    v
+}
+
+fn planned_with(pct: u16, rapid: u8) -> Planner {
+    let mut p = Planner::new();
+    p.set_overrides(pct, rapid, &s());
+    for (t, sp) in override_path() {
+        p.push_move(t, sp, &s()).unwrap();
+    }
+    p
+}
+
+#[test]
+fn an_override_re_plans_the_queued_moves_as_if_they_had_been_queued_under_it() {
+    for (pct, rapid) in [(150, 100), (10, 25), (200, 50), (37, 100)] {
+        let mut p = planned_with(100, 100);
+        p.set_overrides(pct, rapid, &s());
+        let fresh = planned_with(pct, rapid);
+        let (a, b) = (blocks(&p), blocks(&fresh));
+        assert_eq!(a.len(), b.len());
+        for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+            assert_close(x.nominal_speed_sqr, y.nominal_speed_sqr, 1e-4);
+            if i > 0 {
+                assert_close(x.max_entry_speed_sqr, y.max_entry_speed_sqr, 1e-3);
+                assert_close(x.entry_speed_sqr, y.entry_speed_sqr, 1e-3);
+            }
+        }
+        assert_eq!(p.take_exec_replanned(), true, "prep recomputes the executing block");
+        // The look-ahead is the optimal plan.
+        let want = brute_force_entries(&p);
+        for (x, w) in blocks(&p).iter().zip(&want) {
+            assert_close(x.entry_speed_sqr, *w, 1e-3);
+        }
+        // And back to 100 %: the plan queued without an override.
+        p.set_overrides(100, 100, &s());
+        for (x, y) in blocks(&p).iter().zip(&blocks(&planned_with(100, 100))).skip(1) {
+            assert_close(x.nominal_speed_sqr, y.nominal_speed_sqr, 1e-4);
+            assert_close(x.entry_speed_sqr, y.entry_speed_sqr, 1e-3);
+        }
+    }
+}
+
+#[test]
+fn the_feed_override_scales_feeds_the_rapid_override_rapids_and_fixed_feeds_stay() {
+    let base = blocks(&planned_with(100, 100));
+    let mut p = planned_with(100, 100);
+    p.set_overrides(50, 25, &s());
+    let b = blocks(&p);
+    let path = override_path();
+    for i in 0..b.len() {
+        let ratio = (b[i].nominal_speed_sqr / base[i].nominal_speed_sqr).sqrt();
+        let want = match path[i].1 {
+            Speed::Feed(_) => 0.5,
+            Speed::Rapid => 0.25,
+            Speed::Fixed(_) => 1.0,
+        };
+        assert_close(ratio, want, 1e-4);
+    }
+    // Faster than the axes allow: held at their limit (3000 mm/min), and a
+    // rapid at 100 % is exactly that limit.
+    let mut q = Planner::new();
+    q.push_move([3000, 0, 0, 0], Speed::Feed(2500.0), &s()).unwrap();
+    q.push_move([6000, 0, 0, 0], Speed::Rapid, &s()).unwrap();
+    q.set_overrides(200, 100, &s());
+    let b = blocks(&q);
+    assert_close(b[0].nominal_speed_sqr, 2500.0, 1e-5);
+    assert_close(b[1].nominal_speed_sqr, 2500.0, 1e-5);
+    q.set_overrides(50, 50, &s());
+    let b = blocks(&q);
+    assert_close(b[0].nominal_speed_sqr, (2500.0f32 / 120.0).powi(2), 1e-4);
+    assert_close(b[1].nominal_speed_sqr, 625.0, 1e-5);
 }
