@@ -1790,7 +1790,10 @@ impl Machine {
             }
             1 => {
                 let o = self.overrides();
-                uwrite!(io, "{}{},{},{}", F!("|Ov:"), o.feed, o.rapid, o.spindle).ok();
+                // (No literal text in the format: ufmt keeps it in RAM.)
+                uwrite!(io, "{}{}", F!("|Ov:"), o.feed).ok();
+                uwrite!(io, "{}{}", F!(","), o.rapid).ok();
+                uwrite!(io, "{}{}", F!(","), o.spindle).ok();
             }
             _ => {}
         }

@@ -362,3 +362,93 @@ fn check_mode_reads_every_line_and_moves_nothing() {
     run(&mut vm, "G90 G54 G1 X10 F600");
     assert_eq!(xyz_now(&vm)[0], 1000);
 }
+
+/// X steps per second between `t0` and `t1` (cycles).
+fn x_rate(vm: &Vm, t0: u64, t1: u64) -> f64 {
+    let n = vm.recorder().trace().iter().filter(|p| p.axis == Axis::X && (t0..t1).contains(&p.cycle)).count();
+    n as f64 * f64::from(vm.frequency()) / (t1 - t0) as f64
+}
+
+/// `Ov:` from the next status reports that carry it (every tenth or so).
+fn ov(vm: &mut Vm) -> String {
+    for _ in 0..12 {
+        let st = status(vm);
+        if let Some(f) = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ov:")) {
+            return f.to_string();
+        }
+    }
+    panic!("no Ov: in 12 status reports");
+}
+
+/// grbl's realtime overrides on the real firmware, the feed bytes written as
+/// cncjs writes them (UTF-8, `C2 91`): the move in progress speeds up and
+/// slows down at once, the rapid override slows a G0, the spindle override
+/// changes the PWM, the coolant byte toggles the output, `Ov:` reports each,
+/// every line still ends where it should, and Ctrl-X puts them back to 100.
+#[test]
+fn realtime_overrides_act_on_the_move_in_progress_and_every_line_still_runs() {
+    let mut vm = boot_homed();
+    run(&mut vm, "G90 G0 X2 Y2 Z-2");
+    // F600: 10 mm/s, 1000 steps/s; 38 mm take 3.8 s.
+    ok(&mut vm, "G1 X40 F600");
+    vm.run_for(1.0).unwrap();
+    let t = vm.cycles();
+    let hz = u64::from(vm.frequency());
+    let before = x_rate(&vm, t - hz / 2, t);
+    assert!((before - 1000.0).abs() < 20.0, "F600: {before} steps/s");
+    // Three clicks, 50 ms apart (bytes that arrive between two turns of the
+    // main loop count once, as grbl's request flags do).
+    for _ in 0..3 {
+        vm.send([0xC2, 0x91]);
+        vm.run_for(0.05).unwrap();
+    }
+    vm.run_for(0.15).unwrap();
+    let t = vm.cycles();
+    let faster = x_rate(&vm, t - hz / 5, t);
+    assert!((faster - 1300.0).abs() < 30.0, "130 %: {faster} steps/s");
+    assert_eq!(ov(&mut vm), "130,100,100");
+    // 0x94 four times: 126 %; 0x90: back to 100 %.
+    for _ in 0..4 {
+        vm.send([0x94]);
+        vm.run_for(0.05).unwrap();
+    }
+    assert_eq!(ov(&mut vm), "126,100,100");
+    vm.send([0x90]);
+    vm.run_for(0.3).unwrap();
+    let t = vm.cycles();
+    let back = x_rate(&vm, t - hz / 5, t);
+    assert!((back - 1000.0).abs() < 20.0, "100 %: {back} steps/s");
+    ok(&mut vm, "M400");
+    assert_eq!(xyz_now(&vm), [4000, 200, 200]);
+    // Rapid 25 %: a G0 at 3000 mm/min goes at 750 (1250 steps/s).
+    vm.send([0x97]);
+    ok(&mut vm, "G0 X10");
+    vm.run_for(1.0).unwrap();
+    let t = vm.cycles();
+    let rapid = x_rate(&vm, t - hz / 2, t);
+    assert!((rapid - 1250.0).abs() < 30.0, "rapid at 25 %: {rapid} steps/s");
+    assert_eq!(ov(&mut vm), "100,25,100");
+    ok(&mut vm, "M400");
+    assert_eq!(xyz_now(&vm), [1000, 200, 200]);
+    // Spindle +10 %, then the coolant output on and off.
+    ok(&mut vm, "M3 S5000");
+    let duty = |vm: &Vm| vm.spindle_history().last().unwrap().1;
+    let d0 = duty(&vm);
+    vm.send([0x9A]);
+    vm.run_for(0.1).unwrap();
+    assert!((duty(&vm) / d0 - 1.1).abs() < 0.02, "{d0} -> {}", duty(&vm));
+    assert_eq!(ov(&mut vm), "100,25,110");
+    assert!(!vm.coolant_on());
+    vm.send([0xA0]);
+    vm.run_for(0.1).unwrap();
+    assert!(vm.coolant_on());
+    assert!(ok(&mut vm, "$G")[0].contains(" M8 "), "the modal state follows");
+    vm.send([0xA0]);
+    vm.run_for(0.1).unwrap();
+    assert!(!vm.coolant_on());
+    // Ctrl-X: every override back to 100 %.
+    vm.send([0x18]);
+    vm.run_for(0.3).unwrap();
+    vm.take_lines();
+    assert_eq!(ov(&mut vm), "100,100,100");
+}
