@@ -1505,6 +1505,10 @@ impl Machine {
         let mut p = Percent { feed: self.planner.feed_override(), rapid: self.planner.rapid_override(), spindle: self.spindle_pct };
         p.apply_motion(motion);
         p.apply_spindle(accessory);
+        if p != self.overrides() {
+            // The next status report carries `Ov:` (grbl's refresh rule).
+            self.report_count = 0;
+        }
         self.planner.set_overrides(p.feed, p.rapid, &self.settings);
         let on = self.interp.spindle_on;
         if p.spindle != self.spindle_pct {

@@ -12,7 +12,9 @@
 //! ```
 //!
 //! Job A runs to the end; job B is paused and resumed (and in grbl mode feed
-//! held and cycle-started); job C is stopped with cncjs's Stop button
+//! held and cycle-started, then sped up with the feed override button three
+//! times and reset: cncjs must read `Ov:130` and `Ov:100`, and the job still
+//! ends exactly); job C is stopped with cncjs's Stop button
 //! (`gcode:stop {force: true}`: in grbl mode `!` then 0x18), after which the
 //! machine must be still, stay still after Cycle start and a raw `~`, answer,
 //! and run job D (relative moves) exactly. Every position is checked against

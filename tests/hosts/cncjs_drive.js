@@ -5,7 +5,8 @@
 // steps (see `harness` below), and does everything else through cncjs:
 //
 //   open the port (controllerType, 250000 baud) -> unlock -> job A to the end
-//   -> job B with Pause/Resume (and in Grbl mode Feed hold/Cycle start)
+//   -> job B with Pause/Resume (and in Grbl mode Feed hold/Cycle start and
+//      the feed override buttons: +10 % three times, then 100 %)
 //   -> job C stopped with the Stop button (gcode:stop {force: true}), then
 //      Cycle start and a raw `~`, then a question to the machine -> job D
 //   -> job E, during which the port is closed and opened again (auto-reset).
@@ -76,6 +77,7 @@ function token() {
 const socket = io.connect(url, { query: `token=${token()}`, transports: ['websocket'], reconnection: false });
 let workflow = 'idle';
 let activeState = '';
+let ovFeed = 0;
 const reads = [];
 const waiters = [];
 function notify() {
@@ -119,6 +121,11 @@ socket.on('workflow:state', (s) => {
 });
 socket.on('controller:state', (type, state) => {
   const s = (state && state.status && state.status.activeState) || '';
+  const ov = state && state.status && state.status.ov;
+  if (ov && ov.length && ov[0] !== ovFeed) {
+    log(`ov ${JSON.stringify(ov)}`);
+    ovFeed = ov[0];
+  }
   if (s !== activeState) log(`activeState ${activeState || '-'} -> ${s || '-'}`);
   activeState = s;
   notify();
@@ -210,6 +217,17 @@ async function main() {
       await mark('b_resumed');
       await waitMoved('b_resumed', 150, 20);
       await holdAndRelease('b_feedhold', async () => command('feedhold'), async () => command('cyclestart'));
+      // The feed override buttons: +10 % three times, then back to 100 %
+      // (cncjs writes 0x91 and 0x90; the job must still end exactly).
+      for (let i = 0; i < 3; i++) {
+        command('feedOverride', 10);
+        await sleep(250);
+      }
+      await until(() => ovFeed === 130, 5000, 'Ov: 130 after three +10 % clicks');
+      await mark('b_ov130');
+      await sleep(500);
+      command('feedOverride', 0);
+      await until(() => ovFeed === 100, 5000, 'Ov: 100 after the reset click');
     }
   });
   await waitStill(0.3, 10);
