@@ -200,11 +200,7 @@ impl Station {
     /// keep-out zone? For arcs and canned cycles, by their bounding box.
     pub fn box_enters_keep_out(&self, lo: [f32; 3], hi: [f32; 3]) -> bool {
         let w = self.keep_out_half_width;
-        w > 0.0
-            && lo[0] < self.x1 + w
-            && hi[0] > self.x1 - w
-            && hi[1] > self.y_a
-            && hi[2] > self.keep_out_top
+        w > 0.0 && lo[0] < self.x1 + w && hi[0] > self.x1 - w && hi[1] > self.y_a && hi[2] > self.keep_out_top
     }
 
     /// The station's points with the axis each lies on and its `$` number.

@@ -291,9 +291,7 @@ fn pocket_steps(p: u8) -> i64 {
 /// Steps (absolute indices) from `from` at which Z physically arrives at
 /// `z` coming down, i.e. the clamp/release moments at Z2.
 fn arrivals(io: &FakeBoard, z: i64, from: usize) -> Vec<usize> {
-    (from..io.steps.len())
-        .filter(|&i| io.steps[i].axes & 4 != 0 && io.steps[i].phys[2] == z && io.steps[i].neg & 4 == 0)
-        .collect()
+    (from..io.steps.len()).filter(|&i| io.steps[i].axes & 4 != 0 && io.steps[i].phys[2] == z && io.steps[i].neg & 4 == 0).collect()
 }
 
 /// The EEPROM records of the changer.

@@ -48,9 +48,9 @@
 
 use crate::machine::{Io, Realtime, StepperStatus, Switches};
 use crate::stepper::queue::{Seg, StepMap};
-pub use crate::stepper::rings::Watch;
 use crate::stepper::rings::host::Statics;
 use crate::stepper::rings::Rings;
+pub use crate::stepper::rings::Watch;
 use crate::stepper::StepperCmd;
 use crate::N_AXES;
 use core::cell::RefCell;
@@ -353,9 +353,8 @@ impl FakeBoard {
 
     /// The carousel switch as the firmware reads it.
     fn carousel_switch(&self) -> bool {
-        self.forced[3].unwrap_or_else(|| {
-            self.carousel_connected && self.phys[3].rem_euclid(self.carousel_steps_per_rev) < self.carousel_width_steps
-        })
+        self.forced[3]
+            .unwrap_or_else(|| self.carousel_connected && self.phys[3].rem_euclid(self.carousel_steps_per_rev) < self.carousel_width_steps)
     }
 
     /// The tool-setter (probe) input as the firmware reads it.
@@ -603,12 +602,7 @@ impl Io for FakeBoard {
         assert!(self.polls <= self.poll_limit, "{} polls ({} ms): the controller is stuck waiting", self.polls, self.ms());
         self.advance(self.poll_cycles);
         let rt = core::mem::take(&mut self.rt);
-        Realtime {
-            limit: self.limit_hit,
-            home_tripped: self.home_tripped,
-            probe_tripped: self.probe_tripped,
-            ..rt
-        }
+        Realtime { limit: self.limit_hit, home_tripped: self.home_tripped, probe_tripped: self.probe_tripped, ..rt }
     }
 
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {

@@ -603,7 +603,15 @@ pub fn run() -> ! {
     let mut oled = Sh1106::new(Twi::new(dp.TWI, crate::board::oled::I2C_HZ));
     let oled = if oled.init().is_ok() { Some(oled) } else { None };
     let sd = Storage {
-        vm: VolumeManager::new_with_limits(SdCard::new_with_options(SdDevice { bus, cs }, SdDelay, embedded_sdmmc::sdcard::spi::AcquireOpts { use_crc: true, acquire_retries: 5 }), FixedClock, 0),
+        vm: VolumeManager::new_with_limits(
+            SdCard::new_with_options(
+                SdDevice { bus, cs },
+                SdDelay,
+                embedded_sdmmc::sdcard::spi::AcquireOpts { use_crc: true, acquire_retries: 5 },
+            ),
+            FixedClock,
+            0,
+        ),
         vol: None,
         file: None,
     };
@@ -755,9 +763,7 @@ fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             m.save_settings(hw);
             Ok(())
         }
-        Cmd::Jog { axis, delta_um } => {
-            m.jog(hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN)
-        }
+        Cmd::Jog { axis, delta_um } => m.jog(hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN),
         Cmd::Home(mask) => mill::machine::home(m, hw, mask),
         Cmd::Unlock => {
             if m.alarm.is_some() {

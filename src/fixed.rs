@@ -22,7 +22,13 @@ impl ufmt::uDisplay for Micros {
         let (sign, a) = if v < 0 { ("-", -v) } else { ("", v) };
         let int = (a / 1000) as u32;
         let frac = (a % 1000) as u16;
-        let pad = if frac < 10 { "00" } else if frac < 100 { "0" } else { "" };
+        let pad = if frac < 10 {
+            "00"
+        } else if frac < 100 {
+            "0"
+        } else {
+            ""
+        };
         uwrite!(f, "{}{}.{}{}", sign, int, pad, frac)
     }
 }

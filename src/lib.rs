@@ -50,18 +50,18 @@ pub mod gcode;
 pub mod hostcodes;
 pub mod machine;
 pub mod math;
-pub mod planner;
 pub mod overrides;
+pub mod planner;
 pub mod protocol;
 pub mod stepper;
 pub mod toolsetter;
 pub mod ui;
 
+#[cfg(test)]
+mod controller_tests;
 /// A fake board (time, stepper, switches, EEPROM) for host tests of the controller.
 #[cfg(test)]
 pub mod fake_board;
-#[cfg(test)]
-mod controller_tests;
 
 /// Helpers shared by the library's unit tests.
 #[cfg(test)]

@@ -492,12 +492,7 @@ impl Machine {
     /// byte cost ~20 cycles on the AVR); the end of a line goes through
     /// [`Machine::line_end`].
     #[inline(never)]
-    pub fn push_bytes(
-        &mut self,
-        bytes: impl Iterator<Item = u8>,
-        io: &mut impl Io,
-        scratch: &mut [u8; crate::protocol::MAX_LINE_LEN],
-    ) {
+    pub fn push_bytes(&mut self, bytes: impl Iterator<Item = u8>, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
         for b in bytes {
             if let Some(done) = self.asm.push(b) {
                 self.line_end(done, io, scratch);
@@ -2031,4 +2026,3 @@ fn home_axes(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     }
     Ok(())
 }
-

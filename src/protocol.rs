@@ -419,13 +419,7 @@ impl Default for LineAssembler {
 impl LineAssembler {
     /// An empty assembler.
     pub const fn new() -> Self {
-        LineAssembler {
-            buf: [0; MAX_LINE_LEN],
-            len: 0,
-            flags: 0,
-            dropped_n: false,
-            cut: LineCut::new(),
-        }
+        LineAssembler { buf: [0; MAX_LINE_LEN], len: 0, flags: 0, dropped_n: false, cut: LineCut::new() }
     }
 
     /// True when the line just reported as dropped (too long, overrun, bad
@@ -849,11 +843,7 @@ impl MCodeScanner {
             _ => 0,
         };
         // Only a non-digit ends a match, so an `M` may start the next one.
-        self.state = if b | 0x20 == b'm' && !prev.is_ascii_alphabetic() {
-            S_M
-        } else {
-            next
-        };
+        self.state = if b | 0x20 == b'm' && !prev.is_ascii_alphabetic() { S_M } else { next };
         found
     }
 }
@@ -995,8 +985,27 @@ mod tests {
     #[test]
     fn rx_text_matches_the_rule_on_random_streams() {
         const PIECES: &[&[u8]] = &[
-            b"N", b"n", b" ", b"\t", b"(", b")", b";", b"?", b"!", b"~", b"\n", b"\r", b"G1", b"X5", b"*", b"\x18",
-            b"M112", b"\xfe", b"\x00", b"\xc2\x91", b"\x85",
+            b"N",
+            b"n",
+            b" ",
+            b"\t",
+            b"(",
+            b")",
+            b";",
+            b"?",
+            b"!",
+            b"~",
+            b"\n",
+            b"\r",
+            b"G1",
+            b"X5",
+            b"*",
+            b"\x18",
+            b"M112",
+            b"\xfe",
+            b"\x00",
+            b"\xc2\x91",
+            b"\x85",
         ];
         let mut rng = XorShift(0x5EED);
         let mut t = RxText::new();
@@ -1092,7 +1101,14 @@ mod tests {
 
     /// The RX ISR's slow path (`usart0_rx_slow`) on an unbounded ring,
     /// without losses; true when `b` was a realtime byte.
-    fn slow_path(scan: &mut MCodeScanner, store: &mut RxStore, text: &mut RxText, prev: &mut u8, ring: &mut Vec<u8>, b: u8) -> (bool, Urgent) {
+    fn slow_path(
+        scan: &mut MCodeScanner,
+        store: &mut RxStore,
+        text: &mut RxText,
+        prev: &mut u8,
+        ring: &mut Vec<u8>,
+        b: u8,
+    ) -> (bool, Urgent) {
         let mut urgent = Urgent::Nothing;
         let realtime = text.classify(b);
         if !realtime {
@@ -1198,13 +1214,7 @@ mod tests {
     fn newline_or_carriage_return_ends_a_trimmed_line() {
         let mut a = LineAssembler::new();
         let out = assemble(&mut a, b"  G1 X10 \t\r\nM114\n");
-        assert_eq!(
-            out,
-            vec![
-                (Assembled::Line, b"G1 X10".to_vec()),
-                (Assembled::Line, b"M114".to_vec())
-            ]
-        );
+        assert_eq!(out, vec![(Assembled::Line, b"G1 X10".to_vec()), (Assembled::Line, b"M114".to_vec())]);
     }
 
     #[test]
@@ -1241,13 +1251,7 @@ mod tests {
         let mut bytes = vec![b'Y'; MAX_LINE_LEN + 1];
         bytes.extend_from_slice(b"\nG0 X1\n");
         let out = assemble(&mut a, &bytes);
-        assert_eq!(
-            out,
-            vec![
-                (Assembled::TooLong, vec![]),
-                (Assembled::Line, b"G0 X1".to_vec())
-            ]
-        );
+        assert_eq!(out, vec![(Assembled::TooLong, vec![]), (Assembled::Line, b"G0 X1".to_vec())]);
         assert_eq!(Assembled::TooLong.error(), Some(ProtoError::TooLong));
     }
 
@@ -1285,13 +1289,7 @@ mod tests {
         let mut out = assemble(&mut a, b"G1 X");
         a.mark_overrun();
         out.extend(assemble(&mut a, b"10\nG1 X2\n"));
-        assert_eq!(
-            out,
-            vec![
-                (Assembled::Overrun, vec![]),
-                (Assembled::Line, b"G1 X2".to_vec())
-            ]
-        );
+        assert_eq!(out, vec![(Assembled::Overrun, vec![]), (Assembled::Line, b"G1 X2".to_vec())]);
     }
 
     #[test]
@@ -1300,10 +1298,7 @@ mod tests {
         assert_eq!(a.push(b'\r'), None);
         a.mark_overrun();
         assert_eq!(a.push(b'\n'), Some(Assembled::Overrun));
-        assert_eq!(
-            assemble(&mut a, b"M5\n"),
-            vec![(Assembled::Line, b"M5".to_vec())]
-        );
+        assert_eq!(assemble(&mut a, b"M5\n"), vec![(Assembled::Line, b"M5".to_vec())]);
     }
 
     #[test]
@@ -1442,10 +1437,7 @@ mod tests {
         assemble(&mut a, b"G1 X1");
         a.mark_overrun();
         a.reset();
-        assert_eq!(
-            assemble(&mut a, b"M5\n"),
-            vec![(Assembled::Line, b"M5".to_vec())]
-        );
+        assert_eq!(assemble(&mut a, b"M5\n"), vec![(Assembled::Line, b"M5".to_vec())]);
     }
 
     use crate::test_util::XorShift;
@@ -1628,10 +1620,7 @@ mod tests {
     #[test]
     fn m1100_is_not_m110() {
         let mut c = LineChecker::new();
-        assert_eq!(
-            c.check(&numbered(7, "M1100 N3")),
-            Err(ProtoError::LineNumber)
-        );
+        assert_eq!(c.check(&numbered(7, "M1100 N3")), Err(ProtoError::LineNumber));
     }
 
     #[test]
@@ -1652,10 +1641,7 @@ mod tests {
         c.check(&numbered(1, "M110 N2147483647")).unwrap();
         assert_eq!(c.resend_line(), i32::MIN);
         assert!(c.check(&numbered(-2147483648, "G0")).is_ok());
-        assert_eq!(
-            c.check(&numbered(1, "M110 N2147483648")),
-            Ok(&b"M110 N2147483648"[..])
-        );
+        assert_eq!(c.check(&numbered(1, "M110 N2147483648")), Ok(&b"M110 N2147483648"[..]));
         // An unparsable M110 N falls back to the line's own number.
         assert_eq!(c.last_line(), 1);
         let body = "N99999999999 G0";
@@ -1781,8 +1767,8 @@ mod tests {
     #[test]
     fn the_m_code_scanner_matches_the_rule_on_random_streams() {
         const PIECES: &[&[u8]] = &[
-            b"M112", b"m108", b"M11", b"M10", b"M1", b"M", b"m", b"1", b"0", b"2", b"8", b"9", b" ",
-            b"\n", b"A", b"z", b"G", b"(", b"*", b"\xff", b"\x00",
+            b"M112", b"m108", b"M11", b"M10", b"M1", b"M", b"m", b"1", b"0", b"2", b"8", b"9", b" ", b"\n", b"A", b"z", b"G", b"(", b"*",
+            b"\xff", b"\x00",
         ];
         let mut rng = XorShift(0xC0DE);
         let mut s = MCodeScanner::new();

@@ -30,10 +30,7 @@ const INPUTS: [Input; 5] = [Input::HomeX, Input::HomeY, Input::HomeZ, Input::Car
 
 /// M119's five lines as (name, triggered).
 fn m119(vm: &mut Vm) -> Vec<(String, bool)> {
-    ok(vm, "M119")
-        .iter()
-        .filter_map(|l| l.split_once(": ").map(|(n, v)| (n.to_string(), v == "TRIGGERED")))
-        .collect()
+    ok(vm, "M119").iter().filter_map(|l| l.split_once(": ").map(|(n, v)| (n.to_string(), v == "TRIGGERED"))).collect()
 }
 
 #[test]
@@ -358,8 +355,8 @@ fn the_same_setup_from_the_menu_with_the_encoder_survives_a_power_cycle() {
     at = entry;
     turn(&mut vm, -at);
     press(&mut vm); // < Back: the main menu, on Settings
-    // Tools › Tool numbers: T20 in pocket 5, pocket 7 without a number,
-    // T7 in pocket 11.
+                    // Tools › Tool numbers: T20 in pocket 5, pocket 7 without a number,
+                    // T7 in pocket 11.
     turn(&mut vm, -1);
     press(&mut vm);
     turn(&mut vm, 7);

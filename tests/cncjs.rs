@@ -272,7 +272,14 @@ fn run_session(controller: &str) -> (Vm, Session, Jobs) {
     let mut stdin = driver.stdin.take().unwrap();
     let _driver = Guard(driver);
 
-    let mut s = Session { marks: HashMap::new(), transcript: Vec::new(), failure: None, driver_checks: Vec::new(), fw_lines: Vec::new(), cncjs_log };
+    let mut s = Session {
+        marks: HashMap::new(),
+        transcript: Vec::new(),
+        failure: None,
+        driver_checks: Vec::new(),
+        fw_lines: Vec::new(),
+        cncjs_log,
+    };
     let mut pending: Option<Pending> = None;
     let mut fw_seen = vm.line_log().len();
     let started = Instant::now();
@@ -353,7 +360,12 @@ fn run_session(controller: &str) -> (Vm, Session, Jobs) {
         s.transcript.push(format!("[{t:9.3}] fw  {l}"));
     }
     let _ = std::fs::write(work.join("transcript.txt"), s.transcript.join("\n"));
-    eprintln!("cncjs {controller}: {:.1} s wall, {:.1} s simulated; transcript in {}", started.elapsed().as_secs_f64(), vm.seconds(), work.join("transcript.txt").display());
+    eprintln!(
+        "cncjs {controller}: {:.1} s wall, {:.1} s simulated; transcript in {}",
+        started.elapsed().as_secs_f64(),
+        vm.seconds(),
+        work.join("transcript.txt").display()
+    );
     (vm, s, jobs)
 }
 

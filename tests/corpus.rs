@@ -161,11 +161,8 @@ fn to_physical(mm: [f64; 3]) -> [f64; 3] {
 }
 
 fn python(args: &[&str]) -> String {
-    let out = Command::new("python3")
-        .arg(repo().join("tools/corpus_scale.py"))
-        .args(args)
-        .output()
-        .expect("python3 runs tools/corpus_scale.py");
+    let out =
+        Command::new("python3").arg(repo().join("tools/corpus_scale.py")).args(args).output().expect("python3 runs tools/corpus_scale.py");
     assert!(out.status.success(), "corpus_scale.py {args:?}: {}", String::from_utf8_lossy(&out.stderr));
     String::from_utf8(out.stdout).unwrap()
 }
@@ -190,10 +187,7 @@ fn prepare(e: &Entry) -> Prepared {
     let zflag = if FIRMWARE_Z_UP { "--z-up" } else { "--z-down" };
     let params = python(&["scale", src.to_str().unwrap(), job.to_str().unwrap(), zflag]);
     let params: serde_json::Value = serde_json::from_str(params.trim()).expect("scale parameters");
-    let radii = format!(
-        "{{{}}}",
-        e.tool_radii.iter().map(|(t, r)| format!("\"{t}\": {r}")).collect::<Vec<_>>().join(", ")
-    );
+    let radii = format!("{{{}}}", e.tool_radii.iter().map(|(t, r)| format!("\"{t}\": {r}")).collect::<Vec<_>>().join(", "));
     python(&["path", job.to_str().unwrap(), path.to_str().unwrap(), "--start", &start_arg(), zflag, "--radii", &radii]);
     Prepared {
         name: e.folder.clone(),
@@ -503,11 +497,7 @@ fn seg_len(a: [f64; 3], b: [f64; 3]) -> f64 {
 fn project(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> (f64, f64) {
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let t = if l2 == 0.0 {
-        0.0
-    } else {
-        (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1] + (p[2] - a[2]) * d[2]) / l2).clamp(0.0, 1.0)
-    };
+    let t = if l2 == 0.0 { 0.0 } else { (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1] + (p[2] - a[2]) * d[2]) / l2).clamp(0.0, 1.0) };
     let q = [a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]];
     (seg_len(p, q), t)
 }
@@ -930,7 +920,8 @@ fn linuxcnc_polar_coordinates_drill_six_holes_on_a_circle_and_move_by_radius_and
     // The work origin at the circle's centre (G92), then LinuxCNC's
     // `G81 R.1 Z-.1 ^60 L6` under G91 (six holes 60° apart), and polar
     // moves under G90 and G91.
-    let job = "G0 X20 Y20 Z-2\nG92 X0 Y0\nG0 @10 ^0\nG91 G98 G81 R-1 Z-3 ^60 L6 F300\nG90 G80\nG1 @5 ^90 F600\nG91 ^-90\n@2\nG90 G92.1\nM400\n";
+    let job =
+        "G0 X20 Y20 Z-2\nG92 X0 Y0\nG0 @10 ^0\nG91 G98 G81 R-1 Z-3 ^60 L6 F300\nG90 G80\nG1 @5 ^90 F600\nG91 ^-90\n@2\nG90 G92.1\nM400\n";
     run_reproduction("polar", job, &[], &[], |_, _| {});
     // What LinuxCNC refuses is refused, and nothing moves.
     let job = "G0 X20 Y20 Z-2\nG1 @5 X3 F600\nG18 G1 @5 ^10\nG17 G53 G0 @5 ^10\nM400\n";
@@ -986,4 +977,3 @@ fn fractional_line_numbers_pass_and_words_no_code_uses_are_refused_as_linuxcnc_d
         assert!(answer(a, "G38.2 F1").error.as_ref().unwrap().contains("all axes missing"));
     });
 }
-

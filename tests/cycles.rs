@@ -191,10 +191,7 @@ fn g91_l_drills_a_row_and_inches_convert_every_word() {
     mark(&mut vm);
     // R 3 mm below the start (-8), Z 7 mm below R (-15), 5 mm apart, 4 holes.
     run(&mut vm, "G91 G99 G81 X5 Y2 R-3 Z-7 L4 F300");
-    assert_eq!(
-        bottoms_xy(&vm),
-        vec![[1500, 1200, 1500], [2000, 1400, 1500], [2500, 1600, 1500], [3000, 1800, 1500]]
-    );
+    assert_eq!(bottoms_xy(&vm), vec![[1500, 1200, 1500], [2000, 1400, 1500], [2500, 1600, 1500], [3000, 1800, 1500]]);
     assert_eq!(z_turns(&vm), vec![1500, 800, 1500, 800, 1500, 800, 1500, 800]);
     run(&mut vm, "G90 G80");
     // G20: X 1.5 in, R -0.3 in, Z -0.5 in, Q 0.1 in.

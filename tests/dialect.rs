@@ -328,10 +328,7 @@ mod comp {
         ok(&mut vm, "G21 G90 G0 X10 Y10 Z-5");
         ok(&mut vm, "M400");
         let p0 = steps(&vm);
-        for (line, what) in [
-            ("G18 G41 D1 G1 X20 F600", "XY plane"),
-            ("G41 D1 G1 X10.4 F600", "entry move"),
-        ] {
+        for (line, what) in [("G18 G41 D1 G1 X20 F600", "XY plane"), ("G41 D1 G1 X10.4 F600", "entry move")] {
             let e = refused(&mut vm, line);
             assert!(e.contains(what), "{line}: {e}");
         }

@@ -11,8 +11,8 @@ mod common;
 mod motion_util;
 
 use common::*;
-use motion_util::*;
 use mill::atc::tools::{Journal, ToolState, EEPROM_JOURNAL_ADDR, EEPROM_STATE_ADDR};
+use motion_util::*;
 use sim::{Axis, CardKind, FatKind, Flow, Input, SdCard, SdImage, StreamOptions, Vm, VmConfig};
 
 fn seed() -> u32 {
@@ -28,7 +28,9 @@ fn uniform(rng: &mut Rng, lo: f64, hi: f64) -> f64 {
 /// work area's Z is below the top switch, negative), with the spindle on.
 fn job() -> Vec<String> {
     let mut j = vec!["G21 G90".to_string(), "M3 S6000".to_string(), "G1 F2400".to_string()];
-    for (x, y, z) in [(30.0, 5.0, -10.0), (30.0, 30.0, -20.0), (5.0, 30.0, -10.0), (5.0, 5.0, -5.0), (40.0, 40.0, -30.0), (10.0, 20.0, -15.0)] {
+    for (x, y, z) in
+        [(30.0, 5.0, -10.0), (30.0, 30.0, -20.0), (5.0, 30.0, -10.0), (5.0, 5.0, -5.0), (40.0, 40.0, -30.0), (10.0, 20.0, -15.0)]
+    {
         j.push(format!("G1 X{x} Y{y} Z{z}"));
     }
     j.push("M5".to_string());
@@ -81,7 +83,10 @@ fn binary_garbage_inside_job_lines_and_over_long_lines_between_them_change_nothi
     ok(&mut vm, "M400");
     let lost = (xyz_now(&vm) != expected) as u32;
     let resets = vm.resets().len() - 1;
-    println!("faults injected: {injected} (binary garbage and over-long lines), state lost: {lost}, resets: {resets}, timing violations: {}", vm.violations().len());
+    println!(
+        "faults injected: {injected} (binary garbage and over-long lines), state lost: {lost}, resets: {resets}, timing violations: {}",
+        vm.violations().len()
+    );
     assert_eq!(xyz_now(&vm), expected);
     assert_eq!(resets, 0);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());

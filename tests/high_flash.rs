@@ -106,7 +106,8 @@ fn the_code_sits_above_128_kib_and_function_addresses_go_through_trampolines() {
     assert!(funcs.len() > 300, "only {} functions in {}", funcs.len(), path.display());
     let high = funcs.iter().filter(|(_, a)| *a >= HIGH).count();
     assert!(high * 2 > funcs.len(), "only {high} of {} functions above 0x20000", funcs.len());
-    let low_modules = ["4mill5gcode6interp", "4mill7planner", "4mill3atc", "4mill10toolsetter", "4mill2ui4menu", "4mill2ui4text", "4mill2ui6render"];
+    let low_modules =
+        ["4mill5gcode6interp", "4mill7planner", "4mill3atc", "4mill10toolsetter", "4mill2ui4menu", "4mill2ui4text", "4mill2ui6render"];
     let low: Vec<_> = funcs.iter().filter(|(n, a)| *a < HIGH && !low_modules.iter().any(|m| n.contains(m))).collect();
     assert!(low.is_empty(), "functions below 0x20000 outside the modules kept low: {low:x?}");
     assert!(sym("main") >= HIGH && sym("__init") >= HIGH);
@@ -136,7 +137,10 @@ fn the_code_sits_above_128_kib_and_function_addresses_go_through_trampolines() {
     let mut targets = Vec::new();
     for a in (t0..t1).step_by(4) {
         let t = jmp_target(&bytes[a as usize..]).unwrap_or_else(|| panic!("trampoline at {a:#x} is not a jmp"));
-        let f = funcs.iter().find(|(_, fa)| *fa == t).unwrap_or_else(|| panic!("trampoline at {a:#x} jumps to {t:#x}, no function starts there"));
+        let f = funcs
+            .iter()
+            .find(|(_, fa)| *fa == t)
+            .unwrap_or_else(|| panic!("trampoline at {a:#x} jumps to {t:#x}, no function starts there"));
         assert!(t >= HIGH);
         targets.push(f.0.clone());
     }
@@ -146,7 +150,12 @@ fn the_code_sits_above_128_kib_and_function_addresses_go_through_trampolines() {
     }
     // The data read with `lpm` stays below 64 KiB (memory.x asserts it at link time too).
     assert!(sym("__ctors_start") <= 0x1_0000);
-    eprintln!("{} functions, lowest at {:#x}; {} trampolines at {t0:#x}..{t1:#x}", funcs.len(), funcs.iter().map(|f| f.1).min().unwrap(), targets.len());
+    eprintln!(
+        "{} functions, lowest at {:#x}; {} trampolines at {t0:#x}..{t1:#x}",
+        funcs.len(),
+        funcs.iter().map(|f| f.1).min().unwrap(),
+        targets.len()
+    );
 }
 
 /// Banner, M115 and a checksum resend (as tests/protocol.rs) on `elf`.
@@ -239,7 +248,8 @@ fn settle(vm: &mut Vm) {
 
 #[test]
 fn an_sd_job_started_from_the_menu_runs_like_the_same_lines_over_serial() {
-    let job: String = (0..20).map(|i| format!("G1 X{:.2} Y{:.2} F3000\n", 3.0 + (i * 7 % 11) as f32 * 0.9, 4.0 + (i * 5 % 13) as f32 * 0.7)).collect();
+    let job: String =
+        (0..20).map(|i| format!("G1 X{:.2} Y{:.2} F3000\n", 3.0 + (i * 7 % 11) as f32 * 0.9, 4.0 + (i * 5 % 13) as f32 * 0.7)).collect();
     let mut img = sim::SdImage::new(sim::FatKind::Fat16);
     img = img.file("JOB.GCO", job.as_bytes());
     let mut vm = boot_elf(high_elf());

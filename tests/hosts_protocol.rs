@@ -20,8 +20,7 @@ fn oled_text(vm: &Vm) -> Vec<String> {
             let inverted = row[126] == 0xFF;
             (0..21)
                 .map(|cell| {
-                    let cols: Vec<u8> =
-                        (0..CELL_W).map(|c| row[cell * CELL_W + c] ^ if inverted { 0xFF } else { 0 }).collect();
+                    let cols: Vec<u8> = (0..CELL_W).map(|c| row[cell * CELL_W + c] ^ if inverted { 0xFF } else { 0 }).collect();
                     (0x20u8..0x7F).find(|&ch| (0..CELL_W).all(|c| column(ch, c) == cols[c])).unwrap_or(b'~') as char
                 })
                 .collect::<String>()
@@ -79,8 +78,21 @@ fn octoprint_connect_sequence_gets_no_error() {
 fn printer_only_codes_are_acknowledged_not_errors_and_nothing_moves() {
     let mut vm = unlocked();
     for cmd in [
-        "M104 S0", "M104 T0 S0", "M140 S0", "M106 S0", "M106 S255", "M107", "M109 S200", "M190 S60", "M82", "M83",
-        "M113 S2", "M117 Hello from the host", "M73 P42", "M155 S2", "M300 S440 P200",
+        "M104 S0",
+        "M104 T0 S0",
+        "M140 S0",
+        "M106 S0",
+        "M106 S255",
+        "M107",
+        "M109 S200",
+        "M190 S60",
+        "M82",
+        "M83",
+        "M113 S2",
+        "M117 Hello from the host",
+        "M73 P42",
+        "M155 S2",
+        "M300 S440 P200",
     ] {
         let t0 = vm.seconds();
         let r = ok(&mut vm, cmd);

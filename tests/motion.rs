@@ -205,14 +205,7 @@ const TWO_PI: f64 = 2.0 * std::f64::consts::PI;
 /// and `expect_sweep` (signed, in the plane's (axis_0, axis_1)) are in the
 /// user's frame (+Z up); the check runs on the physical steps (Z down),
 /// where a plane containing Z (G18, G19) is mirrored and turns the other way.
-fn circle(
-    plane_code: &str,
-    plane: (usize, usize, usize),
-    start_mm: [f64; 3],
-    centre_mm: [f64; 2],
-    cmds: &[&str],
-    expect_sweep: f64,
-) {
+fn circle(plane_code: &str, plane: (usize, usize, usize), start_mm: [f64; 3], centre_mm: [f64; 2], cmds: &[&str], expect_sweep: f64) {
     let mut vm = boot_homed();
     ok(&mut vm, plane_code);
     run(&mut vm, &format!("G0 X{} Y{} Z{}", start_mm[0], start_mm[1], start_mm[2]));

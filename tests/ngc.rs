@@ -83,7 +83,11 @@ fn full_circles_in_every_plane_and_direction_from_off_grid_starts() {
                 ((q[a0] - start[a0] as f64).powi(2) + (q[a1] - start[a1] as f64).powi(2)).sqrt()
             })
             .fold(0.0, f64::max);
-        assert!((far - 2.0 * r * SPMM).abs() <= 1.5 + ARC_TOL_MM * SPMM, "{line}: farthest point {far} steps from the start, want {}", 2.0 * r * SPMM);
+        assert!(
+            (far - 2.0 * r * SPMM).abs() <= 1.5 + ARC_TOL_MM * SPMM,
+            "{line}: farthest point {far} steps from the start, want {}",
+            2.0 * r * SPMM
+        );
     }
     assert_no_violations(&vm);
     eprintln!("simulated {:.1} s", vm.cycles() as f64 / 16e6);

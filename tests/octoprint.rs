@@ -32,14 +32,9 @@ fn root() -> PathBuf {
 }
 
 fn octoprint_python() -> PathBuf {
-    let py = std::env::var_os("MILL_OCTOPRINT_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join("target/octoprint-venv/bin/python"));
-    assert!(
-        py.exists(),
-        "{} missing: OctoPrint is not installed; run tools/setup-hosts (tools/test does)",
-        py.display()
-    );
+    let py =
+        std::env::var_os("MILL_OCTOPRINT_PYTHON").map(PathBuf::from).unwrap_or_else(|| root().join("target/octoprint-venv/bin/python"));
+    assert!(py.exists(), "{} missing: OctoPrint is not installed; run tools/setup-hosts (tools/test does)", py.display());
     py
 }
 
@@ -336,8 +331,8 @@ fn octoprint_connects_runs_the_demo_pauses_resumes_and_cancels() {
     // and may fall into one pump or two, so a connect is a burst of
     // external resets within 0.1 s.
     let resets = vm.resets();
-    let kinds_ok = resets.first().map(|r| r.kind) == Some(sim::ResetKind::PowerOn)
-        && resets[1..].iter().all(|r| r.kind == sim::ResetKind::External);
+    let kinds_ok =
+        resets.first().map(|r| r.kind) == Some(sim::ResetKind::PowerOn) && resets[1..].iter().all(|r| r.kind == sim::ResetKind::External);
     let burst = u64::from(vm.frequency() / 10);
     let connects = resets[1..].windows(2).filter(|w| w[1].cycle - w[0].cycle > burst).count() + usize::from(resets.len() > 1);
     if !kinds_ok || connects != 2 || bridge.auto_resets != (resets.len() - 1) as u64 {

@@ -22,9 +22,7 @@ const OPENS_PER_CONNECT: u64 = 2;
 
 fn printcore_python() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let py = std::env::var_os("MILL_PRINTCORE_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("target/pyenv/bin/python"));
+    let py = std::env::var_os("MILL_PRINTCORE_PYTHON").map(PathBuf::from).unwrap_or_else(|| root.join("target/pyenv/bin/python"));
     assert!(py.exists(), "{} missing: run tools/setup-hosts (tools/test does)", py.display());
     py
 }

@@ -66,11 +66,7 @@ fn m20_lists_the_files_on_fat16_and_fat32_cards() {
         let mut vm = boot_unlocked();
         vm.insert_sd(card(&[("SQUARE.GCO", SQUARE.as_bytes()), ("B.NC", b"G0 X1\n")], kind));
         let r = ok(&mut vm, "M20");
-        assert_eq!(
-            r,
-            ["Begin file list", &format!("SQUARE.GCO {}", SQUARE.len()), "B.NC 6", "End file list", "ok"],
-            "{kind:?}"
-        );
+        assert_eq!(r, ["Begin file list", &format!("SQUARE.GCO {}", SQUARE.len()), "B.NC 6", "End file list", "ok"], "{kind:?}");
     }
 }
 
@@ -135,7 +131,8 @@ fn m28_over_an_existing_file_replaces_it() {
 
 #[test]
 fn a_job_from_sd_steps_exactly_like_the_same_file_streamed_over_serial() {
-    let job: String = (0..40).map(|i| format!("G1 X{:.1} Y{:.1} F2400\n", 5.0 + (i % 7) as f32 * 1.3, 5.0 + (i % 5) as f32 * 2.1)).collect();
+    let job: String =
+        (0..40).map(|i| format!("G1 X{:.1} Y{:.1} F2400\n", 5.0 + (i % 7) as f32 * 1.3, 5.0 + (i % 5) as f32 * 2.1)).collect();
     let mut a = boot_with_card(&[("JOB.GCO", job.as_bytes())]);
     ok(&mut a, "M23 JOB.GCO");
     ok(&mut a, "M24");
@@ -206,7 +203,8 @@ fn the_status_screen_shows_state_position_feed_spindle_and_no_job() {
 
 #[test]
 fn the_sd_file_list_scrolls_and_a_job_run_from_the_menu_matches_the_serial_stream() {
-    let job: String = (0..30).map(|i| format!("G1 X{:.2} Y{:.2} F3000\n", 3.0 + (i * 7 % 11) as f32 * 0.9, 4.0 + (i * 5 % 13) as f32 * 0.7)).collect();
+    let job: String =
+        (0..30).map(|i| format!("G1 X{:.2} Y{:.2} F3000\n", 3.0 + (i * 7 % 11) as f32 * 0.9, 4.0 + (i * 5 % 13) as f32 * 0.7)).collect();
     let mut files: Vec<(String, Vec<u8>)> = (0..9).map(|i| (format!("PART{i}.NC"), format!("G0 X{i}\n").into_bytes())).collect();
     files.insert(4, ("JOB.GCO".to_string(), job.clone().into_bytes()));
     let refs: Vec<(&str, &[u8])> = files.iter().map(|(n, d)| (n.as_str(), d.as_slice())).collect();
@@ -408,7 +406,8 @@ fn a_data_block_with_a_bad_crc_stops_the_job_cleanly_with_a_read_error() {
     let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 60.0);
     assert_eq!(vm.sd().unwrap().stats().corrupted_crcs, 1);
     // The line that straddles byte 1024 is the one that could not be read.
-    let at: u32 = err.split("at SD byte ").nth(1).and_then(|r| r.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("{err}"));
+    let at: u32 =
+        err.split("at SD byte ").nth(1).and_then(|r| r.split(';').next()).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("{err}"));
     assert!(err.starts_with("Error:SD read error at SD byte"), "{err}");
     assert!((1024 - 12..=1024).contains(&at), "{err}");
     wait_for(&mut vm, |l| l.contains(&format!("read error at byte {at}")), 5.0);
@@ -453,7 +452,8 @@ fn move_cluster(card: &mut SdCard, name: &str, k: usize) {
 fn a_fragmented_file_on_fat16_and_fat32_runs_like_the_serial_stream() {
     // Short moves over 5 clusters; the third cluster is moved away, so the
     // FAT walk (and its run cache) follows c1 -> far -> c3 and on.
-    let job: String = (0..110).map(|i| format!("G1 X{:.1} Y{:.1} F3000\n", 2.0 + (i % 7) as f32 * 0.3, 2.0 + (i % 5) as f32 * 0.4)).collect();
+    let job: String =
+        (0..110).map(|i| format!("G1 X{:.1} Y{:.1} F3000\n", 2.0 + (i % 7) as f32 * 0.3, 2.0 + (i % 5) as f32 * 0.4)).collect();
     let mut serial = boot_unlocked();
     let lines: Vec<&str> = job.lines().collect();
     serial.stream(&lines, StreamOptions::new(Flow::CharCount(120))).unwrap();
@@ -649,8 +649,8 @@ fn jog_home_settings_and_info_from_the_menu() {
     assert_eq!(vm.position(Axis::X) - x0, 200);
     assert_eq!(screen(&vm)[2], " X     2.000 mm");
     press(&mut vm); // leave jogging
-    // Jog Z: +Z is up, so two detents counter-clockwise go 2 mm down,
-    // 200 physical steps away from the top switch.
+                    // Jog Z: +Z is up, so two detents counter-clockwise go 2 mm down,
+                    // 200 physical steps away from the top switch.
     let z0 = vm.position(Axis::Z);
     turn(&mut vm, -2);
     press(&mut vm); // Axis Y
@@ -665,7 +665,7 @@ fn jog_home_settings_and_info_from_the_menu() {
     press(&mut vm); // leave jogging
     turn(&mut vm, -3);
     press(&mut vm); // < Back to the main menu, on "Jog"
-    // Home X.
+                    // Home X.
     turn(&mut vm, 1);
     press(&mut vm);
     turn(&mut vm, 4);
@@ -877,7 +877,7 @@ fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
     assert!(err.contains("M61"), "{err}");
     assert_eq!(reply_text(&vm), err.trim_start_matches("Error:"));
     press(&mut vm); // back to Tools, on "Change tool"
-    // Confirm spindle: the list marks the two tools of the change.
+                    // Confirm spindle: the list marks the two tools of the change.
     turn(&mut vm, 4);
     assert_eq!(screen(&vm)[6], "[ Confirm spindle]");
     press(&mut vm);
@@ -915,13 +915,8 @@ fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
 fn tools_menu_shows_the_tool_table_and_measures_the_spindle_tool() {
     let mut cfg = VmConfig::default();
     cfg.command_timeout_s = 120.0;
-    cfg.machine.tool_setter = ToolSetter::Optical(OpticalBeam {
-        x_mm: (3.0, 7.0),
-        y_mm: 10.013,
-        z_mm: 48.0047,
-        width_mm: 0.52,
-        steps_per_mm: 100.0,
-    });
+    cfg.machine.tool_setter =
+        ToolSetter::Optical(OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.013, z_mm: 48.0047, width_mm: 0.52, steps_per_mm: 100.0 });
     let mut atc = AtcConfig::default();
     atc.pockets[0] = Some(Tool { id: 1, length_mm: 19.5, diameter_mm: 3.0 });
     atc.pockets[1] = Some(Tool { id: 2, length_mm: 21.3371, diameter_mm: 3.175 });
@@ -1066,7 +1061,12 @@ fn a_hard_limit_is_named_on_the_screen_and_home_all_from_the_alarm_menu_recovers
     assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
     assert_eq!(s[7], "Press for menu");
     golden(&vm, "alarm_recovered_by_homing");
-    println!("hard limit, recovered by Home all: {} encoder actions ({} presses, {} detents)", hands.actions(), hands.presses, hands.detents);
+    println!(
+        "hard limit, recovered by Home all: {} encoder actions ({} presses, {} detents)",
+        hands.actions(),
+        hands.presses,
+        hands.detents
+    );
     assert_eq!((hands.presses, hands.detents), (2, 2));
     assert_eq!(vm.eeprom(), eeprom, "EEPROM untouched");
     assert!(status(&mut vm).starts_with("<Idle|"));
@@ -1103,7 +1103,12 @@ fn after_a_hard_limit_the_alarm_menu_jogs_off_the_closed_switch_then_homes() {
     hands.press(&mut vm);
     homed_by_the_menu(&mut vm);
     assert_eq!(steps(&vm), [100, 100, 100, 0]);
-    println!("hard limit, jogged off the switch then homed: {} encoder actions ({} presses, {} detents)", hands.actions(), hands.presses, hands.detents);
+    println!(
+        "hard limit, jogged off the switch then homed: {} encoder actions ({} presses, {} detents)",
+        hands.actions(),
+        hands.presses,
+        hands.detents
+    );
     assert_eq!((hands.presses, hands.detents), (7, 13));
     ram_within_budget(&vm);
     // X is watched again: the hard limit trips on the switch.
@@ -1160,7 +1165,10 @@ fn a_card_pulled_mid_job_stops_retracts_then_stops_the_spindle_and_names_the_lin
     assert!(*z_up.last().unwrap() <= off_at);
     let last_z = *z_up.last().unwrap();
     let spindle_changes: Vec<&(u64, f64)> = vm.spindle_history().iter().filter(|(c, _)| *c > pulled_at).collect();
-    assert!(!spindle_changes.is_empty() && spindle_changes.iter().all(|(c, _)| *c >= last_z), "spindle on until Z was up: {spindle_changes:?}");
+    assert!(
+        !spindle_changes.is_empty() && spindle_changes.iter().all(|(c, _)| *c >= last_z),
+        "spindle on until Z was up: {spindle_changes:?}"
+    );
     // X: no move buffered after the pull ran: X only decelerated, in the
     // direction it had (no reversal), within the hold's reach (see the
     // abort test: 6.6 mm).
@@ -1268,7 +1276,16 @@ fn the_changer_page_shows_the_station_and_teaches_a_point_where_the_machine_is()
     let s = screen(&vm);
     assert_eq!(
         s[0..8],
-        ["[ Changer]", "[ < Back]", " X1            23.000", " Y point A     28.000", " Y point B     44.000", " Z1           -40.500", " Z2           -45.000", " Travel Z      -1.000"],
+        [
+            "[ Changer]",
+            "[ < Back]",
+            " X1            23.000",
+            " Y point A     28.000",
+            " Y point B     44.000",
+            " Z1           -40.500",
+            " Z2           -45.000",
+            " Travel Z      -1.000"
+        ],
         "{s:?}"
     );
     golden(&vm, "changer_page");

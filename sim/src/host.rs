@@ -134,10 +134,7 @@ pub fn is_error_line(line: &str) -> bool {
 
 /// The line number of `Resend:12`, `Resend: 12`, `rs 12` or `rs N12`.
 pub fn parse_resend(line: &str) -> Option<u32> {
-    let rest = line
-        .strip_prefix("Resend:")
-        .or_else(|| line.strip_prefix("rs "))
-        .or_else(|| line.strip_prefix("resend:"))?;
+    let rest = line.strip_prefix("Resend:").or_else(|| line.strip_prefix("rs ")).or_else(|| line.strip_prefix("resend:"))?;
     let rest = rest.trim().trim_start_matches('N');
     let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
     digits.parse().ok()
@@ -147,10 +144,7 @@ pub fn parse_resend(line: &str) -> Option<u32> {
 /// surrounding blanks removed, empty lines dropped. Parenthesised comments are
 /// left for the firmware.
 pub fn prepare_gcode(text: &str) -> Vec<String> {
-    text.lines()
-        .map(|l| l.split(';').next().unwrap_or("").trim().to_string())
-        .filter(|l| !l.is_empty())
-        .collect()
+    text.lines().map(|l| l.split(';').next().unwrap_or("").trim().to_string()).filter(|l| !l.is_empty()).collect()
 }
 
 #[derive(Clone, Debug)]

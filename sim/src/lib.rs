@@ -61,13 +61,13 @@ pub mod sdimage;
 pub mod spindle;
 pub mod vm;
 
+pub use atc::{AtcConfig, AtcModel, Collision, CollisionKind, Tool, Transfer};
 pub use host::{Flow, StreamOptions, StreamReport};
 pub use isr::{IsrStats, STEPPER_VECTOR};
-pub use atc::{AtcConfig, AtcModel, Collision, CollisionKind, Tool, Transfer};
+pub use oled::Sh1106;
 pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, SwitchConfig, SwitchModel, ToolSetter};
 pub use pins::{Axis, Input, Pin, SignalKind};
 pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
-pub use oled::Sh1106;
 pub use report::{Report, ResetKind, ResetRecord};
 pub use sdcard::{CardKind, SdCard};
 pub use sdimage::{FatKind, SdImage};

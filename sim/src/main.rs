@@ -164,7 +164,13 @@ fn main() -> ExitCode {
         }
     };
 
-    println!("job: {} ({} lines), flow {:?}{}", args.job.display(), lines.len(), args.flow, if args.checksums { ", checksums" } else { "" });
+    println!(
+        "job: {} ({} lines), flow {:?}{}",
+        args.job.display(),
+        lines.len(),
+        args.flow,
+        if args.checksums { ", checksums" } else { "" }
+    );
     let mut failure: Option<String> = None;
     let mut job = None;
     match vm.wait_for_start(5.0) {

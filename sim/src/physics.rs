@@ -118,12 +118,7 @@ impl SwitchConfig {
 
     /// Perfect switches everywhere.
     pub fn ideal() -> SwitchConfig {
-        SwitchConfig {
-            home: [SwitchModel::IDEAL; 3],
-            carousel: SwitchModel::IDEAL,
-            tool_setter: SwitchModel::IDEAL,
-            seed: 1,
-        }
+        SwitchConfig { home: [SwitchModel::IDEAL; 3], carousel: SwitchModel::IDEAL, tool_setter: SwitchModel::IDEAL, seed: 1 }
     }
 
     /// The default machine with every home switch set to `hysteresis_mm`
@@ -200,11 +195,7 @@ pub enum ToolSetter {
     /// A beam at a Z height: interrupted while Z ≥ `z_trip_steps` (Z grows
     /// downward, so the tool tip reaches the beam from above), optionally only
     /// while X and Y are inside the given inclusive windows.
-    Beam {
-        z_trip_steps: i64,
-        x_window: Option<(i64, i64)>,
-        y_window: Option<(i64, i64)>,
-    },
+    Beam { z_trip_steps: i64, x_window: Option<(i64, i64)>, y_window: Option<(i64, i64)> },
     /// An optical beam broken by the tool in the spindle (its length and
     /// diameter), see [`OpticalBeam`].
     Optical(OpticalBeam),
@@ -372,11 +363,12 @@ impl Physics {
                     // so the contact ends in the new state.
                     let n = 2 * self.rng.u64(1..=4);
                     let mut t = now;
-                    (0..n).map(|_| {
-                        t += self.rng.u64(1..=bounce / n);
-                        t
-                    })
-                    .collect()
+                    (0..n)
+                        .map(|_| {
+                            t += self.rng.u64(1..=bounce / n);
+                            t
+                        })
+                        .collect()
                 } else {
                     if settled.is_some() {
                         self.transitions[input.index()] += 1;

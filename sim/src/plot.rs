@@ -166,9 +166,8 @@ fn arc_points(p: [f64; 3], t: [f64; 3], c: [f64; 2], plane: (usize, usize), cw: 
 /// compares with the job's work Z.
 pub fn recorded_path(vm: &Vm) -> Vec<Polyline> {
     let atc = &vm.config().machine.atc;
-    let length = |id: u8| {
-        atc.pockets.iter().chain(std::iter::once(&atc.spindle)).flatten().find(|t| t.id == id).map_or(0.0, |t| t.length_mm)
-    };
+    let length =
+        |id: u8| atc.pockets.iter().chain(std::iter::once(&atc.spindle)).flatten().find(|t| t.id == id).map_or(0.0, |t| t.length_mm);
     let spm = vm.config().machine.steps_per_mm;
     let changes: Vec<(u64, u8)> = vm
         .line_log()
@@ -228,7 +227,11 @@ pub fn write_toolpath_png(path: &Path, commanded: &[Polyline], recorded: &[Polyl
     let range = |a: usize| {
         let lo = all.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
         let hi = all.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
-        if lo.is_finite() { (lo - 2.0)..(hi + 2.0) } else { 0.0..1.0 }
+        if lo.is_finite() {
+            (lo - 2.0)..(hi + 2.0)
+        } else {
+            0.0..1.0
+        }
     };
     for (area, (ax, ay), title) in [(&top, (0, 1), "top view X/Y (mm)"), (&side, (0, 2), "side view X/Z tip (mm, +Z up)")] {
         let yr = range(ay);
@@ -245,30 +248,21 @@ pub fn write_toolpath_png(path: &Path, commanded: &[Polyline], recorded: &[Polyl
             let c = tool_colour(p.tool);
             let first_of_tool = !labelled.contains(&p.tool);
             labelled.push(p.tool);
-            let s = chart
-                .draw_series(LineSeries::new(p.points.iter().map(|q| (q[ax], q[ay])), c.stroke_width(4)))
-                .map_err(|x| e(&x))?;
+            let s = chart.draw_series(LineSeries::new(p.points.iter().map(|q| (q[ax], q[ay])), c.stroke_width(4))).map_err(|x| e(&x))?;
             if ax == 0 && ay == 1 && first_of_tool {
-                s.label(format!("recorded, T{}", p.tool)).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(4))
-                });
+                s.label(format!("recorded, T{}", p.tool))
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(4)));
             }
         }
         for p in commanded {
-            let s = chart
-                .draw_series(LineSeries::new(p.points.iter().map(|q| (q[ax], q[ay])), BLACK.stroke_width(1)))
-                .map_err(|x| e(&x))?;
+            let s =
+                chart.draw_series(LineSeries::new(p.points.iter().map(|q| (q[ax], q[ay])), BLACK.stroke_width(1))).map_err(|x| e(&x))?;
             if ax == 0 && ay == 1 && p.tool == commanded[0].tool {
                 s.label("commanded").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
             }
         }
         if ax == 0 && ay == 1 {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|x| e(&x))?;
+            chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|x| e(&x))?;
         }
     }
     root.present().map_err(|x| e(&x))?;

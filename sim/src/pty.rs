@@ -46,11 +46,11 @@
 //! unread for [`STALE_OUTPUT`].
 
 use crate::{Vm, VmError};
+use std::collections::VecDeque;
 use std::ffi::CStr;
 use std::io;
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
 use std::path::{Path, PathBuf};
-use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 /// Bytes the bridge lets wait in the VM's UART queue (the rest waits in the
@@ -273,8 +273,8 @@ impl PtyBridge {
                 self.bytes_out += n as u64;
             }
         }
-        let busy = vm.pc() >= crate::boot::BOOT_START
-            && (act.host_bytes > 0 || !self.pending.is_empty() || vm.tx_pending() > 0 || self.was_busy);
+        let busy =
+            vm.pc() >= crate::boot::BOOT_START && (act.host_bytes > 0 || !self.pending.is_empty() || vm.tx_pending() > 0 || self.was_busy);
         if self.realtime && self.fast_while_busy && busy {
             // In step with the wall clock from here.
             self.started = Instant::now();

@@ -138,13 +138,7 @@ impl Report {
         );
         line("max IRQ nesting", self.max_interrupt_depth.to_string());
         line("stack high-water", self.stack_high_water_bytes.map_or("unknown (no paint)".into(), |b| format!("{b} bytes")));
-        line(
-            "uart",
-            format!(
-                "{} bytes in, {} out, {} dropped",
-                self.uart.bytes_to_chip, self.uart.bytes_from_chip, self.uart.rx_dropped
-            ),
-        );
+        line("uart", format!("{} bytes in, {} out, {} dropped", self.uart.bytes_to_chip, self.uart.bytes_from_chip, self.uart.rx_dropped));
         if let Some(j) = &self.stream {
             line(
                 "stream",

@@ -58,10 +58,7 @@ impl SdImage {
                 FatKind::Fat16 => fatfs::FatType::Fat16,
                 FatKind::Fat32 => fatfs::FatType::Fat32,
             };
-            let opts = fatfs::FormatVolumeOptions::new()
-                .fat_type(fat_type)
-                .bytes_per_cluster(512)
-                .volume_label(self.label);
+            let opts = fatfs::FormatVolumeOptions::new().fat_type(fat_type).bytes_per_cluster(512).volume_label(self.label);
             fatfs::format_volume(Cursor::new(&mut part[..]), opts).expect("format FAT volume");
             let fs = fatfs::FileSystem::new(Cursor::new(&mut part[..]), fatfs::FsOptions::new()).expect("mount");
             let root = fs.root_dir();

@@ -67,10 +67,10 @@ use crate::host::{is_reply_end, StreamOptions, StreamReport, Streamer};
 use crate::isr::{IsrStats, IsrTracker, STEPPER_VECTOR};
 use crate::oled::Sh1106;
 use crate::physics::{MachineConfig, Physics, ToolSetter};
-use crate::sdcard::SdCard;
 use crate::pins::{Axis, Input, Pin, SignalKind, COOLANT, SPINDLE_PWM};
 use crate::recorder::{Recorder, RecorderConfig, Violation};
 use crate::report::{AxisReport, Report, ResetKind, ResetRecord, UartReport};
+use crate::sdcard::SdCard;
 use crate::spindle;
 use serde::Serialize;
 use simavr_ffi as ffi;
@@ -143,10 +143,9 @@ impl std::fmt::Display for VmError {
             VmError::Halted { pc, cycle } => {
                 write!(f, "firmware halted (SLEEP with interrupts off) at PC 0x{pc:05x} (cycle {cycle})")
             }
-            VmError::InterruptNesting { depth, vector, pc, cycle } => write!(
-                f,
-                "interrupt nesting overflow: depth {depth} entering vector {vector} at PC 0x{pc:05x} (cycle {cycle})"
-            ),
+            VmError::InterruptNesting { depth, vector, pc, cycle } => {
+                write!(f, "interrupt nesting overflow: depth {depth} entering vector {vector} at PC 0x{pc:05x} (cycle {cycle})")
+            }
             VmError::BadOpcode { pc, opcode, cycle } => {
                 write!(f, "invalid opcode 0x{opcode:04x} at PC 0x{pc:05x} (cycle {cycle})")
             }
@@ -765,9 +764,7 @@ fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
     ext.set_mask(mask as _);
     ext.set_value(value as _);
     // SAFETY: avr is live; the ioctl copies the struct's fields.
-    unsafe {
-        ffi::avr_ioctl(inner.avr, ioctl_ioport_set_external(pin.port), &mut ext as *mut _ as *mut c_void)
-    };
+    unsafe { ffi::avr_ioctl(inner.avr, ioctl_ioport_set_external(pin.port), &mut ext as *mut _ as *mut c_void) };
     let irq = inner.input_irqs[i];
     if irq.is_null() {
         return;
@@ -980,8 +977,7 @@ impl Vm {
             // Inputs.
             for input in Input::ALL {
                 let pin = input.pin();
-                (*inner).input_irqs[input.index()] =
-                    ffi::avr_io_getirq(avr, ioctl_ioport_getirq(pin.port), pin.bit as c_int);
+                (*inner).input_irqs[input.index()] = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(pin.port), pin.bit as c_int);
             }
             for input in Input::ALL {
                 drive_input(&mut *inner, input, true);
@@ -1166,11 +1162,8 @@ impl Vm {
         let cycle = self.cycles();
         let inner = self.inner_mut();
         if inner.fatal.is_none() {
-            inner.fatal = Some(if state == ffi::cpu_Done as c_int {
-                VmError::Halted { pc, cycle }
-            } else {
-                VmError::Crashed { pc, cycle }
-            });
+            inner.fatal =
+                Some(if state == ffi::cpu_Done as c_int { VmError::Halted { pc, cycle } } else { VmError::Crashed { pc, cycle } });
         }
     }
 

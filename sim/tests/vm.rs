@@ -68,12 +68,7 @@ fn recorder_reports_exact_count_direction_and_timing_of_a_step_train() {
 fn pulse_widths_are_measured_as_coded() {
     // Raise the limit above the coded 62-cycle pulse: every train pulse is flagged with its width.
     let vm = steps_vm(|c| c.recorder.min_step_high_cycles = 63);
-    let widths: Vec<i64> = vm
-        .violations()
-        .iter()
-        .filter(|v| v.kind == ViolationKind::StepHighTooShort)
-        .map(|v| v.measured)
-        .collect();
+    let widths: Vec<i64> = vm.violations().iter().filter(|v| v.kind == ViolationKind::StepHighTooShort).map(|v| v.measured).collect();
     assert_eq!(widths.len(), 1501);
     assert_eq!(widths.iter().filter(|&&w| w == 62).count(), 1500);
 }

@@ -264,15 +264,7 @@ impl Change {
         if !ok {
             return Err(Fault::SoftLimit);
         }
-        Ok(Some(Change {
-            from,
-            to,
-            carousel_homed: r.carousel_homed,
-            xy_mm: r.xy_mm,
-            tools: r.tools,
-            at: 0,
-            result: None,
-        }))
+        Ok(Some(Change { from, to, carousel_homed: r.carousel_homed, xy_mm: r.xy_mm, tools: r.tools, at: 0, result: None }))
     }
 
     /// Tool in the spindle when the change started.
@@ -446,8 +438,20 @@ mod tests {
         assert_eq!(
             states,
             [
-                SpindleOff, BeginJournal, LiftToSafe, ToStation, DownToZ1, HomeCarousel, TurnToNew, InsertNew, ClampNew,
-                NewInSpindle, WithdrawNew, LiftAfter, ReturnXY, EndJournal
+                SpindleOff,
+                BeginJournal,
+                LiftToSafe,
+                ToStation,
+                DownToZ1,
+                HomeCarousel,
+                TurnToNew,
+                InsertNew,
+                ClampNew,
+                NewInSpindle,
+                WithdrawNew,
+                LiftAfter,
+                ReturnXY,
+                EndJournal
             ]
         );
         assert_eq!(actions[0], Action::SpindleOff);
@@ -474,8 +478,24 @@ mod tests {
         assert_eq!(
             states,
             [
-                SpindleOff, BeginJournal, LiftToSafe, ToStation, DownToZ1, HomeCarousel, TurnToOld, InsertOld, ReleaseOld,
-                OldInPocket, LiftFromOld, TurnToNew, ClampNew, NewInSpindle, WithdrawNew, LiftAfter, ReturnXY, EndJournal
+                SpindleOff,
+                BeginJournal,
+                LiftToSafe,
+                ToStation,
+                DownToZ1,
+                HomeCarousel,
+                TurnToOld,
+                InsertOld,
+                ReleaseOld,
+                OldInPocket,
+                LiftFromOld,
+                TurnToNew,
+                ClampNew,
+                NewInSpindle,
+                WithdrawNew,
+                LiftAfter,
+                ReturnXY,
+                EndJournal
             ]
         );
         assert_eq!(actions[6], Action::Turn { position: 6.0 });
@@ -496,8 +516,21 @@ mod tests {
         assert_eq!(
             states,
             [
-                SpindleOff, BeginJournal, LiftToSafe, ToStation, DownToZ1, HomeCarousel, TurnToOld, InsertOld, ReleaseOld,
-                OldInPocket, LiftFromOld, WithdrawEmpty, LiftAfter, ReturnXY, EndJournal
+                SpindleOff,
+                BeginJournal,
+                LiftToSafe,
+                ToStation,
+                DownToZ1,
+                HomeCarousel,
+                TurnToOld,
+                InsertOld,
+                ReleaseOld,
+                OldInPocket,
+                LiftFromOld,
+                WithdrawEmpty,
+                LiftAfter,
+                ReturnXY,
+                EndJournal
             ]
         );
         assert_eq!(actions[6], Action::Turn { position: 15.0 });

@@ -132,10 +132,7 @@ impl Eeprom {
 fn check_range(addr: u16, len: usize) -> Result<(), Error> {
     let end = u32::from(addr) + len as u32;
     if end > u32::from(SIZE) {
-        Err(Error::OutOfRange {
-            addr,
-            len: len.min(usize::from(u16::MAX)) as u16,
-        })
+        Err(Error::OutOfRange { addr, len: len.min(usize::from(u16::MAX)) as u16 })
     } else {
         Ok(())
     }

@@ -30,8 +30,8 @@ pub mod twi;
 pub mod wdt;
 
 use avr_device::atmega2560::{Peripherals, TC0, TC2};
-use core::cell::Cell;
 use avr_device::interrupt::Mutex;
+use core::cell::Cell;
 use portable_atomic::{AtomicU8, Ordering};
 
 /// Realtime request bits set from ISRs, consumed by the main loop.

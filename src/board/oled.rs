@@ -33,17 +33,25 @@ const CONTROL_DATA: u8 = 0x40;
 static INIT: [u8; 24] = [
     CONTROL_COMMANDS,
     0xAE, // display off
-    0xD5, 0x80, // clock divide / oscillator
-    0xA8, 0x3F, // multiplex ratio 64
-    0xD3, 0x00, // display offset 0
+    0xD5,
+    0x80, // clock divide / oscillator
+    0xA8,
+    0x3F, // multiplex ratio 64
+    0xD3,
+    0x00, // display offset 0
     0x40, // start line 0
-    0xAD, 0x8B, // DC-DC (charge pump) on
+    0xAD,
+    0x8B, // DC-DC (charge pump) on
     0xA1, // segment remap: column 131 is SEG0 (module mounted upright)
     0xC8, // COM scan from COM63 to COM0
-    0xDA, 0x12, // COM pins: alternative
-    0x81, 0x80, // contrast
-    0xD9, 0x22, // pre-charge / dis-charge
-    0xDB, 0x35, // VCOM deselect level
+    0xDA,
+    0x12, // COM pins: alternative
+    0x81,
+    0x80, // contrast
+    0xD9,
+    0x22, // pre-charge / dis-charge
+    0xDB,
+    0x35, // VCOM deselect level
     0xA4, // show RAM contents
     0xA6, // normal (not inverted)
     0xAF, // display on

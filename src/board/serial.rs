@@ -25,9 +25,7 @@
 use super::{raise_in_isr, realtime};
 use avr_device::atmega2560::USART0;
 use core::ptr::addr_of_mut;
-use mill::protocol::{
-    rx_fast_mode, MCodeScanner, RxStore, RxText, Urgent, RX_ALL_SLOW, RX_FAST, RX_LINE_START, SOFT_RESET,
-};
+use mill::protocol::{rx_fast_mode, MCodeScanner, RxStore, RxText, Urgent, RX_ALL_SLOW, RX_FAST, RX_LINE_START, SOFT_RESET};
 use portable_atomic::{AtomicU8, Ordering};
 
 /// RX ring slots; one stays free, so 255 bytes are usable. A
@@ -441,15 +439,10 @@ extern "avr-interrupt" fn usart0_rx_slow() {
     // SAFETY: the RX statics are only used by the RX interrupt, and ISRs
     // do not nest.
     let (b, lost, prev) = unsafe {
-        (
-            addr_of_mut!(RX_IN).read_volatile(),
-            addr_of_mut!(RX_IN_LOST).read_volatile() != 0,
-            addr_of_mut!(RX_PREV).read_volatile(),
-        )
+        (addr_of_mut!(RX_IN).read_volatile(), addr_of_mut!(RX_IN_LOST).read_volatile() != 0, addr_of_mut!(RX_PREV).read_volatile())
     };
     // SAFETY: as above.
-    let (scan, store, text) =
-        unsafe { (&mut *addr_of_mut!(MCODE_SCAN), &mut *addr_of_mut!(RX_STORE), &mut *addr_of_mut!(RX_TEXT)) };
+    let (scan, store, text) = unsafe { (&mut *addr_of_mut!(MCODE_SCAN), &mut *addr_of_mut!(RX_STORE), &mut *addr_of_mut!(RX_TEXT)) };
     if lost {
         store.note_loss();
         text.note_loss();

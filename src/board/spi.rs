@@ -128,26 +128,8 @@ impl SpiBus {
             // CS high before it becomes an output, so the card never sees a
             // select glitch; SCK/MOSI idle low in mode 0; MISO pulled up
             // (an SD card tri-states DO while deselected).
-            portb.portb().modify(|_, w| {
-                w.pb0()
-                    .set_bit()
-                    .pb1()
-                    .clear_bit()
-                    .pb2()
-                    .clear_bit()
-                    .pb3()
-                    .set_bit()
-            });
-            portb.ddrb().modify(|_, w| {
-                w.pb0()
-                    .set_bit()
-                    .pb1()
-                    .set_bit()
-                    .pb2()
-                    .set_bit()
-                    .pb3()
-                    .clear_bit()
-            });
+            portb.portb().modify(|_, w| w.pb0().set_bit().pb1().clear_bit().pb2().clear_bit().pb3().set_bit());
+            portb.ddrb().modify(|_, w| w.pb0().set_bit().pb1().set_bit().pb2().set_bit().pb3().clear_bit());
         });
         let mut bus = SpiBus { spi };
         bus.set_clock(div);

@@ -47,8 +47,8 @@
 use super::pins;
 use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 use mill::stepper::queue::{tccr1b, Chunk, Seg};
-use mill::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_LEN, SEG_MASK, SEG_RING_LEN};
 pub use mill::stepper::rings::Watch;
+use mill::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_LEN, SEG_MASK, SEG_RING_LEN};
 use mill::stepper::{Prescale, StepperCmd};
 use mill::N_AXES;
 use portable_atomic::{compiler_fence, AtomicU8, Ordering};

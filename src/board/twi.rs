@@ -129,10 +129,7 @@ impl Twi {
         let scl_cycles = 16 + 2 * u32::from(twbr) * (1u32 << (2 * twps));
         let budget = (scl_cycles * 9 * 10).max(MIN_TIMEOUT_CYCLES);
         let polls = (budget / MIN_CYCLES_PER_POLL).min(u32::from(u16::MAX));
-        Twi {
-            twi,
-            timeout_polls: polls as u16,
-        }
+        Twi { twi, timeout_polls: polls as u16 }
     }
 
     /// Start sending `bytes` (at most [`ASYNC_MAX`]) to `address` as one
@@ -153,9 +150,7 @@ impl Twi {
             a.sla = address << 1;
         }
         ASYNC_STATE.store(RUNNING, Ordering::Release);
-        self.twi
-            .twcr()
-            .write(|w| w.twint().set_bit().twsta().set_bit().twen().set_bit().twie().set_bit());
+        self.twi.twcr().write(|w| w.twint().set_bit().twsta().set_bit().twen().set_bit().twie().set_bit());
         Ok(())
     }
 
@@ -201,9 +196,7 @@ impl Twi {
 
     /// Send a START (or a repeated START, when the bus is ours already).
     fn start(&mut self) -> Result<(), Error> {
-        self.twi
-            .twcr()
-            .write(|w| w.twint().set_bit().twsta().set_bit().twen().set_bit());
+        self.twi.twcr().write(|w| w.twint().set_bit().twsta().set_bit().twen().set_bit());
         match self.wait_int()? {
             status::START | status::REP_START => Ok(()),
             other => Err(self.fail(other)),
@@ -214,9 +207,7 @@ impl Twi {
     fn address(&mut self, address: u8, read: bool) -> Result<(), Error> {
         let sla = (address << 1) | u8::from(read);
         self.twi.twdr().write(|w| w.set(sla));
-        self.twi
-            .twcr()
-            .write(|w| w.twint().set_bit().twen().set_bit());
+        self.twi.twcr().write(|w| w.twint().set_bit().twen().set_bit());
         match (self.wait_int()?, read) {
             (status::MT_SLA_ACK, false) | (status::MR_SLA_ACK, true) => Ok(()),
             // Old simavr releases (Debian's 1.6) report an address NACK as
@@ -232,9 +223,7 @@ impl Twi {
     /// Transmit one data byte and check for ACK.
     fn write_byte(&mut self, byte: u8) -> Result<(), Error> {
         self.twi.twdr().write(|w| w.set(byte));
-        self.twi
-            .twcr()
-            .write(|w| w.twint().set_bit().twen().set_bit());
+        self.twi.twcr().write(|w| w.twint().set_bit().twen().set_bit());
         match self.wait_int()? {
             status::MT_DATA_ACK => Ok(()),
             status::MT_DATA_NACK => Err(self.fail_nack(NoAcknowledgeSource::Data)),
@@ -244,13 +233,9 @@ impl Twi {
 
     /// Receive one data byte, answering ACK (more to come) or NACK (last byte).
     fn read_byte(&mut self, ack: bool) -> Result<u8, Error> {
-        self.twi
-            .twcr()
-            .write(|w| w.twint().set_bit().twea().bit(ack).twen().set_bit());
+        self.twi.twcr().write(|w| w.twint().set_bit().twea().bit(ack).twen().set_bit());
         match (self.wait_int()?, ack) {
-            (status::MR_DATA_ACK, true) | (status::MR_DATA_NACK, false) => {
-                Ok(self.twi.twdr().read().bits())
-            }
+            (status::MR_DATA_ACK, true) | (status::MR_DATA_NACK, false) => Ok(self.twi.twdr().read().bits()),
             (other, _) => Err(self.fail(other)),
         }
     }
@@ -258,9 +243,7 @@ impl Twi {
     /// Send a STOP and wait (bounded) until the hardware has sent it.
     /// TWINT is not set after a STOP; TWSTO clears itself (§24 TWCR: TWSTO).
     fn stop(&mut self) -> Result<(), Error> {
-        self.twi
-            .twcr()
-            .write(|w| w.twint().set_bit().twsto().set_bit().twen().set_bit());
+        self.twi.twcr().write(|w| w.twint().set_bit().twsto().set_bit().twen().set_bit());
         let mut polls = self.timeout_polls;
         while self.twi.twcr().read().twsto().bit_is_set() {
             polls -= 1;
@@ -286,9 +269,7 @@ impl Twi {
             status::ARB_LOST => {
                 // Clearing TWINT without STA/STO releases the bus and enters
                 // not-addressed slave mode (§24 Master Transmitter status table, 0x38).
-                self.twi
-                    .twcr()
-                    .write(|w| w.twint().set_bit().twen().set_bit());
+                self.twi.twcr().write(|w| w.twint().set_bit().twen().set_bit());
                 Error::ArbitrationLoss
             }
             status::BUS_ERROR => {
@@ -374,9 +355,7 @@ fn bit_rate(freq_hz: u32) -> (u8, u8) {
 /// the Mega2560 and most SH1106 modules carry external pull-ups.
 pub fn enable_internal_pullups(portd: &PORTD) {
     avr_device::interrupt::free(|_| {
-        portd
-            .portd()
-            .modify(|_, w| w.pd0().set_bit().pd1().set_bit());
+        portd.portd().modify(|_, w| w.pd0().set_bit().pd1().set_bit());
     });
 }
 
@@ -389,11 +368,7 @@ impl I2c<SevenBitAddress> for Twi {
     /// START, then a repeated START and address only where the direction
     /// changes, ACK on every read byte except the last of a read run, STOP.
     /// On any error the bus is released before returning.
-    fn transaction(
-        &mut self,
-        address: SevenBitAddress,
-        operations: &mut [Operation<'_>],
-    ) -> Result<(), Self::Error> {
+    fn transaction(&mut self, address: SevenBitAddress, operations: &mut [Operation<'_>]) -> Result<(), Self::Error> {
         if address > 0x7F {
             // No device can answer a 7-bit address above 0x7F.
             return Err(Error::NoAcknowledge(NoAcknowledgeSource::Address));
@@ -413,10 +388,7 @@ impl I2c<SevenBitAddress> for Twi {
         let mut rest = operations;
         while !rest.is_empty() {
             let read = matches!(rest[0], Operation::Read(_));
-            let len = rest
-                .iter()
-                .position(|op| matches!(op, Operation::Read(_)) != read)
-                .unwrap_or(rest.len());
+            let len = rest.iter().position(|op| matches!(op, Operation::Read(_)) != read).unwrap_or(rest.len());
             let (group, tail) = rest.split_at_mut(len);
             self.run_group(address, group)?;
             rest = tail;

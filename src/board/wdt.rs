@@ -159,8 +159,7 @@ pub fn enable_2s() {
         // Timed sequence: WDCE|WDE, then WDE|WDP2|WDP1|WDP0 (WDCE = 0, WDIE = 0)
         // within four cycles.
         wdt.wdtcsr().write(|w| w.wdce().set_bit().wde().set_bit());
-        wdt.wdtcsr()
-            .write(|w| w.wde().set_bit().wdph().clear_bit().wdpl().cycles_256k());
+        wdt.wdtcsr().write(|w| w.wde().set_bit().wdph().clear_bit().wdpl().cycles_256k());
     });
 }
 

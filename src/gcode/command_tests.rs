@@ -213,7 +213,17 @@ fn under_compensation_a_move_after_a_z_move_stays_at_that_z() {
     // LinuxCNC's gmoccapy sample: an exit arc, Z up, then a bare X Y.
     let (mut i, s) = interp();
     let mut last = [0.0; N_AXES];
-    for l in ["G21 G90 G0 X22.5 Y14 Z-10", "G1 Z-19 F400", "G41 D1", "G3 X30.75 Y14 Z-21.05 I4.125 J0", "G3 I-8.25", "G3 X22.5 Y14 Z-19.95 I-4.125 J0", "G0 Z-4", "G0 X22.5 Y14", "M2"] {
+    for l in [
+        "G21 G90 G0 X22.5 Y14 Z-10",
+        "G1 Z-19 F400",
+        "G41 D1",
+        "G3 X30.75 Y14 Z-21.05 I4.125 J0",
+        "G3 I-8.25",
+        "G3 X22.5 Y14 Z-19.95 I-4.125 J0",
+        "G0 Z-4",
+        "G0 X22.5 Y14",
+        "M2",
+    ] {
         for (_, t) in commands_t1(&mut i, &s, l).unwrap() {
             last = t.unwrap_or(last);
         }

@@ -315,7 +315,10 @@ pub fn corner(side: Side, p: &P2, held_start: &P2, held: &Seg, next_start: &P2, 
     let x = intersect(held_start, held, next_start, next, &guess).ok_or(CompError::Gouge)?;
     // On the held move (not before its start) and on the next (not past its end).
     let on_held = along(held_start, held, &x);
-    if !(on_held <= along(held_start, held, &held.end) + 1e-4) || on_held < -1e-4 || !(along(next_start, next, &x) < along(next_start, next, &next.end)) {
+    if !(on_held <= along(held_start, held, &held.end) + 1e-4)
+        || on_held < -1e-4
+        || !(along(next_start, next, &x) < along(next_start, next, &next.end))
+    {
         return Err(CompError::Gouge);
     }
     Ok(Corner::Inside(x))

@@ -44,13 +44,22 @@ impl Interp {
     /// A line while compensation is on, or turned on or off by it.
     /// `motion`: the line's motion mode; `target`: in `run.target`.
     #[inline(never)]
-    pub(super) fn comp_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line, motion: Motion, any_axis: bool, e_word: bool) -> Result<CompOutcome, Error> {
+    pub(super) fn comp_line(
+        &mut self,
+        cx: &Ctx,
+        g: &ModalCopy,
+        l: &Line,
+        motion: Motion,
+        any_axis: bool,
+        e_word: bool,
+    ) -> Result<CompOutcome, Error> {
         let on = self.comp.side.is_some();
         let turning_on = turns_on(l);
         if !on && !turning_on {
             return Ok(CompOutcome::Ordinary(None));
         }
-        let is_arc = matches!(motion, Motion::ArcCw | Motion::ArcCcw) && (any_axis || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)));
+        let is_arc =
+            matches!(motion, Motion::ArcCw | Motion::ArcCcw) && (any_axis || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)));
         let moves = any_axis || is_arc;
         if moves && !matches!(motion, Motion::Rapid | Motion::Linear | Motion::ArcCw | Motion::ArcCcw) {
             return Err(Error::BadWord(F!("G41/G42: only G0-G3 moves with compensation on (G40 first), nothing moved")));
@@ -154,7 +163,9 @@ impl Interp {
                 Ok(Corner::Outside { turn }) => corner_arc = Some((h.corner, q, turn)),
                 Ok(Corner::Inside(x)) if !h.sent => flush = Some((h, x)),
                 Ok(Corner::Inside(_)) => {
-                    return Err(Error::BadWord(F!("G41/G42: inside corner right after a line that is not a move in the plane (it sent the move before), nothing moved")))
+                    return Err(Error::BadWord(F!(
+                    "G41/G42: inside corner right after a line that is not a move in the plane (it sent the move before), nothing moved"
+                )))
                 }
                 Err(e) => return Err(bad(e)),
             }

@@ -234,15 +234,7 @@ impl Cycle {
             Retract::Initial if p.initial_z > p.r_z => p.initial_z,
             _ => p.r_z,
         };
-        Ok(Cycle {
-            p,
-            clear_z,
-            start_z: start[2],
-            xy: p.hole_xy,
-            reached_z: p.r_z,
-            left: p.repeats - 1,
-            phase: Phase::Lift,
-        })
+        Ok(Cycle { p, clear_z, start_z: start[2], xy: p.hole_xy, reached_z: p.r_z, left: p.repeats - 1, phase: Phase::Lift })
     }
 
     /// The Z of the plane each hole ends at.
@@ -357,11 +349,8 @@ impl Cycle {
                     (None, Phase::Done)
                 } else {
                     self.left -= 1;
-                    self.xy = if p.polar {
-                        polar_step(self.xy, p.repeat_xy)
-                    } else {
-                        [self.xy[0] + p.repeat_xy[0], self.xy[1] + p.repeat_xy[1]]
-                    };
+                    self.xy =
+                        if p.polar { polar_step(self.xy, p.repeat_xy) } else { [self.xy[0] + p.repeat_xy[0], self.xy[1] + p.repeat_xy[1]] };
                     (None, Phase::ToHole)
                 }
             }
@@ -536,10 +525,7 @@ mod tests {
     #[test]
     fn g81_from_above_rapids_to_the_hole_and_r_feeds_to_z_and_returns_to_the_initial_z_under_g98() {
         let s = run(params(Kind::Drill, Retract::Initial), [0.0, 0.0, 10.0]);
-        assert_eq!(
-            s,
-            vec![Rapid([10.0, 5.0, 10.0]), Rapid([10.0, 5.0, 2.0]), Feed([10.0, 5.0, -3.0]), Rapid([10.0, 5.0, 10.0])]
-        );
+        assert_eq!(s, vec![Rapid([10.0, 5.0, 10.0]), Rapid([10.0, 5.0, 2.0]), Feed([10.0, 5.0, -3.0]), Rapid([10.0, 5.0, 10.0])]);
     }
 
     #[test]
@@ -599,7 +585,16 @@ mod tests {
         let at = |z: f32| [10.0, 5.0, z];
         assert_eq!(
             s,
-            vec![Rapid(at(10.0)), Rapid(at(2.0)), Feed(at(0.0)), Rapid(at(c)), Feed(at(-2.0)), Rapid(at(-2.0 + c)), Feed(at(-3.0)), Rapid(at(2.0))]
+            vec![
+                Rapid(at(10.0)),
+                Rapid(at(2.0)),
+                Feed(at(0.0)),
+                Rapid(at(c)),
+                Feed(at(-2.0)),
+                Rapid(at(-2.0 + c)),
+                Feed(at(-3.0)),
+                Rapid(at(2.0))
+            ]
         );
     }
 
@@ -709,7 +704,10 @@ mod tests {
     #[test]
     fn resolve_g90_takes_absolute_words_and_the_start_z_as_the_initial_level() {
         let (p, st) = resolve(Kind::Peck, Retract::Initial, false, None, &Sticky::NONE, &words(), [1.0, 1.0, 12.0]).unwrap();
-        assert_eq!((p.hole_xy, p.repeat_xy, p.r_z, p.bottom_z, p.initial_z, p.peck_mm, p.repeats), ([4.0, 6.0], [0.0, 0.0], 2.0, -3.0, 12.0, 1.5, 1));
+        assert_eq!(
+            (p.hole_xy, p.repeat_xy, p.r_z, p.bottom_z, p.initial_z, p.peck_mm, p.repeats),
+            ([4.0, 6.0], [0.0, 0.0], 2.0, -3.0, 12.0, 1.5, 1)
+        );
         assert_eq!(st, Sticky { r: 2.0, z: -3.0, q: 1.5, p: 0.25, initial_z: 12.0 });
         // A bare X on the next line: R, Z, Q and the initial level stay.
         let w = LineWords { x: Some(9.0), ..LineWords::default() };
@@ -723,7 +721,8 @@ mod tests {
         let w = LineWords { x: Some(5.0), y: None, z: Some(-4.0), r: Some(-1.0), l: Some(3.0), ..LineWords::default() };
         let (p, _) = resolve(Kind::Drill, Retract::RPlane, true, None, &Sticky::NONE, &w, [10.0, 20.0, 3.0]).unwrap();
         assert_eq!((p.hole_xy, p.repeat_xy, p.r_z, p.bottom_z, p.repeats), ([15.0, 20.0], [5.0, 0.0], 2.0, -2.0, 3));
-        let holes: Vec<[f32; 3]> = run(p, [10.0, 20.0, 3.0]).into_iter().filter_map(|s| if let Feed(t) = s { Some(t) } else { None }).collect();
+        let holes: Vec<[f32; 3]> =
+            run(p, [10.0, 20.0, 3.0]).into_iter().filter_map(|s| if let Feed(t) = s { Some(t) } else { None }).collect();
         assert_eq!(holes, vec![[15.0, 20.0, -2.0], [20.0, 20.0, -2.0], [25.0, 20.0, -2.0]]);
     }
 
@@ -779,10 +778,13 @@ mod tests {
         // the 10 mm circle, the first at 60°, the last back at 0°.
         let w = LineWords { z: Some(-2.0), r: Some(1.0), l: Some(6.0), polar: Some([0.0, 60f32.to_radians()]), ..LineWords::default() };
         let (p, _) = resolve(Kind::Drill, Retract::Initial, true, None, &Sticky::NONE, &w, [10.0, 0.0, 5.0]).unwrap();
-        let holes: Vec<[f32; 2]> = run(p, [10.0, 0.0, 5.0]).into_iter().filter_map(|s| match s {
-            Feed(t) => Some([t[0], t[1]]),
-            _ => None,
-        }).collect();
+        let holes: Vec<[f32; 2]> = run(p, [10.0, 0.0, 5.0])
+            .into_iter()
+            .filter_map(|s| match s {
+                Feed(t) => Some([t[0], t[1]]),
+                _ => None,
+            })
+            .collect();
         assert_eq!(holes.len(), 6);
         for (i, h) in holes.iter().enumerate() {
             let a = (60.0 * (i + 1) as f32).to_radians();
@@ -792,6 +794,9 @@ mod tests {
         let (lo, hi) = Cycle::new(p, [10.0, 0.0, 5.0]).unwrap().bounds();
         assert!(lo[0] < -9.99 && hi[0] > 9.99 && lo[1] < -8.6 && hi[1] > 8.6, "{lo:?} {hi:?}");
         // At the origin the angle is undefined: refused.
-        assert_eq!(resolve(Kind::Drill, Retract::Initial, true, None, &Sticky::NONE, &w, [0.0, 0.0, 5.0]).unwrap_err(), Error::PolarAtOrigin);
+        assert_eq!(
+            resolve(Kind::Drill, Retract::Initial, true, None, &Sticky::NONE, &w, [0.0, 0.0, 5.0]).unwrap_err(),
+            Error::PolarAtOrigin
+        );
     }
 }

@@ -38,19 +38,19 @@
 //! a missing feed or a target outside travel returns an [`Error`] from the
 //! first [`Interp::next`] and leaves the machine exactly as it was.
 
-use crate::flash::FStr;
 use super::comp;
 use super::cycles::{self, Retract};
 use super::{Coolant, Distance, Line, Motion, NonModal, Plane, Spindle, Stopping, ToolLength, Units, Word};
+use crate::flash::FStr;
 
 #[path = "comp_line.rs"]
 mod comp_line;
-use comp_line::CompOutcome;
 use crate::config::{Settings, N_WCS};
 use crate::frame;
 use crate::math::round_i32;
 use crate::planner::arc::{self, ArcError};
 use crate::N_AXES;
+use comp_line::CompOutcome;
 
 /// Millimetres per inch.
 const MM_PER_INCH: f32 = 25.4;
@@ -802,7 +802,9 @@ impl Interp {
             unused_word(l, &g)?;
         }
         if l.non_modal.is_some() && (self.comp.side.is_some() || comp_line::turns_on(l)) {
-            return Err(Error::BadWord(F!("G41/G42: no G4, G10, G28, G37, G38, G53, G92 or carousel code with compensation on (G40 first), nothing moved")));
+            return Err(Error::BadWord(F!(
+                "G41/G42: no G4, G10, G28, G37, G38, G53, G92 or carousel code with compensation on (G40 first), nothing moved"
+            )));
         }
         if l.non_modal.is_some() {
             if let Some(done) = self.non_modal(cx, &g, l) {
@@ -1260,7 +1262,11 @@ impl Interp {
         let mut do_motion = None;
         if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
             match motion {
-                Motion::Cancel => return Err(Error::BadWord(F!("axis words without a motion mode (G80 active; $154=1 keeps the mode from before a cycle)"))),
+                Motion::Cancel => {
+                    return Err(Error::BadWord(F!(
+                        "axis words without a motion mode (G80 active; $154=1 keeps the mode from before a cycle)"
+                    )))
+                }
                 Motion::Rapid => {}
                 _ => {
                     if !(g.feed > 0.0) {
@@ -1313,7 +1319,16 @@ impl Interp {
             return Err(Error::BadFeed);
         }
         let mm = |w: Word| l.word(w).map(|v| to_mm(g.inches, v));
-        let mut words = cycles::LineWords { x: mm(Word::X), y: mm(Word::Y), z: mm(Word::Z), r: mm(Word::R), q: mm(Word::Q), p: l.word(Word::P), l: l.word(Word::L), polar: None };
+        let mut words = cycles::LineWords {
+            x: mm(Word::X),
+            y: mm(Word::Y),
+            z: mm(Word::Z),
+            r: mm(Word::R),
+            q: mm(Word::Q),
+            p: l.word(Word::P),
+            l: l.word(Word::L),
+            polar: None,
+        };
         if l.words.has_polar() {
             if g.incremental {
                 // Radius and angle added per hole (LinuxCNC's CYCLE_MACRO).
@@ -1574,9 +1589,7 @@ fn measure_mode(inches: bool, l: &Line) -> Result<(crate::toolsetter::Mode, Opti
         (None, None, None, None) => Mode::Length,
         (Some(d), None, None, None) if d == 1.0 => Mode::Diameter,
         (None, Some(t), None, None) if t >= 0.0 => Mode::Check { tol_um: um(t) },
-        (None, None, Some(len), Some(r)) if len > 0.0 && r >= 0.0 => {
-            Mode::Calibrate { length_um: um(len), diameter_um: 2 * um(r) }
-        }
+        (None, None, Some(len), Some(r)) if len > 0.0 && r >= 0.0 => Mode::Calibrate { length_um: um(len), diameter_um: 2 * um(r) },
         _ => return Err(bad),
     };
     if (x.is_some() || y.is_some()) && !matches!(mode, Mode::Calibrate { .. }) {

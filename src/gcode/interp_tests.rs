@@ -27,7 +27,17 @@ pub struct FakeIo {
 
 impl FakeIo {
     pub fn new() -> FakeIo {
-        FakeIo { out: String::new(), pos: [0; N_AXES], path: Vec::new(), path_ms: Vec::new(), eeprom: vec![0xFF; 4096], ms: 0, spindle: 0, coolant: false, auto_resume: false }
+        FakeIo {
+            out: String::new(),
+            pos: [0; N_AXES],
+            path: Vec::new(),
+            path_ms: Vec::new(),
+            eeprom: vec![0xFF; 4096],
+            ms: 0,
+            spindle: 0,
+            coolant: false,
+            auto_resume: false,
+        }
     }
 }
 
@@ -137,9 +147,7 @@ pub fn xyz(io: &FakeIo) -> [i32; 3] {
 
 /// Largest distance (steps) in the plane (a0, a1) of any block end from `p`.
 fn max_dist_from(path: &[[i32; N_AXES]], p: [i32; N_AXES], a0: usize, a1: usize) -> f64 {
-    path.iter()
-        .map(|q| (((q[a0] - p[a0]) as f64).powi(2) + ((q[a1] - p[a1]) as f64).powi(2)).sqrt())
-        .fold(0.0, f64::max)
+    path.iter().map(|q| (((q[a0] - p[a0]) as f64).powi(2) + ((q[a1] - p[a1]) as f64).powi(2)).sqrt()).fold(0.0, f64::max)
 }
 
 /// The reported case: a 0.8 mm circle from an off-grid
@@ -291,7 +299,21 @@ fn g92_1_and_g92_2_clear_the_g92_offsets() {
 fn preamble_codes_run_and_leave_the_rest_of_their_line_in_force() {
     let (mut m, mut io) = machine();
     // Whole preambles of the corpus (07, 11, 01, 17, 09, 06).
-    for l in ["G20 G90 G64 G40", "G64 P0.00040 ( set maximum deviation )", "G17 G20 G40 G90", "G61 (exact path mode)", "G61.1", "G91.1", "G80", "G94 G90.1", "G91.1", "O1001", "O0000(3 HEATSINK PROFILE)", "G64 P0.01 Q0.01", "%"] {
+    for l in [
+        "G20 G90 G64 G40",
+        "G64 P0.00040 ( set maximum deviation )",
+        "G17 G20 G40 G90",
+        "G61 (exact path mode)",
+        "G61.1",
+        "G91.1",
+        "G80",
+        "G94 G90.1",
+        "G91.1",
+        "O1001",
+        "O0000(3 HEATSINK PROFILE)",
+        "G64 P0.01 Q0.01",
+        "%",
+    ] {
         let e = m.execute(l.as_bytes(), &mut io);
         assert!(e.is_ok(), "{l}: {}", msg(e.unwrap_err()));
     }
@@ -496,7 +518,19 @@ fn g4_p_is_milliseconds_with_setting_153() {
 fn words_no_code_uses_are_refused_and_nothing_moves() {
     let (mut m, mut io) = machine();
     run(&mut m, &mut io, "G1 X1 F600");
-    for (l, w) in [("G61 R0.5", 'R'), ("G0 X2 I1", 'I'), ("G1 X2 P2", 'P'), ("G0 X2 H1", 'H'), ("G1 X2 Q1", 'Q'), ("G0 X2 L2", 'L'), ("G0 X2 D1", 'D'), ("G0 X2 B1", 'B'), ("G1 X2 N5", 'N'), ("G81 X2 R0 Z-1 P1", 'P'), ("G82 X2 R0 Z-1 P1 Q1", 'Q')] {
+    for (l, w) in [
+        ("G61 R0.5", 'R'),
+        ("G0 X2 I1", 'I'),
+        ("G1 X2 P2", 'P'),
+        ("G0 X2 H1", 'H'),
+        ("G1 X2 Q1", 'Q'),
+        ("G0 X2 L2", 'L'),
+        ("G0 X2 D1", 'D'),
+        ("G0 X2 B1", 'B'),
+        ("G1 X2 N5", 'N'),
+        ("G81 X2 R0 Z-1 P1", 'P'),
+        ("G82 X2 R0 Z-1 P1 Q1", 'Q'),
+    ] {
         match m.execute(l.as_bytes(), &mut io) {
             Err(super::Error::UnusedWord(got)) => assert_eq!(got.letter() as char, w, "{l}"),
             other => panic!("{l}: {other:?}"),
@@ -505,7 +539,22 @@ fn words_no_code_uses_are_refused_and_nothing_moves() {
     assert!(refused(&mut m, &mut io, "G38.2 F1").contains("all axes missing"));
     assert_eq!(xyz(&io), [100, 0, 0], "nothing moved");
     // The words the codes of the line use pass.
-    for l in ["G2 X3 I1 F600", "G3 X1 R1", "G64 P0.01 Q0.01", "G4 P0", "G43 H0", "G49", "G10 L2 P1 X0", "G83 X2 R0 Z-1 Q0.5 F300", "X3", "G82 X2 R0 Z-1 P0.1 L2", "G89 X4 R0 Z-1 P0.1", "G80", "N4567.789 S1200", "M5"] {
+    for l in [
+        "G2 X3 I1 F600",
+        "G3 X1 R1",
+        "G64 P0.01 Q0.01",
+        "G4 P0",
+        "G43 H0",
+        "G49",
+        "G10 L2 P1 X0",
+        "G83 X2 R0 Z-1 Q0.5 F300",
+        "X3",
+        "G82 X2 R0 Z-1 P0.1 L2",
+        "G89 X4 R0 Z-1 P0.1",
+        "G80",
+        "N4567.789 S1200",
+        "M5",
+    ] {
         run(&mut m, &mut io, l);
     }
 }
@@ -535,7 +584,8 @@ fn polar_words_move_about_the_work_origin_as_in_linuxcnc() {
 #[test]
 fn the_compensation_example_runs_on_the_controller() {
     let (mut m, mut io) = machine();
-    for l in ["G10 L1 P1 R0.5", "G21 G90 G17", "G0 X10 Y10 Z-10", "G1 Z-12 F100", "G41 X12 Y10 D1", "G3 X14 Y12 I0 J2", "G1 X20", "G40 X25"] {
+    for l in ["G10 L1 P1 R0.5", "G21 G90 G17", "G0 X10 Y10 Z-10", "G1 Z-12 F100", "G41 X12 Y10 D1", "G3 X14 Y12 I0 J2", "G1 X20", "G40 X25"]
+    {
         run(&mut m, &mut io, l);
     }
     assert!((m.interp.pos_mm[0] - 25.0).abs() < 1e-4 && (m.interp.pos_mm[1] - 12.0).abs() < 1e-4, "{:?}", m.interp.pos_mm);

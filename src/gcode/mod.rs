@@ -12,13 +12,13 @@
 //! belongs to the interpreter.
 
 pub mod comp;
-pub mod cycles;
 #[cfg(test)]
 mod cycle_tests;
+pub mod cycles;
 pub mod interp;
 pub mod parse;
 
 pub use parse::{
-    parse, parse_into, Coolant, CutterComp, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, PathMode, Plane, Spindle,
-    Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
+    parse, parse_into, Coolant, CutterComp, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, PathMode, Plane,
+    Spindle, Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
 };

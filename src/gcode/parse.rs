@@ -230,10 +230,7 @@ pub struct Words {
 impl Words {
     /// No words.
     pub const fn new() -> Self {
-        Words {
-            present: 0,
-            values: [0.0; Word::COUNT],
-        }
+        Words { present: 0, values: [0.0; Word::COUNT] }
     }
 
     /// The value of word `w`, if present. Always inlined: the callers name
@@ -335,9 +332,7 @@ impl Words {
 
     /// The present words and their values, in bit order.
     pub fn iter(&self) -> impl Iterator<Item = (Word, f32)> + '_ {
-        Word::ALL
-            .iter()
-            .filter_map(move |&w| self.get(w).map(|v| (w, v)))
+        Word::ALL.iter().filter_map(move |&w| self.get(w).map(|v| (w, v)))
     }
 }
 
@@ -501,8 +496,7 @@ pub enum Spindle {
 /// M codes outside the stopping, tool-change and spindle groups: at most one
 /// of them per line, in [`Line::other_m`]. Add new ones here.
 pub const OTHER_M_CODES: &[u16] = &[
-    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220,
-    400, 500, 501, 502, 503, 999, 31,
+    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220, 400, 500, 501, 502, 503, 999, 31,
 ];
 
 /// M codes whose argument is the rest of the line (a file name).
@@ -785,11 +779,7 @@ fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseErr
     }
     let (mantissa, scale, len) = lex_plain(s.get(pos..).unwrap_or(&[]));
     if len != 0 {
-        let number = Number {
-            negative,
-            mantissa,
-            scale: scale as u16,
-        };
+        let number = Number { negative, mantissa, scale: scale as u16 };
         return Ok((number, pos + len as usize));
     }
     lex_spaced(s, pos, negative, col)
@@ -995,14 +985,7 @@ fn lex_spaced(s: &[u8], first: usize, negative: bool, col: u8) -> Result<(Number
             scale -= 1;
         }
     }
-    Ok((
-        Number {
-            negative,
-            mantissa,
-            scale,
-        },
-        pos,
-    ))
+    Ok((Number { negative, mantissa, scale }, pos))
 }
 
 /// At a blank inside a number: the index of the digit (or, with `point`,
@@ -1080,9 +1063,7 @@ fn apply_g(line: &mut Line, code_x10: u16, col: u8) -> Result<(), ParseError> {
         900 => set_group(&mut line.distance, Distance::Absolute, col),
         910 => set_group(&mut line.distance, Distance::Incremental, col),
         940 => set_group(&mut line.feed_mode, FeedMode::UnitsPerMinute, col),
-        540 | 550 | 560 | 570 | 580 | 590 => {
-            set_group(&mut line.wcs, ((code_x10 - 540) / 10) as u8, col)
-        }
+        540 | 550 | 560 | 570 | 580 | 590 => set_group(&mut line.wcs, ((code_x10 - 540) / 10) as u8, col),
         430 => set_group(&mut line.tool_length, ToolLength::Apply, col),
         490 => set_group(&mut line.tool_length, ToolLength::Cancel, col),
         40 => set_group(&mut line.non_modal, NonModal::Dwell, col),
@@ -1238,10 +1219,7 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
                         let (n, next) = lex_number(s, pos, col)?;
                         pos = next;
                         let code = n.code_x10();
-                        let code = code.ok_or(ParseError {
-                            kind: ParseErrorKind::UnsupportedCode,
-                            col,
-                        })?;
+                        let code = code.ok_or(ParseError { kind: ParseErrorKind::UnsupportedCode, col })?;
                         apply_g(line, code, col)?;
                     }
                     b'M' => {
@@ -1282,9 +1260,7 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
                         }
                         let (n, next) = lex_number(s, pos, col)?;
                         pos = next;
-                        if w == Word::T
-                            && (n.scale != 0 || (n.negative && n.mantissa != 0) || n.mantissa > 255)
-                        {
+                        if w == Word::T && (n.scale != 0 || (n.negative && n.mantissa != 0) || n.mantissa > 255) {
                             return err(ParseErrorKind::BadToolNumber, col);
                         }
                         if !line.words.insert(w, n.to_f32()) {
@@ -1310,9 +1286,7 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
 fn no_number_follows(s: &[u8], pos: usize) -> bool {
     match s.get(skip_blanks(s, pos)) {
         None | Some(b';' | b'(') => true,
-        Some(&c) => {
-            c.is_ascii_alphabetic() && (matches!(c.to_ascii_uppercase(), b'G' | b'M') || Word::from_letter(c).is_some())
-        }
+        Some(&c) => c.is_ascii_alphabetic() && (matches!(c.to_ascii_uppercase(), b'G' | b'M') || Word::from_letter(c).is_some()),
     }
 }
 
@@ -1443,9 +1417,31 @@ mod tests {
             }
         }
         for t in [
-            &b"19.950"[..], b"-1.257", b"0.000", b"1.0000000000", b"0.0000000001", b"999999.999", b"1000000",
-            b"123456789", b"1234567890", b"12345.6789", b"00000000000001.5", b"1.50000000000000", b"1 6.5",
-            b"1 .5", b"1. 5", b"- 1", b"+.5", b".", b"-", b"", b"1e5", b"1.2.3", b"1-2", b"  7  ", b"007.0700",
+            &b"19.950"[..],
+            b"-1.257",
+            b"0.000",
+            b"1.0000000000",
+            b"0.0000000001",
+            b"999999.999",
+            b"1000000",
+            b"123456789",
+            b"1234567890",
+            b"12345.6789",
+            b"00000000000001.5",
+            b"1.50000000000000",
+            b"1 6.5",
+            b"1 .5",
+            b"1. 5",
+            b"- 1",
+            b"+.5",
+            b".",
+            b"-",
+            b"",
+            b"1e5",
+            b"1.2.3",
+            b"1-2",
+            b"  7  ",
+            b"007.0700",
         ] {
             out.push(t.to_vec());
         }
@@ -1467,7 +1463,13 @@ mod tests {
             for pos in 0..=t.len() {
                 let new = lex_number(&t, pos, 7);
                 let old = reference_lex_number(&t, pos, 7);
-                assert!(same(new, old), "{:?} at {pos}: {:?} vs {:?}", String::from_utf8_lossy(&t), new.map(|(n, i)| (n.mantissa, n.scale, i)), old.map(|(n, i)| (n.mantissa, n.scale, i)));
+                assert!(
+                    same(new, old),
+                    "{:?} at {pos}: {:?} vs {:?}",
+                    String::from_utf8_lossy(&t),
+                    new.map(|(n, i)| (n.mantissa, n.scale, i)),
+                    old.map(|(n, i)| (n.mantissa, n.scale, i))
+                );
                 if lex_plain(t.get(pos..).unwrap_or(&[])).2 != 0 {
                     plain += 1;
                 }
@@ -1485,7 +1487,12 @@ mod tests {
                     continue;
                 }
                 let (n, end) = lex_spaced(&t, first, false, 1).unwrap();
-                assert_eq!((n.mantissa, n.scale, end), (mantissa, scale as u16, first + len as usize), "{:?}", String::from_utf8_lossy(&t[first..]));
+                assert_eq!(
+                    (n.mantissa, n.scale, end),
+                    (mantissa, scale as u16, first + len as usize),
+                    "{:?}",
+                    String::from_utf8_lossy(&t[first..])
+                );
             }
         }
     }
@@ -1536,10 +1543,7 @@ mod tests {
         assert_eq!(ok("G90").distance, Some(Distance::Absolute));
         assert_eq!(ok("G91").distance, Some(Distance::Incremental));
         assert_eq!(ok("G94").feed_mode, Some(FeedMode::UnitsPerMinute));
-        for (i, g) in ["G54", "G55", "G56", "G57", "G58", "G59"]
-            .iter()
-            .enumerate()
-        {
+        for (i, g) in ["G54", "G55", "G56", "G57", "G58", "G59"].iter().enumerate() {
             assert_eq!(ok(g).wcs, Some(i as u8));
         }
         assert_eq!(ok("G43 H3").tool_length, Some(ToolLength::Apply));
@@ -1584,11 +1588,7 @@ mod tests {
         assert!(ok("M6").tool_change);
         assert!(!ok("G0").tool_change);
         for &m in OTHER_M_CODES {
-            let text = if TEXT_ARG_M_CODES.contains(&m) {
-                format!("M{m} A.GCO")
-            } else {
-                format!("M{m}")
-            };
+            let text = if TEXT_ARG_M_CODES.contains(&m) { format!("M{m} A.GCO") } else { format!("M{m}") };
             assert_eq!(ok(&text).other_m, Some(m), "{text}");
         }
     }
@@ -1685,7 +1685,16 @@ mod tests {
 
     #[test]
     fn parameters_and_expressions_are_refused_by_name() {
-        for (l, col) in [("#1=5", 1), ("#<_feed> = 5", 1), ("G1 F#100", 4), ("g0 z#<_safe_Z>", 4), ("G1 X[#1+2]", 4), ("G1 X-#1", 4), ("X [1]", 1), ("[1]", 1)] {
+        for (l, col) in [
+            ("#1=5", 1),
+            ("#<_feed> = 5", 1),
+            ("G1 F#100", 4),
+            ("g0 z#<_safe_Z>", 4),
+            ("G1 X[#1+2]", 4),
+            ("G1 X-#1", 4),
+            ("X [1]", 1),
+            ("[1]", 1),
+        ] {
             assert_eq!(fails(l), (ParseErrorKind::Parameter, col), "{l}");
         }
         assert!(ParseErrorKind::Parameter.message().bytes().map(char::from).collect::<String>().contains("# parameters"));
@@ -1903,16 +1912,8 @@ mod tests {
         assert_eq!(x("X-.25"), -0.25);
         assert_eq!(x("X0"), 0.0);
         assert_eq!(x("X-0").to_bits(), 0.0f32.to_bits(), "no negative zero");
-        assert_eq!(
-            x("X000000000000.5"),
-            0.5,
-            "leading zeros are not significant"
-        );
-        assert_eq!(
-            x("X1.50000000000"),
-            1.5,
-            "trailing zeros are not significant"
-        );
+        assert_eq!(x("X000000000000.5"), 0.5, "leading zeros are not significant");
+        assert_eq!(x("X1.50000000000"), 1.5, "trailing zeros are not significant");
         assert_eq!(x("X0.000000001"), 1e-9);
     }
 
@@ -1936,9 +1937,7 @@ mod tests {
 
     #[test]
     fn malformed_numbers_are_bad_numbers_at_the_word() {
-        for s in [
-            "X", "X-", "X.", "X+.", "X-.", "X+", "X1.2.3", "X1-2", "X1+", "X--1", "X+-1",
-        ] {
+        for s in ["X", "X-", "X.", "X+.", "X-.", "X+", "X1.2.3", "X1-2", "X1+", "X--1", "X+-1"] {
             assert_eq!(fails(s), (ParseErrorKind::BadNumber, 1), "{s}");
         }
         assert_eq!(fails("G1 Y2 X"), (ParseErrorKind::BadNumber, 7));
@@ -1977,12 +1976,17 @@ mod tests {
     fn numbers_too_big_are_out_of_range_and_long_ones_are_rounded() {
         assert_eq!(fails("X1000000"), (ParseErrorKind::NumberOutOfRange, 1));
         assert_eq!(fails("X-1000000.0"), (ParseErrorKind::NumberOutOfRange, 1));
-        assert_eq!(
-            fails("G1 F99999999999999999999999"),
-            (ParseErrorKind::NumberOutOfRange, 4)
-        );
+        assert_eq!(fails("G1 F99999999999999999999999"), (ParseErrorKind::NumberOutOfRange, 4));
         // Any number of digits: the nearest f32 of the number as written.
-        for t in ["24.985715729", "1.23456789012", "1.234567891", "-0.33333333333333333333", "7.99999999999", "0.0000000001234567891", "123456.78901234"] {
+        for t in [
+            "24.985715729",
+            "1.23456789012",
+            "1.234567891",
+            "-0.33333333333333333333",
+            "7.99999999999",
+            "0.0000000001234567891",
+            "123456.78901234",
+        ] {
             let v = x(&format!("X{t}"));
             let nearest: f32 = t.parse().unwrap();
             assert!((v - nearest).abs() <= nearest.abs() * 2.4e-7, "{t}: {v} vs {nearest}");
@@ -1992,11 +1996,7 @@ mod tests {
         assert_eq!(x("X999999.99999"), 1_000_000.0);
         assert_eq!(ok("G1.00000000001").motion, Some(Motion::Linear));
         assert_eq!(ok("T2.0000000000").tool(), Some(2));
-        assert_eq!(
-            x("X999999.999"),
-            1_000_000.0,
-            "9 digits round to the nearest f32"
-        );
+        assert_eq!(x("X999999.999"), 1_000_000.0, "9 digits round to the nearest f32");
         // Beyond 7 digits the mantissa itself rounds: within one ulp.
         let v = x("X-123.456789");
         let nearest: f32 = "-123.456789".parse().unwrap();
@@ -2035,10 +2035,7 @@ mod tests {
         assert_eq!(l.text(src), Some(&b"job.nc"[..]));
         assert_eq!(ok("M30").text_arg, None);
         assert_eq!(fails("M23"), (ParseErrorKind::MissingFileName, 1));
-        assert_eq!(
-            fails("G4 P1 M28   ; nothing"),
-            (ParseErrorKind::MissingFileName, 7)
-        );
+        assert_eq!(fails("G4 P1 M28   ; nothing"), (ParseErrorKind::MissingFileName, 7));
     }
 
     #[test]
@@ -2173,17 +2170,11 @@ mod tests {
         let mut rng = XorShift(0xdead_beef);
         for _ in 0..50_000 {
             let len = (rng.next() % 40) as usize;
-            let s: Vec<u8> = (0..len)
-                .map(|_| alphabet[rng.next() as usize % alphabet.len()])
-                .collect();
+            let s: Vec<u8> = (0..len).map(|_| alphabet[rng.next() as usize % alphabet.len()]).collect();
             match parse(&s) {
                 Ok(l) => {
                     for (_, v) in l.words.iter() {
-                        assert!(
-                            v.is_finite() && v.abs() <= 1e6,
-                            "{:?}",
-                            String::from_utf8_lossy(&s)
-                        );
+                        assert!(v.is_finite() && v.abs() <= 1e6, "{:?}", String::from_utf8_lossy(&s));
                     }
                 }
                 Err(e) => assert!(e.col >= 1 && e.col as usize <= s.len().max(1)),

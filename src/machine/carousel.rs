@@ -16,11 +16,11 @@
 //! slow approach. The carousel stays there (0°).
 
 use super::{Alarm, CmdResult, Io, Machine, State};
-use crate::planner::Speed;
+use crate::axis;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
 use crate::math::round_i32;
-use crate::axis;
+use crate::planner::Speed;
 use ufmt::uwriteln;
 
 /// Bit of the carousel in `Machine::homed`.

@@ -169,4 +169,3 @@ impl<W: Io> DynOut for Dyn<'_, W> {
         uwrite!(self.0, "{}", v).ok();
     }
 }
-

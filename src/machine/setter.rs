@@ -8,12 +8,12 @@
 //! - calibration: `[SETTER Z:<beam tip height, machine mm, +Z up> W:<beam width mm>]`.
 
 use super::{Alarm, Io, Machine, State};
-use crate::planner::Speed;
 use crate::atc::tools::EEPROM_SETTER_ADDR;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
-use crate::toolsetter::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent};
 use crate::math::round_i32;
+use crate::planner::Speed;
+use crate::toolsetter::{Action, Event, Fault, Measure, Mode, Outcome, Request, Seek, SeekAction, SeekEvent};
 use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
 
@@ -125,7 +125,15 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
                 m.atc.table.length_um[i] = s.ref_length_um;
                 m.atc.table.diameter_um[i] = s.ref_diameter_um.clamp(0, u16::MAX as i32) as u16;
             }
-            uwriteln!(io, "{}{}{}{}]", F!("[SETTER Z:"), Micros(crate::frame::z_user_from_internal_i32(s.beam_z_um)), F!(" W:"), Micros(s.beam_width_um)).ok();
+            uwriteln!(
+                io,
+                "{}{}{}{}]",
+                F!("[SETTER Z:"),
+                Micros(crate::frame::z_user_from_internal_i32(s.beam_z_um)),
+                F!(" W:"),
+                Micros(s.beam_width_um)
+            )
+            .ok();
         }
     }
     super::toolchange::store_table(m, io, &before);

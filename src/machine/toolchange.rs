@@ -19,15 +19,15 @@
 //!   loaded or took out a tool by hand).
 
 use super::{carousel, Io, Machine, State};
-use crate::planner::Speed;
 use crate::atc::change::{Action, Change, Event, Request};
 use crate::atc::tools::{
-    pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_SETTER_ADDR, EEPROM_STATE_ADDR,
-    EEPROM_NUMBERS_ADDR, EEPROM_TABLE_ADDR,
+    pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_NUMBERS_ADDR, EEPROM_SETTER_ADDR, EEPROM_STATE_ADDR,
+    EEPROM_TABLE_ADDR,
 };
 use crate::atc::{tool_length_offset_mm, Fault};
 use crate::gcode::interp::Error;
 use crate::math::round_i32;
+use crate::planner::Speed;
 use crate::toolsetter::Setter;
 use ufmt::{uwrite, uwriteln};
 

@@ -642,13 +642,9 @@ mod tests {
         assert_eq!(Arc::new([f32::NAN, 0.0, 0.0], x10, Centre::Radius(6.0), G17, true, TOL).unwrap_err(), ArcError::NotFinite);
         assert_eq!(Arc::new(o, x10, Centre::Radius(f32::INFINITY), G17, true, TOL).unwrap_err(), ArcError::NotFinite);
         assert_eq!(Arc::new(o, x10, Centre::Radius(6.0), G17, true, 0.0).unwrap_err(), ArcError::NotFinite);
-        for e in [
-            ArcError::RadiusTooSmall,
-            ArcError::RadiusMismatch,
-            ArcError::ZeroRadius,
-            ArcError::FullCircleWithRadius,
-            ArcError::NotFinite,
-        ] {
+        for e in
+            [ArcError::RadiusTooSmall, ArcError::RadiusMismatch, ArcError::ZeroRadius, ArcError::FullCircleWithRadius, ArcError::NotFinite]
+        {
             assert!(e.message().starts_with("arc: "));
         }
     }

@@ -267,8 +267,8 @@ impl AxisCache {
             }
         }
         self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
-        self.xyz_same_steps = s.steps_per_mm[1].to_bits() == s.steps_per_mm[0].to_bits()
-            && s.steps_per_mm[2].to_bits() == s.steps_per_mm[0].to_bits();
+        self.xyz_same_steps =
+            s.steps_per_mm[1].to_bits() == s.steps_per_mm[0].to_bits() && s.steps_per_mm[2].to_bits() == s.steps_per_mm[0].to_bits();
         self.uniform = 0;
         for i in 0..N_AXES {
             if self.inv_accel[i].to_bits() == self.inv_accel[0].to_bits()
@@ -540,13 +540,7 @@ impl Planner {
     /// Queue a straight move to `target` (absolute steps, X Y Z E) at
     /// `feed_mm_per_min` (mm/min along the path, ignored when `rapid`: then each
     /// axis may run at its max feed). Zero-length moves queue nothing.
-    pub fn push_line(
-        &mut self,
-        target: [i32; N_AXES],
-        feed_mm_per_min: f32,
-        rapid: bool,
-        s: &Settings,
-    ) -> Result<Push, PlanError> {
+    pub fn push_line(&mut self, target: [i32; N_AXES], feed_mm_per_min: f32, rapid: bool, s: &Settings) -> Result<Push, PlanError> {
         self.push(target, if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) }, s, false)
     }
 
@@ -941,7 +935,8 @@ impl Planner {
             0.0
         } else {
             let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
-            let junction_sqr = junction_sqr(same_dir, &prev_unit, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
+            let junction_sqr =
+                junction_sqr(same_dir, &prev_unit, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
             min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
         };
         b.millimeters = mm;

@@ -308,12 +308,7 @@ impl Prep {
     }
 
     /// Fill a segment queue: call [`Prep::next_segment`] while `q` has room.
-    pub fn fill<const N: usize>(
-        &mut self,
-        pl: &mut Planner,
-        s: &Settings,
-        q: &mut heapless::spsc::Producer<'_, StepperCmd, N>,
-    ) {
+    pub fn fill<const N: usize>(&mut self, pl: &mut Planner, s: &Settings, q: &mut heapless::spsc::Producer<'_, StepperCmd, N>) {
         while q.ready() {
             match self.next_segment(pl, s) {
                 Some(c) => {
@@ -628,8 +623,7 @@ impl Prep {
                     if mm_remaining < self.accelerate_until {
                         mm_remaining = self.accelerate_until;
                         time_var = 2.0 * (mm_start - mm_remaining) / (self.current_speed + self.maximum_speed);
-                        self.ramp =
-                            if mm_remaining == self.decelerate_after { Ramp::Decel } else { Ramp::Cruise };
+                        self.ramp = if mm_remaining == self.decelerate_after { Ramp::Decel } else { Ramp::Cruise };
                         self.current_speed = self.maximum_speed;
                     } else {
                         self.current_speed += speed_var;
@@ -673,9 +667,7 @@ impl Prep {
             dt += time_var;
             if dt < dt_max {
                 time_var = dt_max - dt;
-            } else if mm_remaining > 0.0
-                && (mm_segment_start - mm_remaining) * self.step_per_mm < REQ_STEPS_PER_SEGMENT
-            {
+            } else if mm_remaining > 0.0 && (mm_segment_start - mm_remaining) * self.step_per_mm < REQ_STEPS_PER_SEGMENT {
                 // Too slow for a step yet: stretch the segment.
                 dt_max += SEGMENT_TIME_S;
                 time_var = dt_max - dt;

@@ -160,11 +160,7 @@ impl Machine {
                     }
                 }
                 let dt = seg.duration_s() as f64;
-                self.ran.push(Ran {
-                    seg,
-                    speed: seg.rate_hz() * self.mm_per_event,
-                    dt,
-                });
+                self.ran.push(Ran { seg, speed: seg.rate_hz() * self.mm_per_event, dt });
                 self.time += dt;
             }
         }
@@ -548,11 +544,7 @@ fn reset_forgets_the_block_in_progress() {
 fn backlash_take_up_moves_the_motor_but_not_the_counted_position() {
     let mut s = Settings::DEFAULT;
     s.backlash_mm = [0.05, 0.0, 0.0];
-    let moves = [
-        ([100, 100, 0, 0], 1200.0, false),
-        ([0, 0, 0, 0], 1200.0, false),
-        ([50, 0, 0, 0], 1200.0, false),
-    ];
+    let moves = [([100, 100, 0, 0], 1200.0, false), ([0, 0, 0, 0], 1200.0, false), ([50, 0, 0, 0], 1200.0, false)];
     let (m, pl) = run_moves(&s, &moves);
     // X reversed twice: −5 then +5 take-up steps; Y has no backlash.
     assert_eq!(m.blocks, 5);

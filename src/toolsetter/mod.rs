@@ -95,14 +95,8 @@ impl Setter {
     /// `beam_z_um` before any calibration.
     pub const UNCALIBRATED: i32 = i32::MIN;
     /// Defaults: setter at X 5, Y 10, not calibrated.
-    pub const DEFAULT: Setter = Setter {
-        x_um: 5_000,
-        y_um: 10_000,
-        beam_z_um: Setter::UNCALIBRATED,
-        beam_width_um: 0,
-        ref_length_um: 0,
-        ref_diameter_um: 0,
-    };
+    pub const DEFAULT: Setter =
+        Setter { x_um: 5_000, y_um: 10_000, beam_z_um: Setter::UNCALIBRATED, beam_width_um: 0, ref_length_um: 0, ref_diameter_um: 0 };
     /// Image: version, 6 × i32, checksum.
     pub const IMAGE_LEN: usize = 1 + 6 * 4 + 1;
 
@@ -128,14 +122,7 @@ impl Setter {
             return None;
         }
         let f = |i: usize| i32::from_le_bytes([img[1 + 4 * i], img[2 + 4 * i], img[3 + 4 * i], img[4 + 4 * i]]);
-        Some(Setter {
-            x_um: f(0),
-            y_um: f(1),
-            beam_z_um: f(2),
-            beam_width_um: f(3),
-            ref_length_um: f(4),
-            ref_diameter_um: f(5),
-        })
+        Some(Setter { x_um: f(0), y_um: f(1), beam_z_um: f(2), beam_width_um: f(3), ref_length_um: f(4), ref_diameter_um: f(5) })
     }
 }
 

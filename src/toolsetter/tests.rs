@@ -3,15 +3,7 @@
 use super::*;
 
 fn req(mode: Mode, setter: Setter) -> Request {
-    Request {
-        mode,
-        setter,
-        tool: 2,
-        stored_length_um: 20_000,
-        homed: true,
-        travel_mm: [45.0; 3],
-        steps_per_mm: [100.0; 3],
-    }
+    Request { mode, setter, tool: 2, stored_length_um: 20_000, homed: true, travel_mm: [45.0; 3], steps_per_mm: [100.0; 3] }
 }
 
 fn calibrated() -> Setter {

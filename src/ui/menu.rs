@@ -442,7 +442,10 @@ pub enum Cmd {
     /// Optional stop (M1 pauses) on or off.
     OptionalStop(bool),
     /// Move `axis` by `delta_um` micrometres.
-    Jog { axis: u8, delta_um: i32 },
+    Jog {
+        axis: u8,
+        delta_um: i32,
+    },
     /// Home the axes of the mask (bit 0 X, 1 Y, 2 Z).
     Home(u8),
     /// Run a Tools command; the firmware puts its outcome in [`Ui::reply`].
@@ -575,7 +578,17 @@ const TOOL_ENTRIES: u8 = N_POCKETS as u8 + 2;
 
 impl Ui {
     pub const fn new() -> Ui {
-        Ui { screen: Screen::Status, sel: 0, top: 0, jog_axis: 0, jog_step: 1, override_pct: 100, reply: Reply::Ok, edit_um: 0, edit_step: 3 }
+        Ui {
+            screen: Screen::Status,
+            sel: 0,
+            top: 0,
+            jog_axis: 0,
+            jog_step: 1,
+            override_pct: 100,
+            reply: Reply::Ok,
+            edit_um: 0,
+            edit_step: 3,
+        }
     }
 
     fn go(&mut self, s: Screen) {
@@ -1197,11 +1210,7 @@ impl Ui {
             Act::JogStep => {
                 let um = JOG_STEPS_UM[self.jog_step as usize % 3];
                 let c = c + 1;
-                let c = if um < 1000 {
-                    l.put(c, b"0.1")
-                } else {
-                    l.uint(c, (um / 1000) as u32)
-                };
+                let c = if um < 1000 { l.put(c, b"0.1") } else { l.uint(c, (um / 1000) as u32) };
                 l.text(c, Text::Mm);
             }
             _ => {}
@@ -1573,7 +1582,13 @@ fn number_text(t: u8, end: usize, l: &mut Line) {
     if t == 0 {
         l.text(end - 4, Text::NoNumber);
     } else {
-        let w = if t >= 100 { 4 } else if t >= 10 { 3 } else { 2 };
+        let w = if t >= 100 {
+            4
+        } else if t >= 10 {
+            3
+        } else {
+            2
+        };
         let c = l.put(end - w, b"T");
         l.uint(c, t as u32);
     }

@@ -45,9 +45,7 @@ impl Name {
             Some(i) => (&s[..i], &s[i + 1..]),
             None => (s, &s[s.len()..]),
         };
-        let ok = |p: &[u8], max: usize| {
-            p.len() <= max && p.iter().all(|&b| b.is_ascii_alphanumeric() || b"_-~!#$%&'()@^{}".contains(&b))
-        };
+        let ok = |p: &[u8], max: usize| p.len() <= max && p.iter().all(|&b| b.is_ascii_alphanumeric() || b"_-~!#$%&'()@^{}".contains(&b));
         if base.is_empty() || !ok(base, 8) || !ok(ext, 3) {
             return None;
         }
@@ -597,14 +595,7 @@ impl SdJob {
 
 /// Run one SD command (M20–M29, M524) from the serial line. `arg` is the
 /// text after the code (file name, or `S<pos>` for M26).
-pub fn command(
-    job: &mut SdJob,
-    card: &mut impl Card,
-    m: &mut Machine,
-    out: &mut impl uWrite,
-    code: u16,
-    arg: &[u8],
-) -> Result<(), Text> {
+pub fn command(job: &mut SdJob, card: &mut impl Card, m: &mut Machine, out: &mut impl uWrite, code: u16, arg: &[u8]) -> Result<(), Text> {
     command_with(job, card, SdJobFlags { sd_job: &mut m.sd_job, aborts: m.aborts }, out, code, arg)
 }
 

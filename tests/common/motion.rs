@@ -107,13 +107,7 @@ pub fn check_polyline(vm: &Vm, corners: &[[i64; 3]], max_dev: f64) -> f64 {
     for (i, p) in path.iter().enumerate() {
         let q = xyz(p);
         let d = dist_to_segment(q, c[seg], c[seg + 1]);
-        assert!(
-            d <= max_dev,
-            "step {i} at {:?} is {d:.3} steps off the segment {:?} -> {:?}",
-            p.position,
-            corners[seg],
-            corners[seg + 1]
-        );
+        assert!(d <= max_dev, "step {i} at {:?} is {d:.3} steps off the segment {:?} -> {:?}", p.position, corners[seg], corners[seg + 1]);
         worst = worst.max(d);
         // Reached this segment's end: the next steps belong to the next one.
         while seg + 2 < c.len() && q == c[seg + 1] {
@@ -257,12 +251,7 @@ pub fn m114_counts(vm: &mut Vm) -> [i64; 3] {
     let l = r.iter().find(|l| l.contains("Count")).unwrap_or_else(|| panic!("{r:?}"));
     let count = l.split("Count").nth(1).unwrap();
     let get = |axis: &str| -> i64 {
-        count
-            .split_whitespace()
-            .find_map(|w| w.strip_prefix(axis))
-            .unwrap_or_else(|| panic!("{l}"))
-            .parse()
-            .unwrap()
+        count.split_whitespace().find_map(|w| w.strip_prefix(axis)).unwrap_or_else(|| panic!("{l}")).parse().unwrap()
     };
     [get("X:"), get("Y:"), get("Z:")]
 }
@@ -273,11 +262,7 @@ pub fn m114_work(vm: &mut Vm) -> [f64; 3] {
     let l = r.iter().find(|l| l.contains("Count")).unwrap_or_else(|| panic!("{r:?}"));
     let head = l.split("Count").next().unwrap();
     let get = |axis: &str| -> f64 {
-        head.split_whitespace()
-            .find_map(|w| w.strip_prefix(axis))
-            .unwrap_or_else(|| panic!("{l}"))
-            .parse()
-            .unwrap()
+        head.split_whitespace().find_map(|w| w.strip_prefix(axis)).unwrap_or_else(|| panic!("{l}")).parse().unwrap()
     };
     [get("X:"), get("Y:"), get("Z:")]
 }

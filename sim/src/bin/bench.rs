@@ -171,9 +171,9 @@ impl Bench {
     fn single_axis(&mut self) -> Result<(), String> {
         let mut vm = self.boot()?;
         self.cmd(&mut vm, "M92 X1000")?;
-        self.cmd(&mut vm, "M203 X2000")?; // mm/s
-        // 2000 mm/s² = 2·10⁶ steps/s²: 30 ms ramps cut into 5 ms segments,
-        // so prep works while the ISR runs at full rate.
+        // M203 in mm/s. 2000 mm/s² = 2·10⁶ steps/s²: 30 ms ramps cut into
+        // 5 ms segments, so prep works while the ISR runs at full rate.
+        self.cmd(&mut vm, "M203 X2000")?;
         self.cmd(&mut vm, "M201 X2000")?;
         vm.recorder_mut().clear_trace();
         let under0 = read_u16(&vm, "MILL_STEP_UNDERRUNS");
@@ -530,7 +530,11 @@ fn main() -> ExitCode {
     );
     for st in &r.streams {
         row(
-            &if st.flow == "from SD" { "the same 0.1 mm job from SD".to_string() } else { format!("0.1 mm G1 stream, F{}, 250000 bd, {}", b.feed, st.flow) },
+            &if st.flow == "from SD" {
+                "the same 0.1 mm job from SD".to_string()
+            } else {
+                format!("0.1 mm G1 stream, F{}, 250000 bd, {}", b.feed, st.flow)
+            },
             &format!(">= {:.0}/s sustained (F held)", b.feed / 6.0),
             format!(
                 "{:.1}/s mid-job (F{} gives {:.1} on the step path), {:.0}/s whole job",

@@ -129,7 +129,11 @@ fn main() {
     };
     let word = |a: u32| -> u16 {
         let a = a as usize;
-        if a + 1 < flash.len() { u16::from_le_bytes([flash[a], flash[a + 1]]) } else { 0 }
+        if a + 1 < flash.len() {
+            u16::from_le_bytes([flash[a], flash[a + 1]])
+        } else {
+            0
+        }
     };
     let after_call = |ret: u32| -> bool {
         if ret < 4 {
@@ -141,7 +145,11 @@ fn main() {
     };
     let lookup = |pc: u32| -> Option<usize> {
         let k = syms.partition_point(|s| s.0 <= pc);
-        if k > 0 && pc < syms[k - 1].0 + syms[k - 1].1 { Some(k - 1) } else { None }
+        if k > 0 && pc < syms[k - 1].0 + syms[k - 1].1 {
+            Some(k - 1)
+        } else {
+            None
+        }
     };
     let starts: HashMap<u32, usize> = syms.iter().enumerate().map(|(i, s)| (s.0, i)).collect();
     // From SD: the first lines (setup) over serial, the rest as a file.
@@ -193,11 +201,8 @@ fn main() {
             next += 1;
         }
         if let Some((from, n)) = trace {
-            let in_window = if sd {
-                vm.cycles() >= sd_start_cycles + from as u64 * 16_000 && blocks < n
-            } else {
-                oks >= from && oks < from + n
-            };
+            let in_window =
+                if sd { vm.cycles() >= sd_start_cycles + from as u64 * 16_000 && blocks < n } else { oks >= from && oks < from + n };
             if in_window {
                 let c0 = vm.cycles();
                 vm.run_cycles(1).expect("run");
@@ -234,10 +239,28 @@ fn main() {
                     }
                     // Who calls the copy/fill/float routines, and how much.
                     let name = &syms[k].2;
-                    if matches!(name.as_str(), "memcpy" | "memset" | "__divsf3" | "__mulsf3" | "sqrt" | "__udivmodsi4" | "__mulsi3" | "__floatsisf" | "__floatunsisf" | "__fixsfsi" | "__fixunssfsi" | "__addsf3" | "__subsf3") {
+                    if matches!(
+                        name.as_str(),
+                        "memcpy"
+                            | "memset"
+                            | "__divsf3"
+                            | "__mulsf3"
+                            | "sqrt"
+                            | "__udivmodsi4"
+                            | "__mulsi3"
+                            | "__floatsisf"
+                            | "__floatunsisf"
+                            | "__fixsfsi"
+                            | "__fixunssfsi"
+                            | "__addsf3"
+                            | "__subsf3"
+                    ) {
                         let b = vm.read_ram((sp + 1) as u16, 3);
                         let ret = (((b[0] as u32) << 16) | ((b[1] as u32) << 8) | b[2] as u32) * 2;
-                        let caller = match lookup(ret) { Some(j) => syms[j].2.clone(), None => format!("?{ret:#x}") };
+                        let caller = match lookup(ret) {
+                            Some(j) => syms[j].2.clone(),
+                            None => format!("?{ret:#x}"),
+                        };
                         let n = vm.read_u16(20) as u64; // r21:r20 = length for memcpy/memset
                         let e = callers.entry(format!("{name} <- {caller}")).or_insert((0u64, 0u64));
                         e.0 += 1;
@@ -255,7 +278,10 @@ fn main() {
         }
         vm.run_cycles(every).expect("run");
         let pc = vm.pc();
-        let name = match lookup(pc) { Some(k) => syms[k].2.clone(), None => format!("?{pc:#x}") };
+        let name = match lookup(pc) {
+            Some(k) => syms[k].2.clone(),
+            None => format!("?{pc:#x}"),
+        };
         *hits.entry(name.clone()).or_default() += 1;
         total += 1;
         // Inclusive: every function with a return address on the stack.
@@ -291,7 +317,12 @@ fn main() {
     if let Some((from, n)) = trace {
         let mut v: Vec<_> = tincl.into_iter().collect();
         v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
-        println!("-- exact inclusive cycles, lines {from}..{} ({} cycles traced, {} per line) --", from + n, traced_cycles, traced_cycles / n as u64);
+        println!(
+            "-- exact inclusive cycles, lines {from}..{} ({} cycles traced, {} per line) --",
+            from + n,
+            traced_cycles,
+            traced_cycles / n as u64
+        );
         println!("{:>12} {:>8} {:>10} {:>8}  function", "cycles/line", "calls", "per call", "%");
         for (k, (c, calls)) in v.iter().take(60) {
             println!(
@@ -308,7 +339,10 @@ fn main() {
         println!("-- exact self cycles (instructions run in the function itself) --");
         println!("{:>12} {:>8}  function", "cycles/line", "%");
         for (k, c) in v.iter().take(70) {
-            let name = match k { Some(k) => syms[*k].2.clone(), None => "?".to_string() };
+            let name = match k {
+                Some(k) => syms[*k].2.clone(),
+                None => "?".to_string(),
+            };
             println!("{:>12} {:>7.1}%  {}", c / n as u64, 100.0 * *c as f64 / traced_cycles as f64, name);
         }
         if hist_name.is_some() {

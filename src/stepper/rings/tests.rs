@@ -4,8 +4,8 @@
 //! event with `Chunk::tick_out`, the twin of the ISR's assembly), counting
 //! the position it puts on the pins.
 
-use super::*;
 use super::host;
+use super::*;
 use crate::stepper::queue::tccr1b;
 use crate::stepper::{Prescale, Segment, StBlock};
 use crate::test_util::XorShift;
@@ -176,8 +176,7 @@ fn finished_chunks_are_retired_only_when_the_chunk_ring_runs_short() {
     let mut r = Rings::new();
     let mut bd = Board::new();
     let one = |r: &mut Rings, bd: &mut Board| {
-        r.push(&StepperCmd::Block(block([3, 1, 0, 0], 0, false)), &MAP, &mut bd.mem)
-            && r.push(&run(3, 400), &MAP, &mut bd.mem)
+        r.push(&StepperCmd::Block(block([3, 1, 0, 0], 0, false)), &MAP, &mut bd.mem) && r.push(&run(3, 400), &MAP, &mut bd.mem)
     };
     for _ in 0..3 {
         assert!(one(&mut r, &mut bd));
