@@ -224,7 +224,7 @@ fn homing_from_a_closed_switch_moves_off_it_first() {
 }
 
 /// A switch that never closes (its cable cut): the seek goes the travel
-/// + 10 % (49.5 mm), then `ALARM:homing failed`; the axes after it never
+/// plus 10 % (49.5 mm), then `ALARM:homing failed`; the axes after it never
 /// move, the spindle is off, the machine is in alarm and refuses motion.
 ///
 /// Checked to fail: with `home_fail` in `home_axes` replaced by a plain

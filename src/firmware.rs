@@ -168,7 +168,7 @@ impl Card for Storage {
         // find_directory_entry found (measured in simavr; not chased further).
         let r = embedded_sdmmc::ShortFileName::create_from_str(name.as_str())
             .map_err(embedded_sdmmc::Error::FilenameError)
-            .and_then(|sfn| self.vm.open_file_in_dir(dir, &sfn, mode));
+            .and_then(|sfn| self.vm.open_file_in_dir(dir, sfn, mode));
         let _ = self.vm.close_dir(dir);
         let f = r.map_err(map_err)?;
         self.file = Some(f);

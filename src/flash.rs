@@ -59,6 +59,7 @@ pub struct FStr {
 
 // SAFETY: an FStr only ever points at immutable statics.
 unsafe impl Sync for FStr {}
+// SAFETY: as above.
 unsafe impl Send for FStr {}
 
 impl FStr {

@@ -364,6 +364,12 @@ pub struct Machine {
     line_aborts: u8,
 }
 
+impl Default for Machine {
+    fn default() -> Self {
+        Machine::new()
+    }
+}
+
 impl Machine {
     /// A machine with default settings (the EEPROM is read in [`Machine::boot`]).
     pub const fn new() -> Machine {
@@ -668,7 +674,7 @@ impl Machine {
                 uwrite!(io, "{}", t).ok();
             }
             interp::Error::StationOutside { setting, axis } => {
-                let name = [b'X', b'Y', b'Z'][axis as usize] as char;
+                let name = b"XYZ"[axis as usize] as char;
                 uwrite!(io, "${}{}{}", setting, F!(" (tool change station) outside the "), name).ok();
                 uwrite!(io, "{}{}{}", F!(" travel 0..$13"), axis, F!(", nothing changed")).ok();
             }

@@ -1131,7 +1131,7 @@ mod tests {
             if t0.at_line_start() {
                 assert_eq!(state, RxText::LINE_START);
             }
-            for b in [b'\n', b'\r'] {
+            for b in *b"\n\r" {
                 let mut t = t0;
                 assert!(!t.classify(b));
                 assert_eq!(t.state, RxText::LINE_START, "state {state:#x}");
@@ -1581,7 +1581,7 @@ mod tests {
         let (mut same, mut last_req) = (0, i32::MIN);
         for _ in 0..100_000 {
             let n = c.resend_line();
-            let line = if rng.next() % 3 == 0 { numbered(n, "G0") } else { b"N1 G0*0".to_vec() };
+            let line = if rng.next().is_multiple_of(3) { numbered(n, "G0") } else { b"N1 G0*0".to_vec() };
             match c.check(&line) {
                 Ok(_) => same = 0,
                 Err(ProtoError::LineNumber) => {}
@@ -1842,13 +1842,11 @@ mod tests {
         }
         // Every intact line is one the host sent, in order, unchanged.
         let mut expect = 0;
-        for g in &got {
-            if let Ok(l) = g {
-                let n: usize = l[1..l.find(' ').unwrap()].parse().unwrap();
-                assert!(n >= expect, "{l} out of order");
-                assert_eq!(*l, format!("N{n} G4 P{n}"));
-                expect = n + 1;
-            }
+        for l in got.iter().flatten() {
+            let n: usize = l[1..l.find(' ').unwrap()].parse().unwrap();
+            assert!(n >= expect, "{l} out of order");
+            assert_eq!(*l, format!("N{n} G4 P{n}"));
+            expect = n + 1;
         }
         assert!(intact > 2000 && overruns >= 10, "{intact} intact, {overruns} overruns");
         // Each loss costs at most the one line it hit.

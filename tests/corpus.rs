@@ -212,7 +212,7 @@ fn read_reference(path: &std::path::Path) -> RefPath {
     r.jump.push(false);
     r.z_stale.push(false);
     let mut cur = 0usize;
-    for l in std::fs::read_to_string(&path).unwrap().lines() {
+    for l in std::fs::read_to_string(path).unwrap().lines() {
         let mut w = l.split_whitespace();
         match w.next() {
             Some("L") => cur = w.next().unwrap().parse().unwrap(),

@@ -49,7 +49,7 @@ fn binary_garbage_inside_job_lines_and_over_long_lines_between_them_change_nothi
         let y = 5 + (i * 11) % 35;
         let line = format!("G1 X{x} Y{y}");
         injected += 1;
-        if rng.next() % 2 == 0 {
+        if rng.next().is_multiple_of(2) {
             // Binary garbage (bytes 0x80-0xFF, never printable text, which
             // could spell a valid command) inside the job line: the RX
             // interrupt takes every such byte out of the stream (grbl's

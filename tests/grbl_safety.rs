@@ -212,7 +212,7 @@ fn random_realtime_bytes_never_change_which_lines_run() {
     let mut held = false;
     for (i, l) in lines.iter().enumerate() {
         for &b in l.as_bytes().iter().chain(b"\n") {
-            if rng.next() % 8 == 0 {
+            if rng.next().is_multiple_of(8) {
                 let k = match rng.next() % 6 {
                     0 => b'?',
                     1 => b'!',

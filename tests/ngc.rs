@@ -60,7 +60,7 @@ fn full_circles_in_every_plane_and_direction_from_off_grid_starts() {
         }
         run(&mut vm, &format!("{code} G0 X{:.6} Y{:.6} Z{:.6}", s[0], s[1], s[2]));
         mark(&mut vm);
-        let mut line = format!("{}", if cw { "G2" } else { "G3" });
+        let mut line = (if cw { "G2" } else { "G3" }).to_string();
         for a in 0..3 {
             line += &format!(" {}{:.6}", letters[a], e[a]);
         }

@@ -245,7 +245,7 @@ fn a_running_job_shows_its_values_and_the_button_resumes_it_from_m0() {
     vm.run_for(1.5).unwrap();
     settle(&mut vm);
     let s = screen(&vm);
-    let pct = 100 * PAUSING.find("M0").unwrap() / PAUSING.len() + 0;
+    let pct = 100 * PAUSING.find("M0").unwrap() / PAUSING.len();
     assert_eq!(s[0], "[ Hold            T0]", "{s:?}");
     assert_eq!(s[1..4], ["X     12.500 mm", "Y      7.250 mm", "Z     -3.000 mm"], "{s:?}");
     assert_eq!(s[4], "F   300 mm/min   100%");
@@ -617,7 +617,7 @@ fn the_status_screen_refreshes_at_least_four_times_a_second_during_a_job() {
     let mut starts: Vec<u64> = Vec::new();
     let mut last: Option<u64> = None;
     for &(cycle, page, col) in log {
-        if page == 1 && col == 2 && last.map_or(true, |l| cycle - l > 16_000) {
+        if page == 1 && col == 2 && last.is_none_or(|l| cycle - l > 16_000) {
             starts.push(cycle);
             last = Some(cycle);
         }

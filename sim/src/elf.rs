@@ -51,7 +51,7 @@ impl ElfSymbols {
                 continue;
             }
             let v = s.address();
-            let (space, addr) = if v >= EEPROM_OFFSET && v < EEPROM_OFFSET + 0x1_0000 {
+            let (space, addr) = if (EEPROM_OFFSET..EEPROM_OFFSET + 0x1_0000).contains(&v) {
                 (Space::Eeprom, v - EEPROM_OFFSET)
             } else if (DATA_OFFSET..EEPROM_OFFSET).contains(&v) {
                 (Space::Ram, v - DATA_OFFSET)

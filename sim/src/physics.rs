@@ -259,7 +259,7 @@ impl ToolSetter {
             ToolSetter::Never => false,
             ToolSetter::Scripted(b) => *b,
             ToolSetter::Beam { z_trip_steps, x_window, y_window } => {
-                let inside = |w: &Option<(i64, i64)>, v: i64| w.map_or(true, |(lo, hi)| v >= lo && v <= hi);
+                let inside = |w: &Option<(i64, i64)>, v: i64| w.is_none_or(|(lo, hi)| v >= lo && v <= hi);
                 pos[2] >= *z_trip_steps && inside(x_window, pos[0]) && inside(y_window, pos[1])
             }
             ToolSetter::Optical(b) => b.broken(pos, None),

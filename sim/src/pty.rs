@@ -259,7 +259,7 @@ impl PtyBridge {
                 continue;
             }
             for &b in &buf[..n as usize] {
-                self.from_sender(vm, b);
+                self.take_from_sender(vm, b);
             }
         }
         self.feed(vm);
@@ -353,7 +353,7 @@ impl PtyBridge {
     }
 
     /// One byte from the sender (see the module doc for what passes ahead).
-    fn from_sender(&mut self, vm: &mut Vm, b: u8) {
+    fn take_from_sender(&mut self, vm: &mut Vm, b: u8) {
         if vm.pc() >= crate::boot::BOOT_START {
             // The bootloader runs (avrdude's binary STK500 messages): every
             // byte in order, none of them is a realtime command.
@@ -400,9 +400,7 @@ impl PtyBridge {
             return;
         }
         let n = n.max(0) as usize;
-        if n == 0 || n < self.unread.0 {
-            self.unread = (n, Instant::now());
-        } else if n > self.unread.0 && self.unread.0 == 0 {
+        if n == 0 || n < self.unread.0 || (n > self.unread.0 && self.unread.0 == 0) {
             self.unread = (n, Instant::now());
         } else if self.unread.1.elapsed() >= STALE_OUTPUT {
             let mut sink = vec![0u8; n];

@@ -322,7 +322,7 @@ impl SdCard {
     fn block_of(&self, arg: u32) -> Option<u32> {
         match self.kind {
             CardKind::Sdhc => Some(arg),
-            CardKind::Sdsc if arg as usize % BLOCK == 0 => Some(arg / BLOCK as u32),
+            CardKind::Sdsc if (arg as usize).is_multiple_of(BLOCK) => Some(arg / BLOCK as u32),
             CardKind::Sdsc => None,
         }
     }

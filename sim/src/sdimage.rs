@@ -135,7 +135,7 @@ pub fn locate(img: &[u8], name: &str) -> Option<FileLayout> {
     let mut dir_areas: Vec<(usize, usize)> = Vec::new();
     if fat32 {
         let mut c = rd32(p + 44);
-        while c >= 2 && c < 0x0FFF_FFF8 {
+        while (2..0x0FFF_FFF8).contains(&c) {
             dir_areas.push((cluster_off(c), cluster_bytes));
             c = next(c);
         }

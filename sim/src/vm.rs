@@ -928,10 +928,10 @@ impl Vm {
         }));
         let param = inner as *mut c_void;
 
-        // SAFETY (whole block): avr is a live, initialised instance owned by
-        // this function; every IRQ pointer comes from simavr's own lookup and
-        // is checked for null; `param`/hook pointers stay valid until Vm::drop
-        // terminates the instance.
+        // SAFETY: avr is a live, initialised instance owned by this
+        // function (the whole block); every IRQ pointer comes from simavr's
+        // own lookup and is checked for null; `param`/hook pointers stay
+        // valid until Vm::drop terminates the instance.
         let hooks = unsafe {
             (*avr).custom.data = param;
             (*avr).sleep = Some(no_sleep);

@@ -253,6 +253,7 @@ pub fn spindle_set(duty: u8) {
         } else {
             // SAFETY: Timer2 is owned by the spindle; inside a critical section.
             let tc2 = unsafe { &*TC2::ptr() };
+            // SAFETY: every 8-bit value is a valid compare value.
             tc2.ocr2a().write(|w| unsafe { w.bits(duty) });
             tc2.tccr2a().modify(|_, w| w.com2a().match_clear());
         }

@@ -72,9 +72,8 @@ impl<I: I2c> Sh1106<I> {
     /// the first frame is drawn.
     pub fn init(&mut self) -> Result<(), I::Error> {
         let mut buf = [0u8; 24];
-        for (i, b) in buf.iter_mut().enumerate() {
-            // SAFETY: i < INIT.len().
-            *b = mill::ui::flash::read_byte(unsafe { INIT.as_ptr().add(i) });
+        for (b, init) in buf.iter_mut().zip(INIT.iter()) {
+            *b = mill::ui::flash::read_byte(init);
         }
         self.i2c.write(ADDRESS, &buf)
     }

@@ -8,12 +8,15 @@ use crate::config::Settings;
 
 /// Every command of `text`, with the target of each move (`None` for the
 /// others), as a controller that carries each out at once would see them.
-fn commands(i: &mut Interp, s: &Settings, text: &str) -> Result<Vec<(Command, Option<[f32; N_AXES]>)>, Error> {
+/// A command and, for a move, the interpreter's target after it.
+type Emitted = (Command, Option<[f32; N_AXES]>);
+
+fn commands(i: &mut Interp, s: &Settings, text: &str) -> Result<Vec<Emitted>, Error> {
     commands_with(i, s, &Atc::new(), text)
 }
 
 /// [`commands`] with the changer state `atc` (its tool table).
-fn commands_with(i: &mut Interp, s: &Settings, atc: &Atc, text: &str) -> Result<Vec<(Command, Option<[f32; N_AXES]>)>, Error> {
+fn commands_with(i: &mut Interp, s: &Settings, atc: &Atc, text: &str) -> Result<Vec<Emitted>, Error> {
     let cx = Ctx { settings: s, atc, alarm: false, estop: false, status_only: false };
     let l = crate::gcode::parse(text.as_bytes()).expect("parses");
     i.begin_line();
@@ -124,7 +127,7 @@ fn the_context_locks_motion_in_an_alarm_but_not_homing() {
 }
 
 /// [`commands`] with a tool table: tool 1 is 1 mm across (radius 0.5).
-fn commands_t1(i: &mut Interp, s: &Settings, text: &str) -> Result<Vec<(Command, Option<[f32; N_AXES]>)>, Error> {
+fn commands_t1(i: &mut Interp, s: &Settings, text: &str) -> Result<Vec<Emitted>, Error> {
     let mut atc = Atc::new();
     atc.table.diameter_um[0] = 1000;
     commands_with(i, s, &atc, text)
@@ -238,7 +241,7 @@ fn compensation_refuses_what_linuxcnc_refuses_and_changes_nothing() {
         commands_t1(&mut i, &s, l).unwrap();
     }
     let e = commands_t1(&mut i, &s, "G41 D1 G1 X20 F600").unwrap_err();
-    assert!(format!("{}", e.message().bytes().map(char::from).collect::<String>()).contains("XY plane"), "{e:?}");
+    assert!(e.message().bytes().map(char::from).collect::<String>().contains("XY plane"), "{e:?}");
     commands_t1(&mut i, &s, "G17").unwrap();
     // Entry not longer than the radius.
     let e = commands_t1(&mut i, &s, "G41 D1 G1 X10.4 F600").unwrap_err();

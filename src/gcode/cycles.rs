@@ -427,7 +427,7 @@ pub fn resolve(
     let p = need(w.p, sticky.p, kind.dwells(), Error::MissingP)?;
     let repeats = match w.l {
         None => 1,
-        Some(l) if l >= 1.0 && l <= 1000.0 && (l as u16) as f32 == l => l as u16,
+        Some(l) if (1.0..=1000.0).contains(&l) && (l as u16) as f32 == l => l as u16,
         Some(_) => return Err(Error::BadRepeat),
     };
     let initial_z = if prev.is_some() { sticky.initial_z } else { pos[2] };

@@ -1587,7 +1587,7 @@ fn measure_mode(inches: bool, l: &Line) -> Result<(crate::toolsetter::Mode, Opti
     let (x, y) = (l.word(Word::X).map(|v| v * k), l.word(Word::Y).map(|v| v * k));
     let mode = match (d, b, len, r) {
         (None, None, None, None) => Mode::Length,
-        (Some(d), None, None, None) if d == 1.0 => Mode::Diameter,
+        (Some(1.0), None, None, None) => Mode::Diameter,
         (None, Some(t), None, None) if t >= 0.0 => Mode::Check { tol_um: um(t) },
         (None, None, Some(len), Some(r)) if len > 0.0 && r >= 0.0 => Mode::Calibrate { length_um: um(len), diameter_um: 2 * um(r) },
         _ => return Err(bad),

@@ -213,7 +213,7 @@ fn an_arc_ending_on_its_start_step_is_a_full_circle_in_every_plane() {
                     run(&mut m, &mut io, &g0);
                     let s = io.pos;
                     io.path.clear();
-                    let mut line = format!("{g}");
+                    let mut line = g.to_string();
                     for a in 0..3 {
                         line += &format!(" {}{:.6}", letters[a], end[a]);
                     }

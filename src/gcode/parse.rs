@@ -1107,7 +1107,7 @@ fn apply_m(line: &mut Line, code: u16, col: u8) -> Result<(), ParseError> {
             line.coolant = Some(Coolant::Flood);
             Ok(())
         }
-        7 | 8 | 9 => set_group(&mut line.coolant, coolant_of(code), col),
+        7..=9 => set_group(&mut line.coolant, coolant_of(code), col),
         6 if line.tool_change => err(ParseErrorKind::ModalGroupConflict, col),
         6 => {
             line.tool_change = true;
@@ -1388,7 +1388,7 @@ mod tests {
             scale -= cut;
         }
         let mut mantissa: u64 = kept.iter().fold(0, |m, &d| m * 10 + (d - b'0') as u64) + up as u64;
-        while scale > 0 && mantissa % 10 == 0 && mantissa != 0 {
+        while scale > 0 && mantissa.is_multiple_of(10) && mantissa != 0 {
             mantissa /= 10;
             scale -= 1;
         }

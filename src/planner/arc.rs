@@ -316,7 +316,7 @@ impl Iterator for Arc {
         if i == self.chords {
             return Some(self.end);
         }
-        if i % ARC_CORRECTION == 0 {
+        if i.is_multiple_of(ARC_CORRECTION) {
             let (s, c) = sincosf(self.start_angle + i as f32 * self.theta_per_chord);
             self.dir = [c, s];
         } else {
@@ -400,6 +400,7 @@ mod tests {
     /// round-off. Start == end in the plane is a full circle in every plane,
     /// both ways, helical or not, at any radius and any start.
     #[test]
+    #[allow(clippy::excessive_precision)] // the coordinates as the job that found it wrote them
     fn start_equal_to_end_is_always_a_full_circle() {
         let start = [18.087536f32, 33.329412, 5.0];
         for cw in [false, true] {

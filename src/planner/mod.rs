@@ -409,7 +409,7 @@ fn abs_f32(x: f32) -> f32 {
 #[inline(always)]
 fn times2(x: f32) -> f32 {
     let b = x.to_bits();
-    if b >= 0x0080_0000 && b < 0x7F00_0000 {
+    if (0x0080_0000..0x7F00_0000).contains(&b) {
         f32::from_bits(b + 0x0080_0000)
     } else {
         2.0 * x

@@ -419,7 +419,7 @@ mod tests {
         let mut rng = XorShift(0xC0FFEE);
         for _ in 0..40 {
             let mut steps = [0u32; N_AXES];
-            let big = rng.next() % 2 == 0;
+            let big = rng.next().is_multiple_of(2);
             for v in steps.iter_mut() {
                 *v = rng.next() % if big { 90_000 } else { 3000 };
             }

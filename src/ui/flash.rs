@@ -17,21 +17,23 @@
 /// Read one byte of a flash-resident static (`lpm` through avr-progmem on
 /// AVR, as `crate::flash` does; a plain load on the host).
 ///
-/// `p` must point into a static declared with
-/// `#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]`.
+/// `b` is an element of a static declared with
+/// `#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]`
+/// (anything else reads the flash byte at that address: wrong, not unsafe).
 #[inline(always)]
-pub fn read_byte(p: *const u8) -> u8 {
-    // SAFETY: callers pass an address inside a program-memory static (see above).
-    unsafe { avr_progmem::raw::read_byte(p) }
+pub fn read_byte(b: &u8) -> u8 {
+    // SAFETY: `b` is a valid reference, to program memory on the AVR (see
+    // above), which `lpm` reads; a plain load on the host.
+    unsafe { avr_progmem::raw::read_byte(b) }
 }
 
-/// Read a little-endian u16 from a flash-resident `[u16]` at index `i`.
+/// Read element `i` of a flash-resident `[u16]` (see [`read_byte`]).
 #[inline(always)]
-pub fn read_u16(table: *const u16, i: usize) -> u16 {
-    // SAFETY: callers index within the table.
-    let p = unsafe { (table as *const u8).add(2 * i) };
-    // SAFETY: as above, p and p+1 are inside the table.
-    u16::from_le_bytes([read_byte(p), read_byte(unsafe { p.add(1) })])
+pub fn read_u16(table: &[u16], i: usize) -> u16 {
+    let p: *const u8 = (&table[i] as *const u16).cast();
+    // SAFETY: p and p + 1 are the two bytes of table[i], in program memory
+    // like the table.
+    unsafe { u16::from_le_bytes([avr_progmem::raw::read_byte(p), avr_progmem::raw::read_byte(p.add(1))]) }
 }
 
 /// Declare the UI's flash strings: `flash_texts! { Name = "text", ... }`
@@ -99,8 +101,8 @@ macro_rules! flash_texts {
 
             fn range(self) -> (usize, usize) {
                 let i = self as usize;
-                let a = $crate::ui::flash::read_u16(TEXT_OFFSETS.as_ptr(), i) as usize;
-                let b = $crate::ui::flash::read_u16(TEXT_OFFSETS.as_ptr(), i + 1) as usize;
+                let a = $crate::ui::flash::read_u16(&TEXT_OFFSETS, i) as usize;
+                let b = $crate::ui::flash::read_u16(&TEXT_OFFSETS, i + 1) as usize;
                 (a, b)
             }
 
@@ -118,8 +120,7 @@ macro_rules! flash_texts {
             /// Byte `i` (must be < len).
             pub fn byte(self, i: usize) -> u8 {
                 let (a, _) = self.range();
-                // SAFETY: a + i is inside TEXT_BLOB for i < len.
-                $crate::ui::flash::read_byte(unsafe { TEXT_BLOB.as_ptr().add(a + i) })
+                $crate::ui::flash::read_byte(&TEXT_BLOB[a + i])
             }
 
             /// The text as an [`FStr`]($crate::flash::FStr) (both live in flash).
@@ -134,8 +135,7 @@ macro_rules! flash_texts {
             pub fn for_each(self, mut f: impl FnMut(u8)) {
                 let (a, b) = self.range();
                 for k in a..b {
-                    // SAFETY: k is inside TEXT_BLOB.
-                    f($crate::ui::flash::read_byte(unsafe { TEXT_BLOB.as_ptr().add(k) }));
+                    f($crate::ui::flash::read_byte(&TEXT_BLOB[k]));
                 }
             }
         }

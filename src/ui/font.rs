@@ -124,8 +124,7 @@ pub fn column(c: u8, col: usize) -> u8 {
         return 0;
     }
     let i = if (FIRST..FIRST + COUNT as u8).contains(&c) { c - FIRST } else { b'?' - FIRST };
-    // SAFETY: i < COUNT and col < GLYPH_W keep the index inside GLYPHS.
-    flash::read_byte(unsafe { GLYPHS.as_ptr().add(i as usize * GLYPH_W + col) })
+    flash::read_byte(&GLYPHS[i as usize * GLYPH_W + col])
 }
 
 #[cfg(test)]

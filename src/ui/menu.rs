@@ -35,47 +35,67 @@ use crate::dollar;
 use crate::flash::FStr;
 use crate::machine::{Alarm, Machine, State};
 
-/// What an entry does when pressed.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-#[repr(u8)]
-pub enum Act {
-    Back,
-    Files,
-    JobMenu,
-    JogMenu,
-    HomeMenu,
-    Settings,
-    Info,
-    PauseResume,
-    Abort,
-    Override,
-    JogAxis,
-    JogStep,
-    JogNow,
-    HomeAll,
-    HomeZ,
-    HomeY,
-    HomeX,
-    ToolsMenu,
-    ChangeTool,
-    MeasureLength,
-    MeasureDia,
-    ToolTable,
-    ConfirmSpindle,
-    /// Leave the alarm state (`$X`/M999).
-    Unlock,
-    /// Tools > Changer: the station's points.
-    Changer,
-    /// Jog > Zero <axis>: the work zero of the jog axis here.
-    ZeroAxis,
-    /// Jog > Probe Z zero: probe down, Z zero where it touches.
-    ProbeZ,
-    /// Jog > Work G5x: the next work system (G54 … G59, round).
-    WorkSystem,
-    /// Tools > Tool numbers: the tool number kept in each pocket.
-    ToolNumbers,
-    /// The last variant (`act_from_u8` checks against it).
-    OptStop,
+/// A fieldless `u8` enum and its checked inverse `from_u8` (a compare
+/// chain: no transmute, and no table that the AVR would copy to RAM).
+macro_rules! u8_enum {
+    ($(#[$m:meta])* $vis:vis enum $name:ident { $($(#[$vm:meta])* $v:ident,)* }) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+        #[repr(u8)]
+        $vis enum $name { $($(#[$vm])* $v,)* }
+
+        impl $name {
+            /// The variant whose discriminant is `b`, if there is one.
+            fn from_u8(b: u8) -> Option<$name> {
+                $(if b == $name::$v as u8 {
+                    return Some($name::$v);
+                })*
+                None
+            }
+        }
+    };
+}
+
+u8_enum! {
+    /// What an entry does when pressed.
+    pub enum Act {
+        Back,
+        Files,
+        JobMenu,
+        JogMenu,
+        HomeMenu,
+        Settings,
+        Info,
+        PauseResume,
+        Abort,
+        Override,
+        JogAxis,
+        JogStep,
+        JogNow,
+        HomeAll,
+        HomeZ,
+        HomeY,
+        HomeX,
+        ToolsMenu,
+        ChangeTool,
+        MeasureLength,
+        MeasureDia,
+        ToolTable,
+        ConfirmSpindle,
+        /// Leave the alarm state (`$X`/M999).
+        Unlock,
+        /// Tools > Changer: the station's points.
+        Changer,
+        /// Jog > Zero <axis>: the work zero of the jog axis here.
+        ZeroAxis,
+        /// Jog > Probe Z zero: probe down, Z zero where it touches.
+        ProbeZ,
+        /// Jog > Work G5x: the next work system (G54 … G59, round).
+        WorkSystem,
+        /// Tools > Tool numbers: the tool number kept in each pocket.
+        ToolNumbers,
+        OptStop,
+    }
 }
 
 /// The menus with fixed entries.
@@ -93,18 +113,6 @@ pub enum MenuId {
 
 const fn item(t: Text, a: Act) -> [u8; 2] {
     [t as u8, a as u8]
-}
-
-/// The action whose discriminant is `b`, if there is one: the inverse of
-/// `item` for the action byte.
-fn act_from_u8(b: u8) -> Option<Act> {
-    if b <= Act::OptStop as u8 {
-        // SAFETY: Act is repr(u8) with implicit discriminants, so every value
-        // from 0 to the last variant's is one.
-        Some(unsafe { core::mem::transmute::<u8, Act>(b) })
-    } else {
-        None
-    }
 }
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
@@ -163,10 +171,8 @@ static MENU_START: [u8; 7] = [0, 8, 13, 20, 25, 33, 38];
 impl MenuId {
     fn range(self) -> (usize, usize) {
         let i = self as usize;
-        // SAFETY: i + 1 < 7.
-        let a = flash::read_byte(unsafe { MENU_START.as_ptr().add(i) }) as usize;
-        // SAFETY: as above.
-        let b = flash::read_byte(unsafe { MENU_START.as_ptr().add(i + 1) }) as usize;
+        let a = flash::read_byte(&MENU_START[i]) as usize;
+        let b = flash::read_byte(&MENU_START[i + 1]) as usize;
         (a, b)
     }
 
@@ -176,15 +182,19 @@ impl MenuId {
         b - a
     }
 
+    /// True for a menu without entries (none is).
+    pub fn is_empty(self) -> bool {
+        self.len() == 0
+    }
+
     /// Entry `i`: its label and action.
     pub fn item(self, i: usize) -> (Text, Act) {
         let (a, _) = self.range();
-        let p = ITEMS.as_ptr() as *const u8;
-        // SAFETY: a + i is an entry of ITEMS (i < len()).
-        let (t, c) = unsafe { (flash::read_byte(p.add(2 * (a + i))), flash::read_byte(p.add(2 * (a + i) + 1))) };
+        let e = &ITEMS[a + i];
+        let (t, c) = (flash::read_byte(&e[0]), flash::read_byte(&e[1]));
         // `item` made both bytes from a Text and an Act: the fallback is
         // never taken.
-        (Text::from_u8(t).unwrap_or(Text::Back), act_from_u8(c).unwrap_or(Act::Back))
+        (Text::from_u8(t).unwrap_or(Text::Back), Act::from_u8(c).unwrap_or(Act::Back))
     }
 
     fn title(self) -> Text {
@@ -1636,10 +1646,11 @@ mod tests {
     #[test]
     fn every_menu_entry_reads_back_as_a_text_and_an_action() {
         for [t, a] in ITEMS {
-            assert!(Text::from_u8(t).is_some() && act_from_u8(a).is_some(), "entry {t} {a}");
+            assert!(Text::from_u8(t).is_some() && Act::from_u8(a).is_some(), "entry {t} {a}");
         }
-        assert_eq!(act_from_u8(Act::OptStop as u8), Some(Act::OptStop));
-        assert_eq!(act_from_u8(Act::OptStop as u8 + 1), None);
+        for b in 0..=255u8 {
+            assert_eq!(Act::from_u8(b).map(|a| a as u8), (b <= Act::OptStop as u8).then_some(b), "{b}");
+        }
     }
 
     #[test]

@@ -316,7 +316,7 @@ fn main() {
     let secs = (vm.cycles() - t0) as f64 / 16e6;
     if let Some((from, n)) = trace {
         let mut v: Vec<_> = tincl.into_iter().collect();
-        v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
+        v.sort_by_key(|e| std::cmp::Reverse(e.1 .0));
         println!(
             "-- exact inclusive cycles, lines {from}..{} ({} cycles traced, {} per line) --",
             from + n,
@@ -335,7 +335,7 @@ fn main() {
             );
         }
         let mut v: Vec<_> = tself.into_iter().collect();
-        v.sort_by(|a, b| b.1.cmp(&a.1));
+        v.sort_by_key(|e| std::cmp::Reverse(e.1));
         println!("-- exact self cycles (instructions run in the function itself) --");
         println!("{:>12} {:>8}  function", "cycles/line", "%");
         for (k, c) in v.iter().take(70) {
@@ -354,7 +354,7 @@ fn main() {
             }
         }
         let mut v: Vec<_> = callers.into_iter().collect();
-        v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
+        v.sort_by_key(|e| std::cmp::Reverse(e.1 .0));
         println!("-- callers (calls per line, mean r21:r20 = bytes for memcpy/memset) --");
         for (k, (calls, bytes)) in v.iter().take(40) {
             println!("{:>8.2} {:>8}  {k}", *calls as f64 / n as f64, bytes / calls.max(&1));
@@ -362,14 +362,14 @@ fn main() {
         return;
     }
     let mut v: Vec<_> = hits.into_iter().collect();
-    v.sort_by(|a, b| b.1.cmp(&a.1));
+    v.sort_by_key(|e| std::cmp::Reverse(e.1));
     println!("{} lines in {:.3} s simulated, {} samples every {} cycles", lines.len(), secs, total, every);
     println!("-- self --");
     for (name, n) in v.iter().take(30) {
         println!("{:6.2} %  {:>10} cycles/line  {name}", 100.0 * *n as f64 / total as f64, (*n * every) / lines.len() as u64);
     }
     let mut v: Vec<_> = incl.into_iter().collect();
-    v.sort_by(|a, b| b.1.cmp(&a.1));
+    v.sort_by_key(|e| std::cmp::Reverse(e.1));
     println!("-- inclusive (stack scan; approximate) --");
     for (name, n) in v.iter().take(45) {
         println!("{:6.2} %  {:>10} cycles/line  {name}", 100.0 * *n as f64 / total as f64, (*n * every) / lines.len() as u64);

@@ -85,7 +85,7 @@ fn commands(b: StBlock, max_ticks: u32, rng: &mut XorShift) -> Vec<StepperCmd> {
     let mut left = b.step_event_count;
     while left > 0 {
         let t = left.min(1 + rng.next() % max_ticks);
-        let prescale = if rng.next() % 4 == 0 { Prescale::Div8 } else { Prescale::Div1 };
+        let prescale = if rng.next().is_multiple_of(4) { Prescale::Div8 } else { Prescale::Div1 };
         v.push(StepperCmd::Run(Segment { ticks: t as u16, period: 300 + (rng.next() % 2000) as u16, prescale }));
         left -= t;
     }
@@ -112,7 +112,7 @@ fn stream(r: &mut Rings, bd: &mut Board, cmds: &[StepperCmd]) {
             continue;
         }
         bd.interrupt();
-        assert_eq!(r.position(&MAP, &mut bd.mem), bd.out, "event {}", bd.events);
+        assert_eq!(r.position(&MAP, &bd.mem), bd.out, "event {}", bd.events);
     }
 }
 
