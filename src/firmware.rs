@@ -448,6 +448,7 @@ impl Hw {
         }
         let (feed, rpm) = m.feed_and_speed();
         v.state = m.state;
+        v.homed = m.homed & 0b111 == 0b111;
         v.tool = m.atc.spindle();
         v.feed = feed.clamp(0.0, 65535.0) as u16;
         v.override_pct = m.planner.feed_override();

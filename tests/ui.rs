@@ -192,13 +192,59 @@ fn the_status_screen_shows_state_position_feed_spindle_and_no_job() {
     let mut vm = boot_unlocked();
     settle(&mut vm);
     let s = screen(&vm);
-    assert_eq!(s[0], "[ Idle            T0]");
+    // Unlocked, not homed: the position means nothing yet.
+    assert_eq!(s[0], "[ Not homed       T0]");
     assert_eq!(s[1], "X      0.000 mm");
     assert_eq!(s[4], "F     0 mm/min   100%");
     assert_eq!(s[5], "S off");
     assert_eq!(s[6], "No job");
     assert_eq!(s[7], "Press for menu");
     golden(&vm, "status_idle");
+}
+
+/// The work position in double-size digits (12 x 14 pixels), read back
+/// from the display RAM: rows `top` and `top + 1` hold one line.
+fn big_row(vm: &Vm, top: usize) -> String {
+    use mill::ui::font::column;
+    let ram = vm.oled().ram();
+    let off = sim::oled::COLUMN_OFFSET;
+    let mut s = String::new();
+    for cell in 0..10 {
+        // Every other column and every other row of the cell: the glyph.
+        let cols: Vec<u8> = (0..5)
+            .map(|c| {
+                let x = off + cell * 12 + 2 * c;
+                let (t, b) = (ram[top][x], ram[top + 1][x]);
+                (0..4).fold(0u8, |g, i| g | ((t >> (2 * i)) & 1) << i | ((b >> (2 * i)) & 1) << (i + 4))
+            })
+            .collect();
+        let ch = (0x20u8..0x7F).find(|&ch| (0..5).all(|c| column(ch, c) == cols[c])).unwrap_or(b'~');
+        s.push(ch as char);
+    }
+    s.trim_end().to_string()
+}
+
+/// Turning the encoder right on the status screen shows the work position
+/// in large digits (left: back), to be read from a step away; `Not homed`
+/// until the axes are homed.
+#[test]
+fn the_status_screen_shows_the_position_in_large_digits_and_not_homed_until_homed() {
+    let mut vm = boot();
+    settle(&mut vm);
+    assert_eq!(screen(&vm)[0], "[ Not homed       T0]");
+    ok(&mut vm, "G28");
+    ok(&mut vm, "G0 X12.5 Y3.25 Z-7.25");
+    ok(&mut vm, "M400");
+    settle(&mut vm);
+    assert_eq!(screen(&vm)[0], "[ Idle            T0]");
+    turn(&mut vm, 1);
+    let rows: Vec<String> = [1, 3, 5].iter().map(|&t| big_row(&vm, t)).collect();
+    assert_eq!(rows, ["X   12.500", "Y    3.250", "Z   -7.250"]);
+    let s = screen(&vm);
+    assert_eq!((s[0].as_str(), s[7].as_str()), ("[ Idle            T0]", "F     0 mm/min   100%"), "{s:?}");
+    golden(&vm, "status_big");
+    turn(&mut vm, -1);
+    assert_eq!(screen(&vm)[1], "X     12.500 mm");
 }
 
 #[test]
@@ -344,7 +390,7 @@ fn pulling_the_card_mid_job_unhomed_ends_the_job_with_the_spindle_off() {
     assert_eq!(vm.position(Axis::Z), z);
     settle(&mut vm);
     let s = screen(&vm);
-    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[0], "[ Not homed       T0]", "{s:?}");
     assert!(s[6].starts_with("Card out: line "), "{s:?}");
     // Nothing to resume: the job is over.
     let e = refused(&mut vm, "M24");
@@ -801,7 +847,7 @@ fn tools_menu_changes_to_t2_through_the_same_path_as_serial_t2() {
     );
     golden(&vm, "tools_menu");
     tools_to_status(&mut vm);
-    assert_eq!(screen(&vm)[0], "[ Idle            T0]");
+    assert_eq!(screen(&vm)[0], "[ Not homed       T0]");
     // Not homed (homing lock): refused with the serial error, shown on screen.
     change_from_menu(&mut vm, 2);
     let err = wait_for(&mut vm, |l| l.starts_with("Error:"), 5.0);
@@ -1127,7 +1173,7 @@ fn unlock_from_the_alarm_menu_clears_the_alarm_and_moves_nothing() {
     vm.run_for(0.5).unwrap();
     assert_eq!(vm.positions(), held);
     let s = screen(&vm);
-    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[0], "[ Not homed       T0]", "{s:?}");
     assert!(status(&mut vm).starts_with("<Idle|"));
 }
 
@@ -1249,7 +1295,7 @@ fn an_emergency_stop_mid_change_is_named_and_the_alarm_menu_confirms_the_spindle
     hands.press(&mut vm);
     tools_to_status(&mut vm);
     let s = screen(&vm);
-    assert_eq!(s[0], "[ Idle            T0]", "{s:?}");
+    assert_eq!(s[0], "[ Not homed       T0]", "{s:?}");
     assert_eq!(s[6..8], ["No job", "Press for menu"], "{s:?}");
     main_menu_entry(&mut vm, 4);
     press(&mut vm);

@@ -27,7 +27,7 @@
 //! the refusal ([`Reply`], set by the firmware when the line returns).
 
 use super::flash;
-use super::render::{Line, COLS, ROWS};
+use super::render::{Line, Style, BIG_COLS, COLS, ROWS};
 use super::sd::{Name, Outcome, Phase};
 use super::text::Text;
 use crate::atc::{Journal, N_POCKETS};
@@ -502,6 +502,8 @@ pub struct View {
     /// closed (bit i = axis i, `Machine::limit_axes`).
     pub alarm: Option<Alarm>,
     pub limit_axes: u8,
+    /// X, Y and Z are homed.
+    pub homed: bool,
 }
 
 impl View {
@@ -524,6 +526,7 @@ impl View {
             interrupted: None,
             alarm: None,
             limit_axes: 0,
+            homed: true,
         }
     }
 
@@ -573,6 +576,9 @@ pub struct Ui {
     /// thousandths.
     pub edit_um: i32,
     pub edit_step: u8,
+    /// The status screen shows the position in large digits (turn right on
+    /// it; left: the full status).
+    pub big: bool,
 }
 
 impl Default for Ui {
@@ -598,6 +604,7 @@ impl Ui {
             reply: Reply::Ok,
             edit_um: 0,
             edit_step: 3,
+            big: false,
         }
     }
 
@@ -643,6 +650,9 @@ impl Ui {
     pub fn step(&mut self, detents: i8, press: bool, v: &View) -> Cmd {
         match self.screen {
             Screen::Status => {
+                if detents != 0 {
+                    self.big = detents > 0;
+                }
                 if press && v.state == State::Alarm {
                     // What gets out of the alarm: unlock, home, jog, M61.
                     self.go(Screen::Menu(MenuId::Alarm));
@@ -1030,11 +1040,13 @@ impl Ui {
     pub fn line(&self, row: usize, v: &View, m: &Machine, file: &dyn Fn(u8) -> Option<Name>) -> Line {
         let mut l = Line::blank();
         match self.screen {
+            Screen::Status if self.big => big_status_line(row, v, m.atc.table.number_of(v.tool), &m.host, &mut l),
             Screen::Status => status_line(row, v, m.atc.table.number_of(v.tool), &m.host, &mut l),
             Screen::Info => info_line(row, v, &mut l),
             _ => {
                 if row == 0 {
                     l.invert = true;
+                    l.style = Style::Title;
                     let t = match self.screen {
                         Screen::Menu(m) => m.title(),
                         Screen::Files => Text::Files,
@@ -1233,8 +1245,11 @@ fn paused(v: &View) -> bool {
 }
 
 /// The machine state's name on the display.
-pub fn state_text(s: State) -> Text {
+/// (`Not homed` for Idle before the axes are homed: the position means
+/// nothing yet.)
+pub fn state_text(s: State, homed: bool) -> Text {
     match s {
+        State::Idle if !homed => Text::StNotHomed,
         State::Idle | State::Check => Text::StIdle,
         State::Run | State::Jog => Text::StRun,
         State::Hold => Text::StHold,
@@ -1245,12 +1260,30 @@ pub fn state_text(s: State) -> Text {
     }
 }
 
+/// The status screen to read from a step away: the state and the tool,
+/// the work position in double-size digits, then the feed (or the alarm).
+#[inline(never)]
+fn big_status_line(row: usize, v: &View, tool: u8, host: &crate::hostcodes::HostState, l: &mut Line) {
+    match row {
+        1..=6 => {
+            let a = (row - 1) / 2;
+            l.style = if row % 2 == 1 { Style::BigTop } else { Style::BigBottom };
+            l.put(0, &[b"XYZ"[a]]);
+            l.micros_right(BIG_COLS, v.wpos_um[a]);
+        }
+        7 if v.alarm.is_some() => alarm_line(v, l),
+        7 => status_line(4, v, tool, host, l),
+        _ => status_line(0, v, tool, host, l),
+    }
+}
+
 #[inline(never)]
 fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcodes::HostState, l: &mut Line) {
     match row {
         0 => {
             l.invert = true;
-            l.text(1, state_text(v.state));
+            l.style = Style::Title;
+            l.text(1, state_text(v.state, v.homed));
             let c = l.put(COLS - 4, b"T");
             l.uint(c, tool as u32);
         }
@@ -1389,6 +1422,7 @@ fn info_line(row: usize, v: &View, l: &mut Line) {
     match row {
         0 => {
             l.invert = true;
+            l.style = Style::Title;
             l.text(1, Text::Info);
         }
         2 => {
@@ -1495,7 +1529,7 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
     let t = v.tool;
     match (r, row) {
         (Reply::Pending, 2) => {
-            l.text(1, state_text(v.state));
+            l.text(1, state_text(v.state, v.homed));
         }
         (Reply::Pending, _) => {}
         (Reply::Err(msg), 2..=6) => wrapped(msg, row - 2, l),

@@ -18,12 +18,31 @@ pub const WIDTH: usize = 128;
 /// Columns sent per I2C transfer (4 slices per page).
 pub const SLICE: usize = 32;
 
+/// How a line is drawn.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Style {
+    /// Text in 6-pixel cells.
+    Text,
+    /// A title bar: text, with its bottom pixel row dark, so that a
+    /// highlighted line under it stays apart from it.
+    Title,
+    /// The top or the bottom half of double-size text: 12-pixel cells, two
+    /// pages tall, [`BIG_COLS`] characters (the status screen's large
+    /// digits).
+    BigTop,
+    BigBottom,
+}
+
+/// Characters of a double-size line.
+pub const BIG_COLS: usize = WIDTH / (2 * CELL_W);
+
 /// One text line of a screen.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct Line {
     pub chars: [u8; COLS],
     /// Drawn light-on-dark reversed (a highlight bar).
     pub invert: bool,
+    pub style: Style,
 }
 
 impl Default for Line {
@@ -35,7 +54,7 @@ impl Default for Line {
 impl Line {
     /// All spaces, not inverted.
     pub const fn blank() -> Line {
-        Line { chars: [b' '; COLS], invert: false }
+        Line { chars: [b' '; COLS], invert: false, style: Style::Text }
     }
 
     /// Put bytes at column `at` (clipped); returns the column after them.
@@ -93,6 +112,7 @@ impl Line {
     /// 16-bit hash of the line (text and inversion), to skip unchanged pages.
     pub fn hash(&self) -> u16 {
         let mut h: u16 = if self.invert { 0x9E37 } else { 0x1234 };
+        h ^= (self.style as u16) << 11;
         for &c in &self.chars {
             h = (h ^ c as u16).wrapping_mul(0x0101).rotate_left(5) ^ 0x5A;
         }
@@ -103,21 +123,40 @@ impl Line {
     /// The cell and the column in it advance together (a division per
     /// column cost ~75 cycles on the AVR: most of a status refresh).
     pub fn render(&self, x0: usize, out: &mut [u8]) {
-        let (mut cell, mut col) = (x0 / CELL_W, x0 % CELL_W);
+        let big = matches!(self.style, Style::BigTop | Style::BigBottom);
+        let cell_w = if big { 2 * CELL_W } else { CELL_W };
+        let (mut cell, mut col) = (x0 / cell_w, x0 % cell_w);
         let invert = if self.invert { 0xFF } else { 0 };
+        // A title's bottom pixel row stays dark.
+        let keep = if self.style == Style::Title { 0x7F } else { 0xFF };
         for o in out.iter_mut() {
-            let b = match self.chars.get(cell) {
-                Some(&c) => font::column(c, col),
-                None => 0,
+            let c = self.chars.get(cell).copied().unwrap_or(b' ');
+            let b = match self.style {
+                Style::Text | Style::Title => font::column(c, col),
+                // Each glyph column twice, each of its rows twice: the top
+                // half holds rows 0-3, the bottom half rows 4-7.
+                Style::BigTop => stretch(font::column(c, col / 2) & 0x0F),
+                Style::BigBottom => stretch(font::column(c, col / 2) >> 4),
             };
-            *o = b ^ invert;
+            *o = (b ^ invert) & keep;
             col += 1;
-            if col == CELL_W {
+            if col == cell_w {
                 col = 0;
                 cell += 1;
             }
         }
     }
+}
+
+/// The four low bits of `n`, each doubled: bit i to bits 2i and 2i + 1.
+fn stretch(n: u8) -> u8 {
+    let mut b = 0;
+    for i in 0..4 {
+        if n & (1 << i) != 0 {
+            b |= 0b11 << (2 * i);
+        }
+    }
+    b
 }
 
 /// Decimal digits of `v` at the end of `d`; returns how many. (No `u32`
@@ -162,6 +201,37 @@ fn micros_text(um: i32, buf: &mut [u8; 14]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_title_keeps_its_bottom_row_dark_and_big_text_doubles_each_pixel() {
+        let mut l = Line::blank();
+        l.put(0, b"1");
+        l.invert = true;
+        l.style = Style::Title;
+        let mut out = [0u8; 6];
+        l.render(0, &mut out);
+        for (c, b) in out.iter().enumerate() {
+            assert_eq!(*b, !font::column(b'1', c) & 0x7F, "column {c}");
+        }
+        // Double size: 12 columns a cell, each glyph column twice; the top
+        // half carries rows 0-3 doubled, the bottom half rows 4-7.
+        l.invert = false;
+        let (mut top, mut bottom) = ([0u8; 12], [0u8; 12]);
+        l.style = Style::BigTop;
+        l.render(0, &mut top);
+        l.style = Style::BigBottom;
+        l.render(0, &mut bottom);
+        for x in 0..12 {
+            let g = font::column(b'1', x / 2);
+            for row in 0..8 {
+                let on = g & (1 << row) != 0;
+                let (half, y) = if row < 4 { (top[x], 2 * row) } else { (bottom[x], 2 * (row - 4)) };
+                assert_eq!(half & (0b11 << y) != 0, on, "x {x} row {row}");
+                assert!(half & (0b11 << y) == 0b11 << y || half & (0b11 << y) == 0, "x {x} row {row}: both pixel rows alike");
+            }
+        }
+        assert_ne!(Line { style: Style::BigTop, ..l }.hash(), Line { style: Style::BigBottom, ..l }.hash());
+    }
 
     fn s(l: &Line) -> String {
         String::from_utf8(l.chars.to_vec()).unwrap()

@@ -44,6 +44,7 @@ crate::flash_texts! {
     ErrBinary = "binary data in file",
     // Machine states on the display.
     StIdle = "Idle",
+    StNotHomed = "Not homed",
     StRun = "Run",
     StHold = "Hold",
     StAlarm = "ALARM",
@@ -66,8 +67,8 @@ crate::flash_texts! {
     HintMenu = "Press for menu",
     HintResume = "Press to resume",
     HintRecover = "Press to recover",
-    HintJog = "Turn to jog, press: done",
-    HintEdit = "Turn to set, press: ok",
+    HintJog = "Turn: jog Press: done",
+    HintEdit = "Turn: set Press: ok",
     // Alarms on the status screen, and the menu that gets out of one.
     AlHardLimit = "Hard limit",
     AlProbe = "Probe missed",
@@ -175,6 +176,14 @@ mod tests {
         let mut v = Vec::new();
         t.for_each(|b| v.push(b));
         String::from_utf8(v).unwrap()
+    }
+
+    #[test]
+    fn every_hint_fits_on_its_line() {
+        let hints = [Text::HintMenu, Text::HintResume, Text::HintRecover, Text::HintJog, Text::HintEdit, Text::HintConfirm, Text::HintBack];
+        for t in hints {
+            assert!(t.len() <= crate::ui::render::COLS, "{t:?}: {:?} is cut at {} characters", s(t), crate::ui::render::COLS);
+        }
     }
 
     #[test]

@@ -7,17 +7,19 @@ use sim::{oled, Vm};
 use std::path::PathBuf;
 
 /// Read the OLED's 8 text lines back from its display RAM with the
-/// firmware's own font: `[text]` marks an inverted (highlighted) line.
+/// firmware's own font: `[text]` marks an inverted (highlighted) line. The
+/// bottom pixel row (bit 7) is not read: the font leaves it blank, and a
+/// title bar keeps it dark.
 pub fn screen(vm: &Vm) -> Vec<String> {
     use mill::ui::font::{column, CELL_W};
     let ram = vm.oled().ram();
     (0..8)
         .map(|page| {
             let row = &ram[page][oled::COLUMN_OFFSET..oled::COLUMN_OFFSET + 128];
-            let inverted = row[126] == 0xFF;
+            let inverted = row[126] & 0x7F == 0x7F;
             let mut s = String::new();
             for cell in 0..21 {
-                let cols: Vec<u8> = (0..CELL_W).map(|c| row[cell * CELL_W + c] ^ if inverted { 0xFF } else { 0 }).collect();
+                let cols: Vec<u8> = (0..CELL_W).map(|c| (row[cell * CELL_W + c] ^ if inverted { 0xFF } else { 0 }) & 0x7F).collect();
                 let ch = (0x20u8..0x7F).find(|&ch| (0..CELL_W).all(|c| column(ch, c) == cols[c])).unwrap_or(b'~');
                 s.push(ch as char);
             }
