@@ -6,29 +6,11 @@
 //! 256-character lines.
 
 mod common;
+#[path = "common/panel.rs"]
+mod panel;
 use common::*;
-use sim::{oled, Axis, Vm};
-
-/// The OLED's 8 text lines, read back from its display RAM with the
-/// firmware's own font (as `tests/ui.rs` does).
-fn oled_text(vm: &Vm) -> Vec<String> {
-    use mill::ui::font::{column, CELL_W};
-    let ram = vm.oled().ram();
-    (0..8)
-        .map(|page| {
-            let row = &ram[page][oled::COLUMN_OFFSET..oled::COLUMN_OFFSET + 128];
-            let inverted = row[126] == 0xFF;
-            (0..21)
-                .map(|cell| {
-                    let cols: Vec<u8> = (0..CELL_W).map(|c| row[cell * CELL_W + c] ^ if inverted { 0xFF } else { 0 }).collect();
-                    (0x20u8..0x7F).find(|&ch| (0..CELL_W).all(|c| column(ch, c) == cols[c])).unwrap_or(b'~') as char
-                })
-                .collect::<String>()
-                .trim_end()
-                .to_string()
-        })
-        .collect()
-}
+use panel::screen;
+use sim::{Axis, Vm};
 
 /// Boot and unlock the homing lock (M999), output cleared.
 fn unlocked() -> Vm {
@@ -117,7 +99,7 @@ fn m117_and_m73_show_on_the_status_screen() {
     ok(&mut vm, "M117 Roughing pass");
     ok(&mut vm, "M73 P42");
     vm.run_for(0.6).unwrap();
-    let text = oled_text(&vm);
+    let text = screen(&vm);
     assert_eq!(text[6], "Roughing pass     42%", "{text:?}");
 }
 
