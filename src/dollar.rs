@@ -215,6 +215,17 @@ pub enum DollarError {
 }
 
 impl DollarError {
+    /// grbl's code (as the real grbl-Mega answers): 2 ("bad number
+    /// format") for a `$` line it cannot read, 3 ("invalid statement") for
+    /// a setting it does not have, 20 for a bad value.
+    pub fn grbl_code(self) -> u8 {
+        match self {
+            DollarError::Syntax => 2,
+            DollarError::Unknown => crate::gcode::interp::grbl::BAD_STATEMENT,
+            DollarError::BadValue => 20,
+        }
+    }
+
     pub fn message(self) -> FStr {
         match self {
             DollarError::Syntax => F!("$ command: use $$, $<n>=<value>, $H[XYZ], $X, $G, $#, $I[=], $J=, $N[0|1=], $C, $RST=$|#|*, $SLP"),

@@ -1031,7 +1031,7 @@ impl Machine {
     /// A grbl-style `$` line (see `crate::dollar`).
     #[inline(never)]
     fn dollar(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
-        let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
+        let bad = |e: dollar::DollarError| interp::Error::Coded(e.grbl_code(), e.message());
         match dollar::parse(text).map_err(bad)? {
             dollar::Command::List => dollar::list(&self.settings, io),
             dollar::Command::Modes => dollar::modes(&self.interp, self.atc.spindle_tool(), io),
@@ -1158,6 +1158,7 @@ impl Machine {
         self.replace_settings(s, io)?;
         self.interp.load_settings(&self.settings);
         self.save_settings(io);
+        uwriteln!(io, "{}", F!("[MSG:Restoring defaults]")).ok();
         Ok(())
     }
 

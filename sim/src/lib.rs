@@ -66,7 +66,7 @@ pub use host::{Flow, StreamOptions, StreamReport};
 pub use isr::{IsrStats, STEPPER_VECTOR};
 pub use oled::Sh1106;
 pub use physics::{CarouselConfig, MachineConfig, OpticalBeam, Physics, SwitchConfig, SwitchModel, ToolSetter};
-pub use pins::{Axis, Input, Pin, SignalKind};
+pub use pins::{Axis, Input, Pin, PinMap, SignalKind};
 pub use recorder::{PathPoint, Recorder, RecorderConfig, TracePoint, Violation, ViolationKind};
 pub use report::{Report, ResetKind, ResetRecord};
 pub use sdcard::{CardKind, SdCard};

@@ -132,6 +132,71 @@ pub struct DriverPins {
     pub enable: Pin,
 }
 
+/// Which pin is which signal: the drivers' step/dir/enable, and each input
+/// (`None`: not wired). [`PinMap::RAMPS`] is the mill's board; the
+/// [`PinMap::GRBL_MEGA`] preset runs the real grbl-Mega for side-by-side
+/// tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PinMap {
+    pub drivers: [DriverPins; 4],
+    pub inputs: [Option<Pin>; Input::COUNT],
+}
+
+impl PinMap {
+    /// RAMPS 1.4 (docs/SPEC.md §2): [`DRIVERS`] and [`Input::pin`].
+    pub const RAMPS: PinMap = PinMap {
+        drivers: DRIVERS,
+        inputs: [
+            Some(Input::HomeX.pin()),
+            Some(Input::HomeY.pin()),
+            Some(Input::HomeZ.pin()),
+            Some(Input::CarouselHome.pin()),
+            Some(Input::ToolSetter.pin()),
+            Some(Input::EncoderA.pin()),
+            Some(Input::EncoderB.pin()),
+            Some(Input::EncoderButton.pin()),
+            Some(Input::SdDetect.pin()),
+        ],
+    };
+
+    /// grbl-Mega 1.1g's `CPU_MAP_2560_INITIAL` (its `cpu_map.h`): steps on
+    /// PA2/PA3/PA4 (D24–D26), directions on PC7/PC6/PC5 (D30–D32, high =
+    /// toward negative: `MachineConfig::invert_dir_mask`), one disable pin
+    /// for all drivers on PB7 (D13), limits on PB4/PB5/PB6 (D10–D12), the
+    /// probe on PK7 (A15, as the tool setter's input). No carousel (its
+    /// driver on PG3/PG4, which grbl never drives), no encoder, no card.
+    pub const GRBL_MEGA: PinMap = PinMap {
+        drivers: [
+            DriverPins { step: Pin::new(b'A', 2), dir: Pin::new(b'C', 7), enable: Pin::new(b'B', 7) },
+            DriverPins { step: Pin::new(b'A', 3), dir: Pin::new(b'C', 6), enable: Pin::new(b'B', 7) },
+            DriverPins { step: Pin::new(b'A', 4), dir: Pin::new(b'C', 5), enable: Pin::new(b'B', 7) },
+            DriverPins { step: Pin::new(b'G', 3), dir: Pin::new(b'G', 4), enable: Pin::new(b'B', 7) },
+        ],
+        inputs: [
+            Some(Pin::new(b'B', 4)),
+            Some(Pin::new(b'B', 5)),
+            Some(Pin::new(b'B', 6)),
+            None,
+            Some(Pin::new(b'K', 7)),
+            None,
+            None,
+            None,
+            None,
+        ],
+    };
+
+    /// The pin of `input`, if it is wired.
+    pub const fn input(&self, input: Input) -> Option<Pin> {
+        self.inputs[input.index()]
+    }
+}
+
+impl Default for PinMap {
+    fn default() -> Self {
+        PinMap::RAMPS
+    }
+}
+
 /// RAMPS 1.4 driver pins, indexed by [`Axis::index`] (docs/SPEC.md §2, thesis Table 7).
 pub const DRIVERS: [DriverPins; 4] = [
     DriverPins { step: Pin::new(b'F', 0), dir: Pin::new(b'F', 1), enable: Pin::new(b'D', 7) },
@@ -237,6 +302,16 @@ mod tests {
         assert_eq!(Axis::Y.pins().enable.to_string(), "PF2");
         assert_eq!(Axis::Z.pins().dir.to_string(), "PL1");
         assert_eq!(Axis::E.pins().step.to_string(), "PA4");
+        for i in Input::ALL {
+            assert_eq!(PinMap::RAMPS.input(i), Some(i.pin()));
+        }
+        // The preset's outputs and inputs never share a pin.
+        let g = PinMap::GRBL_MEGA;
+        for d in g.drivers {
+            for p in [d.step, d.dir] {
+                assert!(!g.inputs.contains(&Some(p)), "{p}");
+            }
+        }
         assert_eq!(Pin::new(b'L', 3).port_reg(), 0x10B);
         assert_eq!(Pin::new(b'F', 0).pin_reg(), 0x2F);
     }

@@ -67,7 +67,7 @@ use crate::host::{is_reply_end, StreamOptions, StreamReport, Streamer};
 use crate::isr::{IsrStats, IsrTracker, STEPPER_VECTOR};
 use crate::oled::Sh1106;
 use crate::physics::{MachineConfig, Physics, ToolSetter};
-use crate::pins::{Axis, Input, Pin, SignalKind, COOLANT, SPINDLE_PWM};
+use crate::pins::{Axis, Input, Pin, PinMap, SignalKind, COOLANT, SPINDLE_PWM};
 use crate::recorder::{Recorder, RecorderConfig, Violation};
 use crate::report::{AxisReport, Report, ResetKind, ResetRecord, UartReport};
 use crate::sdcard::SdCard;
@@ -106,6 +106,8 @@ const IOCTL_EEPROM_SET: u32 = ioctl_def(b'e', b'e', b's', b'p');
 
 /// MCUSR: reset flags (PORF bit 0, EXTRF bit 1, BORF bit 2, WDRF bit 3).
 const MCUSR: usize = 0x54;
+/// OCR1AL's data-space address (ATmega2560 register summary).
+const OCR1AL: u16 = 0x88;
 /// EEPROM size of the ATmega2560, bytes.
 pub const EEPROM_SIZE: usize = 4096;
 /// Last SRAM address of the ATmega2560.
@@ -189,12 +191,37 @@ pub struct VmConfig {
     /// ELF's image: a board with only the bootloader, to flash through it.
     /// The ELF is still read for its symbols. Default false.
     pub blank_application: bool,
+    /// Which pin is which driver signal and input. Default: RAMPS 1.4.
+    pub pins: PinMap,
+    /// Data-space bytes written after every reset, before the firmware
+    /// runs (a simavr workaround a peer firmware needs; see
+    /// [`VmConfig::grbl_mega`]). Default none.
+    pub poke_after_reset: Vec<(u16, u8)>,
 }
 
 impl VmConfig {
     /// Default configuration for a given ELF.
     pub fn new(elf: impl Into<PathBuf>) -> VmConfig {
         VmConfig { elf: elf.into(), ..VmConfig::default() }
+    }
+
+    /// The real grbl-Mega 1.1g (`../shared/peers/grbl-mega/`, its ELF
+    /// `elf`) on its own pins ([`PinMap::GRBL_MEGA`], directions high =
+    /// negative), with the two simavr workarounds its ORIGIN.txt measured:
+    /// OCR1A set to 0xFF after every reset (simavr's Timer1 CTC never fires
+    /// with OCR1A = 0, which grbl leaves there when it enables the
+    /// interrupt), and TCNTn kept across a clock start (on by default).
+    /// No switches are wired but the limits and the probe; grbl's limits
+    /// and homing are off by default.
+    pub fn grbl_mega(elf: impl Into<PathBuf>) -> VmConfig {
+        let mut c = VmConfig::new(elf);
+        c.pins = PinMap::GRBL_MEGA;
+        c.machine.invert_dir_mask = 0b0111;
+        // grbl's probe input reads low when it touches (pull-up, `$6=0`).
+        c.machine.inverted_inputs |= 1 << Input::ToolSetter.index();
+        c.poke_after_reset = vec![(OCR1AL, 0xFF)];
+        c.fix_tcnt_on_clock_start = true;
+        c
     }
 
     /// `$MILL_ELF` if set, else `<repo>/target/avr-atmega2560/release/mill.elf`
@@ -222,6 +249,8 @@ impl Default for VmConfig {
             fix_tcnt_on_clock_start: true,
             bootloader: None,
             blank_application: false,
+            pins: PinMap::RAMPS,
+            poke_after_reset: Vec::new(),
         }
     }
 }
@@ -261,6 +290,10 @@ struct Inner {
     physics: Physics,
     isr: IsrTracker,
     host: UartHost,
+    /// The board's pins ([`VmConfig::pins`]) and the bytes written after
+    /// every reset ([`VmConfig::poke_after_reset`]).
+    pins: PinMap,
+    pokes: Vec<(u16, u8)>,
     /// Levels last driven per input.
     levels: [Option<bool>; Input::COUNT],
     input_irqs: [*mut ffi::avr_irq_t; Input::COUNT],
@@ -745,11 +778,11 @@ fn drive_input(inner: &mut Inner, input: Input, direct: bool) {
         return;
     }
     inner.levels[i] = Some(level);
-    let pin = input.pin();
+    let Some(pin) = inner.pins.input(input) else { return };
     // The port's external state covers every input on that port.
     let (mut mask, mut value) = (0u8, 0u8);
     for other in Input::ALL {
-        let p = other.pin();
+        let Some(p) = inner.pins.input(other) else { continue };
         if p.port == pin.port {
             if let Some(l) = inner.levels[other.index()] {
                 mask |= 1 << p.bit;
@@ -903,6 +936,8 @@ impl Vm {
             physics,
             isr: IsrTracker::default(),
             host: UartHost::default(),
+            pins: config.pins,
+            pokes: config.poke_after_reset.clone(),
             levels: [None; Input::COUNT],
             input_irqs: [std::ptr::null_mut(); Input::COUNT],
             output_irqs: Vec::new(),
@@ -959,7 +994,7 @@ impl Vm {
             // Driver pins.
             let mut hooks = Vec::new();
             for axis in Axis::ALL {
-                let p = axis.pins();
+                let p = (*inner).pins.drivers[axis.index()];
                 for (kind, pin) in [(SignalKind::Step, p.step), (SignalKind::Dir, p.dir), (SignalKind::Enable, p.enable)] {
                     hooks.push((PinHook { inner, axis, kind }, pin));
                 }
@@ -976,8 +1011,12 @@ impl Vm {
 
             // Inputs.
             for input in Input::ALL {
-                let pin = input.pin();
-                (*inner).input_irqs[input.index()] = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(pin.port), pin.bit as c_int);
+                if let Some(pin) = (*inner).pins.input(input) {
+                    (*inner).input_irqs[input.index()] = ffi::avr_io_getirq(avr, ioctl_ioport_getirq(pin.port), pin.bit as c_int);
+                }
+            }
+            for &(addr, v) in &(*inner).pokes {
+                *(*avr).data.add(addr as usize) = v;
             }
             for input in Input::ALL {
                 drive_input(&mut *inner, input, true);
@@ -1182,6 +1221,10 @@ impl Vm {
         };
         let kind = kind.unwrap_or(if mcusr & 0x08 != 0 { ResetKind::Watchdog } else { ResetKind::External });
         inner.resets.push(ResetRecord { cycle: now, kind });
+        for &(addr, v) in &inner.pokes {
+            // SAFETY: avr is live and not running; the address is in its data space.
+            unsafe { *(*avr).data.add(addr as usize) = v };
+        }
         // Pins float: the drivers read step/dir/enable low.
         inner.recorder.on_reset(now);
         for &irq in &inner.output_irqs {
@@ -1693,7 +1736,7 @@ impl Vm {
 
     /// The electrical level of an input's pin as the chip reads it (PINx bit).
     pub fn input_level(&self, input: Input) -> bool {
-        let pin = input.pin();
+        let Some(pin) = self.inner().pins.input(input) else { return false };
         self.read_u8(pin.pin_reg()) & (1 << pin.bit) != 0
     }
 

@@ -334,7 +334,7 @@ impl Interp {
             (Some(r), false) => Ok(arc::Centre::Radius(r)),
             (None, true) => Ok(arc::Centre::Offset(centre_off)),
             (Some(_), true) => Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
-            (None, false) => Err(Error::BadWord(F!("arc needs R or I/J/K"))),
+            (None, false) => Err(Error::Coded(crate::gcode::interp::grbl::ARC_NO_OFFSET, F!("arc needs R or I/J/K"))),
         }
     }
 }

@@ -97,6 +97,10 @@ pub enum Error {
     Arc(ArcError),
     /// A word needed by the code is missing or out of range.
     BadWord(FStr),
+    /// A refusal whose grbl error code is not [`Error::BadWord`]'s 20: the
+    /// code (checked against the real grbl-Mega, `tests/grbl_reference.rs`)
+    /// and the text.
+    Coded(u8, FStr),
     /// A code this build does not provide yet.
     NotAvailable(FStr),
     /// Homing failed (alarm raised).
@@ -129,6 +133,23 @@ pub enum Error {
     UnusedWord(Word),
 }
 
+/// grbl 1.1's error codes (its `doc/csv/error_codes_en_US.csv`) that
+/// [`Error::Coded`] gives.
+pub mod grbl {
+    /// "Invalid statement": a `$` command not recognised.
+    pub const BAD_STATEMENT: u8 = 3;
+    /// "Value < 0".
+    pub const NEGATIVE: u8 = 4;
+    /// "Invalid jog command".
+    pub const BAD_JOG: u8 = 16;
+    /// "G-code command is missing a required value word".
+    pub const VALUE_MISSING: u8 = 28;
+    /// "G59.x work coordinate systems are not supported" (a P out of range).
+    pub const BAD_WCS: u8 = 29;
+    /// "G2 and G3 arcs require at least one in-plane offset word".
+    pub const ARC_NO_OFFSET: u8 = 35;
+}
+
 impl Error {
     /// Text printed after `Error:`.
     pub fn message(&self) -> FStr {
@@ -139,7 +160,7 @@ impl Error {
             Error::SoftLimit => F!("target outside travel (soft limit), nothing moved"),
             Error::SpindleCcw => F!("M4 not supported: the spindle turns one way only"),
             Error::Arc(e) => e.message(),
-            Error::BadWord(m) => *m,
+            Error::BadWord(m) | Error::Coded(_, m) => *m,
             Error::NotAvailable(m) => *m,
             Error::NotHomed => F!("not homed: home (G28) or unlock (M999) first, nothing moved"),
             Error::HomingFailed => F!("homing failed: switch not found"),
@@ -177,6 +198,7 @@ impl Error {
             Error::Atc(crate::atc::Fault::ToolRange) => 38,
             Error::ProbeAlreadyTriggered | Error::ProbeFailed => 9,
             Error::UnusedWord(_) => 36,
+            Error::Coded(c, _) => *c,
             _ => 20,
         }
     }
@@ -373,7 +395,7 @@ impl Interp {
             || l.other_m.is_some();
         let words = Word::ALL.iter().any(|&w| !matches!(w, Word::X | Word::Y | Word::Z | Word::F | Word::N) && l.words.contains(w));
         if codes || words {
-            return Err(Error::BadWord(F!("$J= takes X Y Z F and G20 G21 G90 G91 G53 only")));
+            return Err(Error::Coded(grbl::BAD_JOG, F!("$J= takes X Y Z F and G20 G21 G90 G91 G53 only")));
         }
         let inches = l.units.map_or(self.inches, |u| u == Units::Inch);
         let incremental = l.distance.map_or(self.incremental, |d| d == Distance::Incremental);
@@ -975,6 +997,9 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
         }
     }
     if let Some(f) = l.word(Word::F) {
+        if f < 0.0 {
+            return Some(Err(Error::Coded(grbl::NEGATIVE, F!("F must not be negative"))));
+        }
         if !(f > 0.0) {
             return Some(Err(Error::BadFeed));
         }
@@ -982,7 +1007,7 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
     let s_word = spindle_speed(l);
     if let Some(s) = s_word {
         if s < 0.0 {
-            return Some(Err(Error::BadWord(F!("S must not be negative"))));
+            return Some(Err(Error::Coded(grbl::NEGATIVE, F!("S must not be negative"))));
         }
     }
     *extras = l.tool_change
@@ -1487,7 +1512,7 @@ impl Interp {
             n @ (2 | 20) if lv == n as f32 => {
                 let idx = round_i32(p);
                 if idx as f32 != p || !(0..=N_WCS as i32).contains(&idx) {
-                    return Err(Error::BadWord(F!("G10 L2/L20: P must be 0-6")));
+                    return Err(Error::Coded(grbl::BAD_WCS, F!("G10 L2/L20: P must be 0-6")));
                 }
                 let w = if idx == 0 { g.wcs as usize } else { (idx - 1) as usize };
                 let mut off = self.wcs_mm[w];
@@ -1567,10 +1592,10 @@ fn dwell(s: &Settings, l: &Line) -> Result<f32, Error> {
     let ms = match (l.word(Word::P), l.word(Word::S)) {
         (Some(p), _) if s.dwell_p_ms => p,
         (Some(secs), _) | (None, Some(secs)) => secs * 1000.0,
-        (None, None) => return Err(Error::BadWord(F!("G4 needs P (or S in seconds)"))),
+        (None, None) => return Err(Error::Coded(grbl::VALUE_MISSING, F!("G4 needs P (or S in seconds)"))),
     };
     if !(ms >= 0.0) {
-        return Err(Error::BadWord(F!("G4: the dwell must not be negative")));
+        return Err(Error::Coded(grbl::NEGATIVE, F!("G4: the dwell must not be negative")));
     }
     Ok(ms)
 }
