@@ -182,18 +182,18 @@ pub enum State {
 }
 
 impl State {
-    /// The grbl 1.1 status word.
-    pub fn name(self) -> &'static str {
+    /// The grbl 1.1 status word (in flash: a `&str` would sit in RAM).
+    pub fn name(self) -> crate::flash::FStr {
         match self {
-            State::Idle => "Idle",
-            State::Run => "Run",
-            State::Hold => "Hold",
-            State::Alarm => "Alarm",
-            State::Home => "Home",
-            State::Tool => "Tool",
-            State::Probe => "Probe",
-            State::Jog => "Jog",
-            State::Check => "Check",
+            State::Idle => F!("Idle"),
+            State::Run => F!("Run"),
+            State::Hold => F!("Hold"),
+            State::Alarm => F!("Alarm"),
+            State::Home => F!("Home"),
+            State::Tool => F!("Tool"),
+            State::Probe => F!("Probe"),
+            State::Jog => F!("Jog"),
+            State::Check => F!("Check"),
         }
     }
 }
@@ -614,6 +614,13 @@ impl Machine {
                     return;
                 }
                 if let Err(e) = r {
+                    if self.grbl_replies && matches!(e, interp::Error::ProbeFailed) {
+                        // grbl: a probe that touched nothing is its alarm
+                        // (`ALARM:5`, already out); the line itself is
+                        // acknowledged.
+                        uwriteln!(io, "ok").ok();
+                        return;
+                    }
                     if self.grbl_replies {
                         // grbl: the error instead of the `ok`, its text first.
                         uwrite!(io, "{}", F!("[MSG:")).ok();

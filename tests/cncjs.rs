@@ -106,7 +106,11 @@ fn write_jobs(dir: &Path) -> Jobs {
     let c = format!("G21 G90\nG1 X0 Y0 F600\n{}G1 X7.77 Y2.22\n", square_segments(2));
     // D: relative moves, so that anything left of C would shift its end.
     let d = "G21 G91\nG1 X2 Y1 F1200\nG1 X-0.5 Y0.25\nG90\n";
-    for (name, text) in [("a.nc", a), ("b.nc", &b), ("c.nc", &c), ("d.nc", d)] {
+    // F: a line the firmware refuses (G93, inverse time) after 1 mm, then
+    // 12 mm more in 60 lines (what cncjs had already streamed before the
+    // error still runs, as with grbl; the rest waits).
+    let f = format!("G21 G91\nG1 X1 F600\nG93 G1 X1 F10\n{}G90\n", "G1 X0.2 F600\n".repeat(60));
+    for (name, text) in [("a.nc", a), ("b.nc", &b), ("c.nc", &c), ("d.nc", d), ("f.nc", &f)] {
         std::fs::write(dir.join(name), text).unwrap();
     }
     Jobs { dir: dir.to_path_buf(), a_end: (250, 425), b_end: (321, 107), c_end: (777, 222), d_delta: (150, 125) }
@@ -450,13 +454,51 @@ fn check_session(controller: &str, vm: &Vm, s: &Session, jobs: &Jobs) {
         }
         _ => check(false, "job E: the driver did not reach the reconnect".into()),
     }
+    // Grbl: a refused line pauses the job (nothing after it runs); a hard
+    // limit is left with Unlock and a jog off the switch.
+    let mut window = (f64::MAX, f64::MAX);
+    if controller == "Grbl" {
+        match (s.marks.get("f_start"), s.marks.get("f_paused"), s.marks.get("f_paused_end")) {
+            (Some(f0), Some(fp), Some(fe)) => {
+                // The refused line moved nothing (its 1 mm is missing from
+                // every total: 100 + 20 k steps) and the job is held short
+                // of its end (1300 steps).
+                let delta = (fp.pos[0] - f0.pos[0], fp.pos[1] - f0.pos[1]);
+                check(
+                    delta.1 == 0 && delta.0 >= 100 && delta.0 < 1300 && (delta.0 - 100) % 20 == 0,
+                    format!("job F held after the refused line: {delta:?} steps (the job: 100, the refused 100, then 1200)"),
+                );
+                let n = s.steps_between(vm, "f_paused", "f_paused_end");
+                check(n == 0, format!("job F: {n} steps while cncjs held it on the error"));
+                let lines = s.fw_lines_after(f0.seconds);
+                check(lines.iter().any(|l| l == "error:20"), "job F: the firmware answered the G93 line with error:20".into());
+                window = (f0.seconds, fe.seconds);
+            }
+            _ => check(false, "job F: cncjs did not pause on the error".into()),
+        }
+        match (s.marks.get("g_alarm"), s.marks.get("g_unlocked"), s.marks.get("g_end")) {
+            (Some(ga), Some(_), Some(ge)) => {
+                let n = s.steps_between(vm, "g_alarm", "g_unlocked");
+                check(n == 0, format!("hard limit: {n} steps between the alarm and the unlock"));
+                let delta = (ge.pos[0] - ga.pos[0], ge.pos[1] - ga.pos[1]);
+                check(delta == (500, 0), format!("the jog off the switch after Unlock moved {delta:?} steps, expected (500, 0)"));
+                check((-50..=0).contains(&ga.pos[0]), format!("X stopped at its switch (machine 0): {} steps", ga.pos[0]));
+            }
+            _ => check(false, "hard limit: the driver did not reach the jog off the switch".into()),
+        }
+    }
     for c in &s.driver_checks {
         check(false, c.clone());
     }
     check(s.failure.is_none(), format!("the driver finished: {:?}", s.failure));
     // (The refusal of job E's move is asked for.)
     let asked = s.marks.get("e_reopened").map_or(f64::MAX, |m| m.seconds);
-    let errors: Vec<String> = s.errors().into_iter().filter(|e| !e.contains("Error:not homed") || e_time(e) < asked).collect();
+    let errors: Vec<String> = s
+        .errors()
+        .into_iter()
+        .filter(|e| !e.contains("Error:not homed") || e_time(e) < asked)
+        .filter(|e| !(window.0..=window.1).contains(&e_time(e)))
+        .collect();
     check(errors.is_empty(), format!("no error from the firmware to what cncjs sends: {errors:?}"));
     check(vm.position(Axis::Z) == start[2], "Z never moved".into());
     check(vm.violations().is_empty(), format!("no timing violation: {:?}", vm.violations()));

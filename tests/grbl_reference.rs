@@ -255,3 +255,68 @@ fn grbl_mega_runs_in_the_virtual_machine_on_its_own_pins() {
     assert!(st.starts_with("<Idle|MPos:10.000,-5.000,2.000|"), "{st}");
     assert!(!st.contains("Pn:"), "no input reads triggered: {st}");
 }
+
+/// `$C` check mode: both take a move without moving and report `Check`;
+/// `$I` gives grbl's two lines; a probe that touches nothing is `ALARM:5`
+/// with a `[PRB:…:0]` report and an `ok` for the line, in both.
+#[test]
+fn check_mode_build_info_and_a_missed_probe_answer_as_in_grbl() {
+    let mut g = grbl();
+    let mut m = mill();
+    for vm in [&mut g, &mut m] {
+        let p0 = vm.positions();
+        assert_eq!(reply(vm, "$C"), ["[MSG:Enabled]", "ok"]);
+        assert_eq!(verdict(&reply(vm, "G91 G1 X5 F600")), "ok");
+        vm.run_for(0.3).unwrap();
+        assert!(status_of(vm).starts_with("<Check|"));
+        assert_eq!(vm.positions(), p0, "check mode moves nothing");
+        let r = reply(vm, "$C");
+        assert_eq!(r[0], "[MSG:Disabled]", "{r:?}");
+        // grbl resets itself after check mode (its banner); this firmware
+        // does not (docs/hosts.md's table).
+        vm.run_for(0.3).unwrap();
+        vm.take_lines();
+        let i = reply(vm, "$I");
+        assert!(i.len() == 3 && i[0].starts_with("[VER:1.1") && i[1].starts_with("[OPT:"), "{i:?}");
+        let p = reply(vm, "G38.2 Z-1 F100");
+        assert_eq!(verdict(&p), "ok", "{p:?}");
+        assert!(p.iter().any(|l| l == "ALARM:5") && p.iter().any(|l| l.starts_with("[PRB:") && l.ends_with(":0]")), "{p:?}");
+        assert!(status_of(vm).starts_with("<Alarm|"));
+    }
+}
+
+/// The rapid override (0x97: 25 %) on a G0 and the spindle override
+/// (0x9A: +10 %) in `Ov:`: as in grbl.
+#[test]
+fn rapid_and_spindle_overrides_act_as_in_grbl() {
+    let mut out = Vec::new();
+    for mut vm in [grbl(), mill()] {
+        let x0 = vm.positions()[0];
+        vm.send([0x97]);
+        vm.run_for(0.05).unwrap();
+        vm.send([0x9A]);
+        vm.run_for(0.05).unwrap();
+        assert_eq!(verdict(&reply(&mut vm, "G91 G0 X20")), "ok");
+        vm.run_for(1.0).unwrap();
+        let t = vm.cycles();
+        let hz = u64::from(vm.frequency());
+        let rate = x_rate(&vm, t - hz / 2, t);
+        let mut ov = String::new();
+        for _ in 0..25 {
+            let st = status_of(&mut vm);
+            if let Some(f) = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ov:")) {
+                ov = f.to_string();
+                break;
+            }
+            vm.run_for(0.02).unwrap();
+        }
+        vm.run_for(2.0).unwrap();
+        out.push((rate, ov, x_moved(&vm, x0)));
+    }
+    for (name, r) in ["grbl", "this firmware"].iter().zip(&out) {
+        // 3000 mm/min at 25 %: 12.5 mm/s, 1250 steps/s.
+        assert!((r.0 - 1250.0).abs() < 40.0, "{name}: {} steps/s", r.0);
+        assert_eq!(r.1, "100,25,110", "{name}");
+        assert_eq!(r.2, 2000, "{name}");
+    }
+}

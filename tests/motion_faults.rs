@@ -351,7 +351,7 @@ fn bad_input_gets_a_clear_error_and_changes_nothing() {
         ("G1 X99999", "Error:target outside travel"),
         // +Z is up: above the top switch (machine Z 0) is outside travel.
         ("G0 Z0.5", "Error:target outside travel"),
-        ("G1 X20 F-5", "Error:feed rate missing or not positive"),
+        ("G1 X20 F-5", "Error:F must not be negative"),
         ("G1 X20 F0", "Error:feed rate missing or not positive"),
         ("G1 A5", "Error:axis word for an axis this machine does not have (X Y Z only) at col 4"),
         ("G1 X20 (oops", "Error:unclosed comment at col 8"),

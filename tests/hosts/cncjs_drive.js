@@ -9,6 +9,8 @@
 //      the feed override buttons: +10 % three times, then 100 %)
 //   -> job C stopped with the Stop button (gcode:stop {force: true}), then
 //      Cycle start and a raw `~`, then a question to the machine -> job D
+//   -> (Grbl) job F with a refused line: cncjs pauses on the error; Stop
+//   -> (Grbl) a hard limit, Unlock and a jog off the switch
 //   -> job E, during which the port is closed and opened again (auto-reset).
 //
 // Usage: node cncjs_drive.js URL SECRET PORT Grbl|Marlin JOBDIR
@@ -284,6 +286,46 @@ async function main() {
   await runToEnd('job D', 60000);
   await waitStill(0.3, 10);
   await mark('d_end');
+
+  if (grbl) {
+    // F: a job with a line the firmware refuses (`error:20`): cncjs pauses
+    // its workflow on the error, nothing after the line runs; then Stop.
+    await load('f.nc');
+    await mark('f_start');
+    n = reads.length;
+    command('gcode:start');
+    await until(() => workflow === 'paused', 15000, 'job F: cncjs pauses on the error');
+    await until(() => readsSince(n).some((l) => l.startsWith('error:')), 2000, 'job F: the error line');
+    await waitStill(0.3, 10);
+    await mark('f_paused');
+    await sleep(1000);
+    await mark('f_paused_end');
+    command('gcode:stop', { force: true });
+    await until(() => workflow === 'idle', 5000, 'job F: stopped');
+    await sleep(1000);
+    // G: a hard limit (X driven into its switch, soft limits off), then
+    // Unlock ($X) and a jog off the switch, as a grbl user does.
+    n = reads.length;
+    writeln('$20=0');
+    await until(() => readsSince(n).some((l) => l.startsWith('ok')), 5000, 'ok to $20=0');
+    writeln('G91 G1 X-60 F600');
+    await until(() => activeState === 'Alarm', 20000, 'the hard-limit alarm');
+    await waitStill(0.3, 10);
+    await mark('g_alarm');
+    n = reads.length;
+    command('unlock');
+    await until(() => readsSince(n).some((l) => l.startsWith('ok')), 5000, 'ok to $X after the hard limit');
+    await sleep(300);
+    await mark('g_unlocked');
+    writeln('$J=G91 X5 F600');
+    await waitMoved('g_unlocked', 500, 10);
+    await waitStill(0.3, 10);
+    await mark('g_end');
+    await until(() => activeState === 'Idle', 5000, 'Idle after the jog off the switch');
+    writeln('G90');
+    writeln('$20=1');
+    await sleep(500);
+  }
 
   // E: the port closed and opened again in the middle of a job (cncjs
   // restarted, the user reconnecting): opening the port resets the board
