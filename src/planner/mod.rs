@@ -568,7 +568,7 @@ impl Planner {
         let rapid = speed == Speed::Rapid;
         let (feed_mm_per_min, pct, programmed) = match speed {
             Speed::Rapid => (0.0, 100, 0),
-            Speed::Feed(f) => (f, self.feed_pct, (f + 0.5) as u16),
+            Speed::Feed(f) => (f, self.feed_pct, ((f + 0.5) as u16).max(1)),
             Speed::Fixed(f) => (f, 100, 0),
         };
         let inv_feed = if rapid {
