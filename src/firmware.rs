@@ -386,11 +386,12 @@ impl Io for Hw {
         let (detents, presses) = board::take_encoder();
         if detents != 0 || presses != 0 {
             let cmd = self.ui.step(detents, presses != 0, &self.view);
-            if let Cmd::Edit(e) = cmd {
-                self.ui.edit_um = e.current(m);
+            match cmd {
+                // An edit screen opened: its value, here where the machine is.
+                Cmd::Edit(e) => self.ui.edit_um = e.current(m),
+                other => self.command_now(other),
             }
             self.ui.fit_edit(m);
-            self.command_now(cmd);
             // Show the change at once.
             self.display.frame_start_ms = board::millis().wrapping_sub(FRAME_MS);
         }

@@ -9,7 +9,7 @@
 
 mod common;
 use common::*;
-use sim::{Axis, Vm, VmConfig};
+use sim::{Vm, VmConfig};
 use std::path::PathBuf;
 
 /// `../shared/peers/grbl-mega/grbl-mega-250000.elf` (or `$MILL_GRBL_MEGA_ELF`).
@@ -135,17 +135,6 @@ fn the_documented_differences_are_still_the_ones_grbl_shows() {
     assert_eq!(reply(&mut g, "$N"), reply(&mut m, "$N"));
 }
 
-/// One `?` status line.
-fn status_of(vm: &mut Vm) -> String {
-    vm.send(b"?");
-    vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
-}
-
-/// The names of a status line's fields, in order.
-fn fields(st: &str) -> Vec<String> {
-    st.trim_matches(['<', '>']).split('|').map(|f| f.split(':').next().unwrap().to_string()).collect()
-}
-
 /// `$10` picks the same fields in the same order as in grbl (this
 /// firmware adds `T:` at the end, and `Pn:C` for its carousel switch).
 #[test]
@@ -156,17 +145,11 @@ fn dollar_10_gives_the_status_fields_grbl_gives() {
         for vm in [&mut g, &mut m] {
             assert_eq!(verdict(&reply(vm, &format!("$10={mask}"))), "ok");
         }
-        let (a, b) = (status_of(&mut g), status_of(&mut m));
+        let (a, b) = (status(&mut g), status(&mut m));
         let (fa, fb) = (fields(&a), fields(&b));
         let n = if mask == "2" || mask == "3" { 4 } else { 3 };
         assert_eq!(fa[..n], fb[..n], "$10={mask}: grbl {a}, this firmware {b}");
     }
-}
-
-/// X steps per second between `t0` and `t1` (cycles).
-fn x_rate(vm: &Vm, t0: u64, t1: u64) -> f64 {
-    let n = vm.recorder().trace().iter().filter(|p| p.axis == Axis::X && (t0..t1).contains(&p.cycle)).count();
-    n as f64 * f64::from(vm.frequency()) / (t1 - t0) as f64
 }
 
 /// The steps X moved since `from`.
@@ -192,15 +175,7 @@ fn feed_override_bytes_act_as_in_grbl() {
         let t = vm.cycles();
         let hz = u64::from(vm.frequency());
         let fast = x_rate(&vm, t - hz / 4, t);
-        let mut ov = String::new();
-        for _ in 0..25 {
-            let st = status_of(&mut vm);
-            if let Some(f) = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ov:")) {
-                ov = f.to_string();
-                break;
-            }
-            vm.run_for(0.02).unwrap();
-        }
+        let ov = ov(&mut vm, 25);
         vm.send([0x90]);
         vm.run_for(0.5).unwrap();
         let t = vm.cycles();
@@ -230,7 +205,7 @@ fn jog_cancel_stops_where_grbl_stops() {
         vm.send([0x85]);
         vm.run_for(0.5).unwrap();
         let stop = x_moved(&vm, x0);
-        assert!(status_of(&mut vm).starts_with("<Idle|"));
+        assert!(status(&mut vm).starts_with("<Idle|"));
         assert_eq!(verdict(&reply(&mut vm, "$J=G91 X1 F600")), "ok");
         vm.run_for(0.5).unwrap();
         assert_eq!(x_moved(&vm, x0), stop + 100);
@@ -251,7 +226,7 @@ fn grbl_mega_runs_in_the_virtual_machine_on_its_own_pins() {
     vm.run_for(3.0).unwrap();
     let p = vm.positions();
     assert_eq!([p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]], [1000, -500, 200]);
-    let st = status_of(&mut vm);
+    let st = status(&mut vm);
     assert!(st.starts_with("<Idle|MPos:10.000,-5.000,2.000|"), "{st}");
     assert!(!st.contains("Pn:"), "no input reads triggered: {st}");
 }
@@ -268,7 +243,7 @@ fn check_mode_build_info_and_a_missed_probe_answer_as_in_grbl() {
         assert_eq!(reply(vm, "$C"), ["[MSG:Enabled]", "ok"]);
         assert_eq!(verdict(&reply(vm, "G91 G1 X5 F600")), "ok");
         vm.run_for(0.3).unwrap();
-        assert!(status_of(vm).starts_with("<Check|"));
+        assert!(status(vm).starts_with("<Check|"));
         assert_eq!(vm.positions(), p0, "check mode moves nothing");
         let r = reply(vm, "$C");
         assert_eq!(r[0], "[MSG:Disabled]", "{r:?}");
@@ -281,7 +256,7 @@ fn check_mode_build_info_and_a_missed_probe_answer_as_in_grbl() {
         let p = reply(vm, "G38.2 Z-1 F100");
         assert_eq!(verdict(&p), "ok", "{p:?}");
         assert!(p.iter().any(|l| l == "ALARM:5") && p.iter().any(|l| l.starts_with("[PRB:") && l.ends_with(":0]")), "{p:?}");
-        assert!(status_of(vm).starts_with("<Alarm|"));
+        assert!(status(vm).starts_with("<Alarm|"));
     }
 }
 
@@ -301,15 +276,7 @@ fn rapid_and_spindle_overrides_act_as_in_grbl() {
         let t = vm.cycles();
         let hz = u64::from(vm.frequency());
         let rate = x_rate(&vm, t - hz / 2, t);
-        let mut ov = String::new();
-        for _ in 0..25 {
-            let st = status_of(&mut vm);
-            if let Some(f) = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ov:")) {
-                ov = f.to_string();
-                break;
-            }
-            vm.run_for(0.02).unwrap();
-        }
+        let ov = ov(&mut vm, 25);
         vm.run_for(2.0).unwrap();
         out.push((rate, ov, x_moved(&vm, x0)));
     }

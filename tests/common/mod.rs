@@ -56,6 +56,31 @@ pub fn status(vm: &mut Vm) -> String {
     vm.wait_line(|l| l.starts_with('<'), 0.5).expect("status line")
 }
 
+/// The names of a status line's fields, in order (`<Idle|MPos:…|FS:…>`:
+/// Idle, MPos, FS).
+pub fn fields(st: &str) -> Vec<String> {
+    st.trim_matches(['<', '>']).split('|').map(|f| f.split(':').next().unwrap().to_string()).collect()
+}
+
+/// `Ov:` from the next of at most `reports` status reports that carries it
+/// (20 ms of simulated time between them).
+pub fn ov(vm: &mut Vm, reports: usize) -> String {
+    for _ in 0..reports {
+        let st = status(vm);
+        if let Some(f) = st.trim_matches(['<', '>']).split('|').find_map(|f| f.strip_prefix("Ov:")) {
+            return f.to_string();
+        }
+        vm.run_for(0.02).unwrap();
+    }
+    panic!("no Ov: in {reports} status reports");
+}
+
+/// X steps per second between cycles `t0` and `t1`, from the recorder.
+pub fn x_rate(vm: &Vm, t0: u64, t1: u64) -> f64 {
+    let n = vm.recorder().trace().iter().filter(|p| p.axis == sim::Axis::X && (t0..t1).contains(&p.cycle)).count();
+    n as f64 * f64::from(vm.frequency()) / (t1 - t0) as f64
+}
+
 /// Wait until the machine has been still for `quiet_s` (no step recorded).
 pub fn settle(vm: &mut Vm, quiet_s: f64) {
     loop {
