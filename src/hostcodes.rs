@@ -100,7 +100,8 @@ pub fn code(text: &[u8]) -> Option<(u16, &[u8])> {
 }
 
 /// [`code`] past its first-byte test.
-// speed: inlined into `Machine::execute`, ping-pong took 5.771 s, not 5.756 (372 B more flash to keep it out)
+// speed: inlined into `Machine::execute`, ping-pong took 5.771 s, not 5.756
+// (372 B less flash)
 #[inline(never)]
 fn code_of(text: &[u8]) -> Option<(u16, &[u8])> {
     let t = trim(text);

@@ -435,7 +435,10 @@ fn half(x: f32) -> f32 {
 /// holds (bits of cap, cap²)). Used when a block is queued and when the
 /// overrides re-plan the ring.
 #[allow(clippy::too_many_arguments)]
-// speed: as a call (1 KB less flash) ping-pong took 5.749 s, not 5.739, and tools/bench's corner run measured 2499 mm/s², not 1033 (the planner fell behind)
+// correctness: as a call, `cap` goes on the stack, and LLVM-AVR reads stack
+// arguments one byte low on the ATmega2560 (it counts a 2-byte return address;
+// the PC is 3 bytes): `cap_sqr_cache` then held garbage and tools/bench's corner
+// job measured 2499 mm/s², not 1033. Speed too: ping-pong 5.794 s, not 5.739.
 #[inline(always)]
 fn junction_sqr(
     same_dir: bool,

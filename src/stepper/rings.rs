@@ -163,7 +163,8 @@ struct SlotSink<'a, M: RingMem> {
 }
 
 impl<M: RingMem> Sink for SlotSink<'_, M> {
-    // speed: with `seg`, `seg_cycles` (and planner's `abs_f32`) left to LLVM, ping-pong took 5.754 s, not 5.739
+    // speed: with `seg`, `seg_cycles` (and planner's `abs_f32`) left to LLVM,
+    // ping-pong took 5.754 s, not 5.739
     #[inline(always)]
     fn chunk(&mut self, c: &Chunk) {
         // The slot at chunk_head is free (checked by `space`).
