@@ -88,10 +88,10 @@ fn is_host_code(c: u16) -> bool {
 /// If `text` starts with one of this module's codes (`M<n>`, any case, not
 /// followed by a digit or `.`), the code and the rest of the line, trimmed.
 ///
-/// Inline, the first byte is looked at before anything else: a line that
-/// starts with neither a blank nor an `M` (a streamed `G1 …`) is answered
-/// with one compare instead of a call and a trim (~110 cycles a line).
-#[inline(always)]
+/// Inlined (LLVM's choice), the first byte is looked at before anything
+/// else: a line that starts with neither a blank nor an `M` (a streamed
+/// `G1 …`) is answered with one compare instead of a call and a trim (~110
+/// cycles a line).
 pub fn code(text: &[u8]) -> Option<(u16, &[u8])> {
     if !matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t')) {
         return None;
@@ -100,6 +100,8 @@ pub fn code(text: &[u8]) -> Option<(u16, &[u8])> {
 }
 
 /// [`code`] past its first-byte test.
+// speed: inlined into `Machine::execute`, ping-pong took 5.771 s, not 5.756
+// (372 B less flash)
 #[inline(never)]
 fn code_of(text: &[u8]) -> Option<(u16, &[u8])> {
     let t = trim(text);
@@ -114,6 +116,7 @@ fn code_of(text: &[u8]) -> Option<(u16, &[u8])> {
 
 /// Run one of this module's codes on the host state; `arg` is the rest of
 /// the line, replies go to `io`.
+// speed: inlined into `Machine::execute`, ping-pong took 5.743 s, not 5.739
 #[inline(never)]
 pub fn run(host: &mut HostState, io: &mut impl ufmt::uWrite<Error = Infallible>, code: u16, arg: &[u8]) -> Result<(), Error> {
     match code {
@@ -157,6 +160,7 @@ pub fn run(host: &mut HostState, io: &mut impl ufmt::uWrite<Error = Infallible>,
 ///
 /// Inline, the first byte is looked at before anything else, as in
 /// [`code`] (~110 cycles a streamed line).
+// speed: LLVM makes it a call otherwise (see above)
 #[inline(always)]
 pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
     if !matches!(text.first(), Some(b'M' | b'm' | b' ' | b'\t')) {
@@ -166,7 +170,6 @@ pub fn sd_code(text: &[u8]) -> Option<(u16, &[u8])> {
 }
 
 /// [`sd_code`] past its first-byte test.
-#[inline(never)]
 fn sd_code_of(text: &[u8]) -> Option<(u16, &[u8])> {
     let t = trim(text);
     let rest = t.strip_prefix(b"M").or_else(|| t.strip_prefix(b"m"))?;

@@ -66,6 +66,7 @@ pub fn round_i32(x: f32) -> i32 {
 /// `if cache_miss { cache = a / b }` into a select that runs the ~500-cycle
 /// soft-float division on every call; a call it cannot speculate. Use it for
 /// divisions behind a cache check.
+// speed: LLVM inlines it otherwise, and then speculates the division (above)
 #[inline(never)]
 pub fn div_cold(a: f32, b: f32) -> f32 {
     a / b
@@ -112,7 +113,6 @@ pub fn atan2f(y: f32, x: f32) -> f32 {
 /// `m · 10 + d` (no overflow: the callers keep it within `u32`; the number
 /// lexer in `gcode::parse` keeps `m` below 10⁸, [`div10`] below 2³²/10).
 #[cfg(not(target_arch = "avr"))]
-#[inline(always)]
 pub fn times10_plus(m: u32, d: u8) -> u32 {
     m * 10 + d as u32
 }
@@ -123,7 +123,6 @@ pub fn times10_plus(m: u32, d: u8) -> u32 {
 /// `m` goes in and out as two register pairs: as four bytes, LLVM spent
 /// ~30 more instructions putting the `u32` back together.
 #[cfg(target_arch = "avr")]
-#[inline(always)]
 pub fn times10_plus(m: u32, d: u8) -> u32 {
     let (mut lo, mut hi) = (m as u16, (m >> 16) as u16);
     // SAFETY: register arithmetic only; r1 is LLVM-AVR's zero register.
@@ -150,7 +149,6 @@ pub fn times10_plus(m: u32, d: u8) -> u32 {
 /// hardware `mul`s (~20 cycles): LLVM-AVR calls the 32 × 32-bit `__mulsi3`
 /// (~86 cycles) even when both factors are zero-extended `u16`s.
 #[cfg(target_arch = "avr")]
-#[inline(always)]
 pub fn mul_u16(a: u16, b: u16) -> u32 {
     let (lo, hi): (u16, u16);
     // SAFETY: register arithmetic only. `mul` writes r1:r0 (r0 is LLVM-AVR's
@@ -184,7 +182,6 @@ pub fn mul_u16(a: u16, b: u16) -> u32 {
 
 /// `a · b`, the full 32-bit product of two 16-bit factors.
 #[cfg(not(target_arch = "avr"))]
-#[inline(always)]
 pub fn mul_u16(a: u16, b: u16) -> u32 {
     a as u32 * b as u32
 }
@@ -192,6 +189,7 @@ pub fn mul_u16(a: u16, b: u16) -> u32 {
 /// `(v / 10, v % 10)` by shifts and adds (Hacker's Delight, `divu10`):
 /// LLVM-AVR calls `__udivmodsi4` for a `u32` division by a constant,
 /// ~600 cycles; this is ~100. Exact for every `u32` (`div10_is_exact`).
+// speed: LLVM makes it a call (in the number lexer and formatters) otherwise
 #[inline(always)]
 pub fn div10(v: u32) -> (u32, u8) {
     let mut q = (v >> 1) + (v >> 2);

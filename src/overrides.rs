@@ -52,7 +52,6 @@ pub mod accessory {
 }
 
 /// The motion request bit of byte `b`, or 0.
-#[inline(always)]
 pub const fn motion_bit(b: u8) -> u8 {
     if b >= 0x90 && b <= 0x97 {
         1 << (b - 0x90)
@@ -62,7 +61,6 @@ pub const fn motion_bit(b: u8) -> u8 {
 }
 
 /// The accessory request bit of byte `b`, or 0.
-#[inline(always)]
 pub const fn accessory_bit(b: u8) -> u8 {
     match b {
         0x99..=0x9E => 1 << (b - 0x99),

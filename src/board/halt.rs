@@ -19,7 +19,6 @@ use mill::flash::FStr;
 use mill::F;
 
 /// Stop the machine, report `ALARM:<what>, halted: reset the board`, halt.
-#[inline(never)]
 pub fn halt(what: FStr) -> ! {
     avr_device::interrupt::disable();
     super::emergency_stop_in_isr();

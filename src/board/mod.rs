@@ -58,7 +58,6 @@ pub static REALTIME: AtomicU8 = AtomicU8::new(0);
 /// Set [`realtime`] request bits from inside an ISR: a plain read-modify-write,
 /// since interrupts are already off there (`fetch_or` would bracket it with
 /// `cli` and a restore of SREG).
-#[inline(always)]
 pub(crate) fn raise_in_isr(bits: u8) {
     let p = REALTIME.as_ptr();
     // SAFETY: interrupts are off inside an ISR and ISRs do not nest, so
@@ -100,11 +99,11 @@ pub fn emergency_stop() {
 /// [`emergency_stop`] from inside an ISR (interrupts are off already),
 /// written out to a few register writes with no call: a call in the RX ISR
 /// made it save 14 more registers for every byte received.
+// speed: LLVM makes it a call otherwise (14 more registers saved a byte, see above)
 #[inline(always)]
 pub(crate) fn emergency_stop_in_isr() {
     stepper::halt_from_isr();
     /// Drive pin `p` high (enable is active low: driver off).
-    #[inline(always)]
     fn set_high(p: pins::Pin) {
         // SAFETY: RMW of PORTx with interrupts off (inside an ISR).
         unsafe { core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) | p.mask) }
@@ -148,6 +147,7 @@ pub fn drivers_enable(on: bool) {
 /// 32-byte frame, set up on every call, even on the all-on fast path that
 /// every queued move takes: the 0.1 mm ping-pong stream went from 5.593 to
 /// 5.632 s (`tools/bench`).
+// speed: see above (LLVM inlines it otherwise)
 #[inline(never)]
 fn drivers_enable_raw(on: bool) {
     for p in pins::ENABLE {
@@ -261,7 +261,6 @@ pub fn spindle_set(duty: u8) {
 }
 
 /// Spindle off; callers hold a critical section (or run in an ISR).
-#[inline(always)]
 pub(crate) fn spindle_off_raw() {
     // SAFETY: Timer2 is owned by the spindle; callers hold a critical section.
     let tc2 = unsafe { &*TC2::ptr() };
@@ -312,7 +311,6 @@ pub const STACK_PAINT: u8 = 0xC5;
 
 /// Paint the RAM between the end of .bss and the current stack with
 /// [`STACK_PAINT`]. Call first thing in `main`.
-#[inline(always)]
 pub fn paint_stack() {
     extern "C" {
         static mut __heap_start: u8;

@@ -47,7 +47,6 @@ static RX_TAIL: AtomicU8 = AtomicU8::new(0);
 const _: () = assert!(RX_LEN == u8::MAX as usize + 1);
 
 /// Store `b` in the RX ring; false when it is full (RX ISR only).
-#[inline(always)]
 fn rx_store(b: u8) -> bool {
     // Volatile accesses instead of the atomics' loads and stores: those
     // bracket each access with `cli`/`out SREG` on AVR, and interrupts are
@@ -85,7 +84,6 @@ static TX_TAIL: AtomicU8 = AtomicU8::new(0);
 static TX_READY: AtomicU8 = AtomicU8::new(0);
 const _: () = assert!(TX_LEN.is_power_of_two() && TX_LEN <= 128);
 /// `i + 1` modulo [`TX_LEN`].
-#[inline(always)]
 fn tx_next(i: u8) -> u8 {
     i.wrapping_add(1) & (TX_LEN as u8 - 1)
 }
@@ -169,6 +167,7 @@ pub fn set_tx_wait_hook(f: fn()) {
 /// Next received byte, if any (main loop only). Always inlined into the
 /// line assembler's loop: as a call (LLVM's choice once `push_bytes` grew)
 /// it cost ~47 cycles a byte, ~840 a streamed line (`profile --trace`).
+// speed: ~47 cycles a byte as a call (see above); LLVM makes it one
 #[inline(always)]
 pub fn read() -> Option<u8> {
     let tail = RX_TAIL.load(Ordering::Relaxed);
@@ -488,7 +487,6 @@ extern "avr-interrupt" fn usart0_rx_slow() {
 }
 
 /// Set `bits` in `a` from inside an ISR (see `raise_in_isr`).
-#[inline(always)]
 fn or_in_isr(a: &AtomicU8, bits: u8) {
     let p = a.as_ptr();
     // SAFETY: interrupts are off inside an ISR and ISRs do not nest; the

@@ -163,24 +163,22 @@ pub fn init(_tc1: &avr_device::atmega2560::TC1) {
 struct Mem;
 
 impl RingMem for Mem {
-    #[inline(always)]
     fn seg_tail(&self) -> u8 {
         // SAFETY: a single-byte read of an index the ISR writes.
         unsafe { read_volatile(addr_of!(ST.seg_tail)) }
     }
 
-    #[inline(always)]
     fn seg_head(&self) -> u8 {
         // SAFETY: SEG_HEAD is written by main only.
         unsafe { *addr_of!(SEG_HEAD) }
     }
 
-    #[inline(always)]
     fn chunk_cur(&self) -> u8 {
         // SAFETY: a single-byte read of an index the ISR writes.
         unsafe { read_volatile(addr_of!(ST.cur)) }
     }
 
+    // speed: LLVM makes it a call (one per chunk retired) otherwise
     #[inline(always)]
     fn chunk(&self, i: u8) -> &Chunk {
         // SAFETY: the rings ask only for slots the ISR has finished (before
@@ -188,20 +186,19 @@ impl RingMem for Mem {
         unsafe { &*addr_of!(CHUNKS[i as usize]) }
     }
 
+    // speed: LLVM makes it a call (one per chunk queued) otherwise
     #[inline(always)]
     fn set_chunk(&mut self, i: u8, c: &Chunk) {
         // SAFETY: as above: a free slot, or the ISR cannot run.
         unsafe { *addr_of_mut!(CHUNKS[i as usize]) = *c };
     }
 
-    #[inline(always)]
     fn set_seg(&mut self, i: u8, s: &Seg) {
         // SAFETY: slot i is free (between head and tail), unseen by the ISR
         // until the head is published.
         unsafe { *addr_of_mut!(SEGS[i as usize]) = *s };
     }
 
-    #[inline(always)]
     fn publish_seg_head(&mut self, head: u8) {
         // SAFETY: main is the only writer; the fence keeps the slot writes
         // before the head that publishes them.
@@ -211,7 +208,6 @@ impl RingMem for Mem {
         }
     }
 
-    #[inline(always)]
     fn snapshot(&self) -> IsrSnapshot {
         // A consistent snapshot of the ISR's progress (the ISR cannot run here).
         avr_device::interrupt::free(|_| {
@@ -225,7 +221,6 @@ impl RingMem for Mem {
 }
 
 /// The rings' bookkeeping (main loop only).
-#[inline(always)]
 fn rings() -> &'static mut Rings {
     // SAFETY: MAIN is used by the main loop only, and no caller keeps the
     // reference across another call to this function.
@@ -306,7 +301,6 @@ pub fn busy() -> bool {
 }
 
 /// Stop stepping at once. ISR-safe.
-#[inline(always)]
 pub fn halt_from_isr() {
     MOTION.fetch_or(motion::STOP, Ordering::AcqRel);
 }
@@ -338,7 +332,6 @@ pub fn clear_stop() {
 
 // ---- The ISR -------------------------------------------------------------------
 
-#[inline(always)]
 unsafe fn set_idle_timer(st: &mut Isr) {
     // SAFETY: called from the stepper ISR only, which owns timer 1's compare
     // and clock-select registers while the stepper runs.
@@ -355,7 +348,6 @@ unsafe fn set_idle_timer(st: &mut Isr) {
 /// Switch checks after the rising edges. Returns true to stop (flags set).
 /// A hard limit is checked first and turns the spindle off before anything
 /// else, a few cycles after the switch pins are read.
-#[inline(always)]
 unsafe fn switches_trip(st: &mut Isr) -> bool {
     // SAFETY: called from the stepper ISR only: MOTION is read and written
     // with plain volatile accesses, as main changes it only with interrupts
@@ -390,7 +382,6 @@ unsafe fn switches_trip(st: &mut Isr) -> bool {
 
 /// The next segment, if any; on a new chunk also its pointer, the direction
 /// pins and the limit mask.
-#[inline(always)]
 unsafe fn load_segment(st: &mut Isr) {
     // SAFETY: called from the stepper ISR only, which owns `st`, timer 1 and
     // the direction pins; main writes the segment and chunk slots before it
@@ -456,7 +447,6 @@ unsafe fn load_segment(st: &mut Isr) {
 /// cycles on average instead of 199 in the 0.1 mm G1 stream (`profile
 /// --count 254 --trace 500:300 --feed 3300`, `__vector_17`, 2026-11-26),
 /// and 36 015 instead of 34 851 cycles a streamed line.
-#[inline(always)]
 unsafe fn tick(c: *mut Chunk) -> u8 {
     let bits: u8;
     // SAFETY: `c` points to the running chunk slot, which only the ISR uses
@@ -537,7 +527,6 @@ const _: () = {
     assert!(core::mem::offset_of!(Chunk, partial) == 19);
 };
 
-#[inline(always)]
 unsafe fn toggle_steps(p: u8) {
     // SAFETY: called from the stepper ISR only; writing 1s to PINx toggles
     // only those bits, and the masks keep the step pins.

@@ -165,7 +165,6 @@ pub fn enable_2s() {
 
 /// Restart the watchdog count (the `wdr` instruction). Cheap; call it once
 /// per main-loop pass, never from an ISR (that would hide a hung main loop).
-#[inline(always)]
 pub fn feed() {
     avr_device::asm::wdr();
 }

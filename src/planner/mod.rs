@@ -81,6 +81,7 @@ const ROOTS_LEN: usize = 8;
 
 /// The square-root cache's entry for `n` ≥ 1: (n, √n, 1/√n). Not inlined:
 /// behind a cache test LLVM-AVR would compute it every time (`math::div_cold`).
+// speed: inlined (LLVM's choice), the cache miss is computed on every call
 #[inline(never)]
 fn root_entry(n: u32) -> (u32, f32, f32) {
     let r = sqrtf(n as f32);
@@ -371,14 +372,12 @@ const fn prev_index(i: u8) -> u8 {
 /// a ~60-cycle soft-float call. Every speed², acceleration, distance and time
 /// the planner compares is ≥ +0.0 by construction (squares, sums of
 /// non-negative terms, clamped distances), never −0.0 or NaN.
-#[inline(always)]
 pub(crate) fn lt_nn(a: f32, b: f32) -> bool {
     debug_assert!(a.is_sign_positive() && b.is_sign_positive() && !a.is_nan() && !b.is_nan());
     a.to_bits() < b.to_bits()
 }
 
 /// The larger of two finite floats ≥ +0.0 (see `lt_nn`).
-#[inline(always)]
 fn max_nn(a: f32, b: f32) -> f32 {
     if lt_nn(a, b) {
         b
@@ -388,7 +387,6 @@ fn max_nn(a: f32, b: f32) -> f32 {
 }
 
 /// The smaller of two finite floats ≥ +0.0 (see `lt_nn`).
-#[inline(always)]
 pub(crate) fn min_nn(a: f32, b: f32) -> f32 {
     if lt_nn(a, b) {
         a
@@ -398,6 +396,7 @@ pub(crate) fn min_nn(a: f32, b: f32) -> f32 {
 }
 
 /// |x| by clearing the sign bit (no soft-float compare).
+// speed: left to LLVM (with rings' `seg_cycles` and `SlotSink`), ping-pong took 5.754 s, not 5.739
 #[inline(always)]
 fn abs_f32(x: f32) -> f32 {
     f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
@@ -406,7 +405,6 @@ fn abs_f32(x: f32) -> f32 {
 /// 2·x for a finite x ≥ +0.0, exactly, by adding one to the exponent (a
 /// ~145-cycle soft-float multiply on the AVR otherwise). Zero, subnormals
 /// and values near the top of the range take the multiply.
-#[inline(always)]
 fn times2(x: f32) -> f32 {
     let b = x.to_bits();
     if (0x0080_0000..0x7F00_0000).contains(&b) {
@@ -418,6 +416,7 @@ fn times2(x: f32) -> f32 {
 
 /// x / 2 for a finite x ≥ +0.0, exactly while x/2 is a normal number (by
 /// subtracting one from the exponent); smaller values take the multiply.
+// speed: LLVM makes it a call from the inlined `junction_sqr` otherwise
 #[inline(always)]
 fn half(x: f32) -> f32 {
     let b = x.to_bits();
@@ -436,6 +435,10 @@ fn half(x: f32) -> f32 {
 /// holds (bits of cap, cap²)). Used when a block is queued and when the
 /// overrides re-plan the ring.
 #[allow(clippy::too_many_arguments)]
+// correctness: as a call, `cap` goes on the stack, and LLVM-AVR reads stack
+// arguments one byte low on the ATmega2560 (it counts a 2-byte return address;
+// the PC is 3 bytes): `cap_sqr_cache` then held garbage and tools/bench's corner
+// job measured 2499 mm/s², not 1033. Speed too: ping-pong 5.794 s, not 5.739.
 #[inline(always)]
 fn junction_sqr(
     same_dir: bool,
@@ -680,7 +683,6 @@ impl Planner {
     /// down or speeds up at the block's acceleration. AVR cost: a square
     /// root and two or three divisions per queued block, a few ms for a
     /// full ring; only when an override changes.
-    #[inline(never)]
     pub fn set_overrides(&mut self, feed_pct: u16, rapid_pct: u8, s: &Settings) {
         if feed_pct == self.feed_pct && rapid_pct == self.rapid_pct {
             return;

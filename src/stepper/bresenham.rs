@@ -117,7 +117,6 @@ impl Chunk {
     /// sign test after the add), and OR in `step[i]`, axis i's output bit.
     /// Equal to [`Chunk::tick`] mapped through `step` on every chunk the
     /// splitter makes (tested below).
-    #[inline(always)]
     pub fn tick_out(&mut self, step: &[u8; N_AXES]) -> u8 {
         let mut bits = self.every;
         let p = self.partial;
