@@ -128,7 +128,6 @@ pub fn parse(s: &[u8]) -> Result<Line, ParseError> {
 /// callers that keep the line in place: a `Result<Line, _>` is one more
 /// 100-byte copy on AVR, and clearing the line here again cost ~150 cycles
 /// per streamed line. On an error `line` holds what was parsed before it.
-#[inline(never)]
 pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
     debug_assert!(*line == Line::default());
     if s.len() > MAX_PARSE_LEN {

@@ -54,14 +54,12 @@ impl MCodeScanner {
 
     /// True when feeding `b` changes nothing and finds nothing: nothing is
     /// matched and `b` is no `M` or `m`.
-    #[inline(always)]
     pub fn ignores(&self, b: u8) -> bool {
         self.state == 0 && b | 0x20 != b'm'
     }
 
     /// Feed one received byte `b`; `prev` is the byte fed before it (any
     /// non-letter at the start). Says which code `b` completes, if any.
-    #[inline(always)]
     pub fn feed(&mut self, prev: u8, b: u8) -> Urgent {
         if self.ignores(b) {
             return Urgent::Nothing;

@@ -68,7 +68,6 @@ impl RxText {
 
     /// True while only blanks were received since the line began: the next
     /// byte may make the line a numbered one, so it must see `classify`.
-    #[inline(always)]
     pub fn at_line_start(&self) -> bool {
         self.state & T_START != 0
     }
@@ -80,7 +79,6 @@ impl RxText {
 
     /// Classify the received byte `b`: true when it is a realtime command
     /// (taken out of the stream), false when it is text (the state follows it).
-    #[inline(always)]
     pub fn classify(&mut self, b: u8) -> bool {
         if b == SOFT_RESET {
             // The main loop drops the line in progress: a new one starts.

@@ -43,7 +43,6 @@ impl RxStore {
     /// loss the gap marker goes first, then `b`; whatever does not fit is
     /// dropped and leaves the gap pending. (`enqueue` has one call site, so
     /// that it is inlined into the ISR.)
-    #[inline(always)]
     pub fn store(&mut self, b: u8, mut enqueue: impl FnMut(u8) -> bool) {
         let b = if b == RX_GAP { RX_GAP - 1 } else { b };
         let mut x = if self.gap { RX_GAP } else { b };
@@ -74,7 +73,6 @@ pub const RX_ALL_SLOW: u8 = 1;
 pub const RX_LINE_START: u8 = 2;
 
 /// The fast-path mode after the slow path has handled a byte.
-#[inline(always)]
 pub fn rx_fast_mode(scan: &MCodeScanner, store: &RxStore, text: &RxText) -> u8 {
     if !scan.is_idle() || store.gap_pending() {
         RX_ALL_SLOW

@@ -18,6 +18,7 @@ use crate::N_AXES;
 impl Interp {
     /// Arcs: compute the chord plan before committing anything, then commit
     /// the line with it.
+    // flash: the arc helpers inlined cost +1 760 B for no speed-up (Interp::start's doc)
     #[inline(never)]
     pub(super) fn arc_line(
         &mut self,
@@ -54,6 +55,7 @@ impl Interp {
     }
 
     /// Every chord end stays inside the arc's bounding box; check it.
+    // flash: the arc helpers inlined cost +1 760 B for no speed-up (Interp::start's doc)
     #[inline(never)]
     pub(super) fn check_arc_limits(&mut self, cx: &Ctx, plan: &arc::Arc) -> Result<(), Error> {
         let (lo, hi) = plan.bounds();
@@ -68,6 +70,7 @@ impl Interp {
 }
 
 /// The next chord end of `plan`, in a frame of its own (see [`new_arc`]).
+// stack: `Arc::next`'s f32 temporaries in a frame of their own (as new_arc)
 #[inline(never)]
 pub(super) fn next_chord(plan: &mut arc::Arc) -> Option<[f32; 3]> {
     plan.next()
@@ -75,6 +78,7 @@ pub(super) fn next_chord(plan: &mut arc::Arc) -> Option<[f32; 3]> {
 
 /// [`arc::Arc::new`] in a frame of its own (its many f32 temporaries
 /// would otherwise push [`Interp::arc_line`]'s locals out of `ldd` reach).
+// stack: its f32 temporaries would push arc_line's locals out of ldd reach
 #[inline(never)]
 pub(super) fn new_arc(
     start: [f32; 3],

@@ -14,6 +14,7 @@ use crate::gcode::{Coolant, CutterComp, Line, Motion, NonModal, PathMode, Spindl
 /// The checks and commands before the modal state: the SD-job filter, the
 /// codes that work in any state, the alarm and interrupted-change locks and
 /// the validation of words that need no modal state. `Some` ends the line.
+// stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
 #[inline(never)]
 pub(super) fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
     // During an SD job the serial line may only ask for status (docs/SPEC.md §9).
@@ -58,7 +59,6 @@ pub(super) fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Opti
 
 /// The locks and the validation of [`early`]; `extras`: the line has more
 /// than its motion (T, M6, S, M3/M5, M7–M9), from the lookups made here.
-#[inline(always)]
 fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
     let moves = l.motion.is_some()
         || has_axis_words(l)
@@ -134,6 +134,7 @@ pub(super) const ALWAYS_USED: u32 = Word::mask(&[Word::F, Word::S, Word::T, Word
 /// silently dropped (`G61 R0.5`, `G0 X1 I2`). `g` holds the line's modal
 /// state: I, J, K, R belong to an arc, R, L, P (G82, G89) and Q (G73, G83)
 /// to a canned cycle, when the line moves.
+// stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
 #[inline(never)]
 pub(super) fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
     use Word::*;

@@ -42,7 +42,8 @@ impl Interp {
     }
 
     /// Apply a mode change the ordinary path earned (see [`CompOutcome`]).
-    #[inline(always)] // an f32 argument: see the note in comp.rs
+    // correctness: an f32 argument miscompiled as a call on the AVR (the note in comp.rs)
+    #[inline(always)]
     pub(super) fn comp_apply(&mut self, mode: Option<(Option<Side>, f32)>) {
         if let Some((side, radius_mm)) = mode {
             self.comp.set(side, radius_mm);
@@ -51,6 +52,7 @@ impl Interp {
 
     /// A line while compensation is on, or turned on or off by it.
     /// `motion`: the line's motion mode; `target`: in `run.target`.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn comp_line(
         &mut self,
@@ -211,7 +213,8 @@ impl Interp {
 
     /// Set up the held move `h` to run to `end` (its own end, or an inside
     /// corner's point), then phase `then`.
-    #[inline(always)] // see the note in comp.rs
+    // correctness: f32 and point arguments miscompiled as a call on the AVR (the note in comp.rs)
+    #[inline(always)]
     fn comp_flush(&mut self, cx: &Ctx, h: &Held, end: &P2, then: Phase) -> Result<(), Error> {
         let end3 = [end[0], end[1], h.z];
         self.run.chord_feed = h.feed;
@@ -285,7 +288,8 @@ impl Interp {
 /// The side and radius a G41/G42/G41.1/G42.1 line asks for: G41/G42 D<tool>
 /// (the spindle tool without D) take the tool table's diameter; G41.1/G42.1
 /// D<diameter> give it.
-#[inline(always)] // returns 8 bytes or less: see the note in comp.rs
+// correctness: an (f32, Side) result miscompiled as a call on the AVR (the note in comp.rs)
+#[inline(always)]
 fn comp_mode(cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<(Side, f32), Error> {
     let (side, direct) = match l.cutter_comp {
         Some(CutterComp::Left) => (Side::Left, false),

@@ -18,6 +18,7 @@ impl Interp {
     /// one is modal): resolve the words against the sticky ones, check every
     /// point the cycle can reach against the soft limits, then commit the
     /// line with it. A bad cycle line changes nothing and moves nothing.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn cycle_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line, kind: cycles::Kind) -> Result<Option<Command>, Error> {
         match g.plane {

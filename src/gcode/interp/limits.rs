@@ -45,7 +45,6 @@ impl Interp {
 
     /// Empty the steps cache (an all-ones pattern is a NaN, never a
     /// position) and convert the travel.
-    #[inline(never)]
     pub(super) fn refresh_conv(&mut self, s: &Settings) {
         for c in self.steps_cache.iter_mut() {
             c.0 = u32::MAX;
@@ -58,7 +57,6 @@ impl Interp {
 }
 
 /// [`Interp::check_soft_limits`] over the interpreter's caches (fresh).
-#[inline(never)]
 pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32; 3], s: &Settings, t: &[f32; N_AXES]) -> Result<(), Error> {
     if !s.soft_limits {
         return Ok(());
@@ -73,6 +71,7 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
 }
 
 /// [`Interp::steps_of`]'s conversion through `cache`.
+// speed: every move converts its target here (a call cost ping-pong lines/s)
 #[inline(always)]
 fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
     let mut st = [0i32; N_AXES];
@@ -89,7 +88,6 @@ fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXE
 /// A straight move from `a` to `b` must not enter the tool magazine's
 /// keep-out zone (only the tool change, which does not come through here,
 /// goes in).
-#[inline(never)]
 pub(super) fn keep_out(s: &Settings, a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
     if s.station.enters_keep_out([a[0], a[1], a[2]], [b[0], b[1], b[2]]) {
         return Err(Error::KeepOut);
@@ -101,7 +99,6 @@ pub(super) fn keep_out(s: &Settings, a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Re
 /// (the cycle's first move starts there). `a` and `b` are opposite
 /// corners, in either order per axis (the Z flip of a cycle's user bounds
 /// swaps them).
-#[inline(never)]
 pub(super) fn keep_out_box(s: &Settings, from: &[f32; N_AXES], a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
     let min = |x: f32, y: f32| if x < y { x } else { y };
     let max = |x: f32, y: f32| if x > y { x } else { y };

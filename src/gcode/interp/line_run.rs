@@ -118,9 +118,10 @@ pub(super) fn cycle_target(pos: [f32; N_AXES], run: &CycleRun, t: [f32; 3]) -> [
 impl Interp {
     /// Commit the modal state and go on with the line's actions: the
     /// motion `motion` to `run.target` (an arc's or a cycle's line sets
-    /// `run.progress` too).
+    /// `run.progress` too). `progress` is only looked at for an arc or a
+    /// cycle, whose lines set it.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
-    /// `progress` is only looked at for an arc or a cycle, whose lines set it.
     pub(super) fn commit_line(&mut self, g: &ModalCopy, motion: Option<Motion>) {
         g.commit(self);
         self.run.motion = motion;
@@ -129,6 +130,7 @@ impl Interp {
 
     /// The line's motion: one move, a probe, or the start of an arc's
     /// chords or a cycle's steps.
+    // speed: a streamed G1 line ends here (a call cost ping-pong lines/s)
     #[inline(always)]
     pub(super) fn motion(&mut self) -> Option<Command> {
         let mo = self.run.motion?;

@@ -25,6 +25,7 @@ impl Interp {
     }
 
     /// M codes of the "other" group: M220 here, the rest for the controller.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn other_m(&mut self, l: &Line, code: u16) -> Result<Option<Command>, Error> {
         Ok(Some(match code {

@@ -56,6 +56,7 @@ impl ModalCopy {
 }
 
 /// The line's modal words into the copy `g` (nothing is committed yet).
+// stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
 #[inline(never)]
 pub(super) fn modal_words(cx: &Ctx, l: &Line, g: &mut ModalCopy) -> Result<(), Error> {
     if let Some(u) = l.units {

@@ -18,6 +18,7 @@ impl Interp {
     /// The motion part of a line: target, checks, then (through
     /// [`Interp::arc_line`] for arcs, [`Interp::cycle_line`] for cycles)
     /// [`Interp::commit_line`].
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn motion_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
         let machine_coords = l.non_modal == Some(NonModal::MachineCoords);

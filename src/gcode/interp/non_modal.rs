@@ -13,6 +13,7 @@ use crate::math::round_i32;
 impl Interp {
     /// Non-modal codes that end the line (G4, G10, G92, G28, G37,
     /// G201–G205); `None` for the others (G53), which go on to the motion.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn non_modal(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Option<Result<Option<Command>, Error>> {
         Some(match l.non_modal {
@@ -86,6 +87,7 @@ pub(super) fn dwell(s: &Settings, l: &Line) -> Result<f32, Error> {
 
 /// G37's words as a measurement mode, with the setter position (mm) for a
 /// calibration.
+// stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
 #[inline(never)]
 fn measure_mode(inches: bool, l: &Line) -> Result<(crate::toolsetter::Mode, Option<f32>, Option<f32>), Error> {
     use crate::toolsetter::{Fault, Mode};
@@ -111,6 +113,7 @@ fn measure_mode(inches: bool, l: &Line) -> Result<(crate::toolsetter::Mode, Opti
 const CAROUSEL_MAX_X: f32 = 360.0;
 
 /// G201, G202, G204, G205 (motor P0, the carousel): the words checked.
+// stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
 #[inline(never)]
 fn carousel_command(l: &Line, nm: NonModal) -> Result<Command, Error> {
     use crate::atc::Fault;

@@ -39,6 +39,7 @@ impl Interp {
     }
 
     /// G10 L1 / L2 / L20.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn set_offsets(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
         let lv = l.word(Word::L).ok_or(Error::BadWord(F!("G10 needs L1, L2 or L20")))?;

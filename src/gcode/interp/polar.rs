@@ -10,6 +10,7 @@ use crate::gcode::{Line, Plane, Word};
 impl Interp {
     /// What LinuxCNC refuses of polar words: with X or Y, outside G17, with
     /// G53.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn polar_checks(&self, g: &ModalCopy, l: &Line, machine_coords: bool) -> Result<(), Error> {
         if l.words.contains(Word::X) || l.words.contains(Word::Y) {
@@ -29,6 +30,7 @@ impl Interp {
     /// origin, as LinuxCNC reads them: under G90 a missing one is the
     /// current position's; under G91 both are added to the current
     /// position's radius and angle (indeterminate at the origin).
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn polar_point(&self, g: &ModalCopy, l: &Line) -> Result<[f32; 2], Error> {
         let at = l.word(Word::At).map(|v| to_mm(g.inches, v));

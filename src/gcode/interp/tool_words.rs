@@ -17,14 +17,12 @@ pub(super) fn is_tool_change(cx: &Ctx, l: &Line) -> bool {
 
 /// The pocket of the tool numbered `v` (a T, H, D, G10 L1 P or M61 Q word):
 /// a whole number the tool table has; 0 is the empty spindle.
-#[inline(never)]
 pub(super) fn tool_pocket(cx: &Ctx, v: f32) -> Option<usize> {
     let t = whole_in(v, 0, 255)?;
     cx.atc.table.pocket_of(t).map(usize::from)
 }
 
 /// `v` as a whole number within `lo..=hi`.
-#[inline(never)]
 pub(super) fn whole_in(v: f32, lo: i32, hi: i32) -> Option<u8> {
     let n = round_i32(v);
     (n as f32 == v && (lo..=hi).contains(&n)).then_some(n as u8)
@@ -32,6 +30,7 @@ pub(super) fn whole_in(v: f32, lo: i32, hi: i32) -> Option<u8> {
 
 /// M61's words: `Q<tool>` (a tool of the tool table, 0: empty), or
 /// `P<1-12> S<0|1>`.
+// stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
 #[inline(never)]
 pub(super) fn m61(cx: &Ctx, l: &Line) -> Result<Command, Error> {
     let whole = |v: f32, lo: i32, hi: i32| {

@@ -30,6 +30,7 @@ pub(super) fn word_mm(inches: bool, axis: usize, v: f32) -> f32 {
 }
 
 /// `v` × 25.4, as a call (see [`to_mm`]).
+// speed: the × 25.4 stays a call made only under G20 (see to_mm)
 #[inline(never)]
 fn inch_to_mm(v: f32) -> f32 {
     v * MM_PER_INCH
@@ -41,7 +42,6 @@ pub(super) fn deg_to_rad(deg: f32) -> f32 {
 }
 
 /// `round(mm · steps_per_mm)`.
-#[inline(never)]
 pub(super) fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
     round_i32(mm * steps_per_mm)
 }
@@ -68,6 +68,7 @@ pub(super) fn add_nz(a: f32, b: f32) -> f32 {
 
 /// `a + b`, as a call: LLVM-AVR would otherwise turn [`add_nz`]'s branch
 /// into a select that always adds (see `math::div_cold`).
+// speed: the addition stays a call made only for a non-zero offset (see add_nz)
 #[inline(never)]
 fn add_cold(a: f32, b: f32) -> f32 {
     a + b

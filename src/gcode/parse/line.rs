@@ -54,6 +54,7 @@ const _: () = assert!(core::mem::size_of::<Line>() <= 120);
 
 impl Line {
     /// The value of word `w`, if present (inlined, see [`Words::get`]).
+    // speed: the word's mask folds to one byte test (see Words::get)
     #[inline(always)]
     pub fn word(&self, w: Word) -> Option<f32> {
         self.words.get(w)

@@ -191,6 +191,7 @@ impl Words {
     /// The value of word `w`, if present. Always inlined: the callers name
     /// the word, so the mask test folds to one byte test (as a call, ~110
     /// cycles with the variable shift building the mask).
+    // speed: the mask test folds to one byte test (~110 cycles as a call)
     #[inline(always)]
     pub fn get(&self, w: Word) -> Option<f32> {
         if self.contains(w) {
@@ -201,7 +202,6 @@ impl Words {
     }
 
     /// True if word `w` is present.
-    #[inline(always)]
     pub fn contains(&self, w: Word) -> bool {
         self.present & w.bit() != 0
     }
@@ -253,7 +253,6 @@ impl Words {
 
     /// True when every present word is in `mask` (a [`Word::mask`]): one
     /// test.
-    #[inline(always)]
     pub fn within(&self, mask: u32) -> bool {
         self.present & !mask == 0
     }

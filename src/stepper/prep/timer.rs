@@ -6,7 +6,6 @@
 use crate::stepper::{Prescale, MIN_PERIOD_CYCLES};
 
 /// |x| by clearing the sign bit (no soft-float compare).
-#[inline(always)]
 pub(super) fn abs_f32(x: f32) -> f32 {
     f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
@@ -45,7 +44,6 @@ in_flash! {
 /// this multiplies by 1/n (~140 cycles on the AVR instead of a ~540-cycle
 /// division; within an ulp of it, far below the timer count the period is
 /// rounded to).
-#[inline(never)]
 pub(super) fn per_tick(cycles: f32, n: u32) -> f32 {
     match RECIPROCALS.row(n as usize) {
         Some(r) if n != 0 => cycles * r,
