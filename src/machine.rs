@@ -1418,7 +1418,7 @@ impl Machine {
         let mut room = io.segment_space();
         while room > 0 && io.segment_space() > 0 && !io.stepper_stopped() {
             room -= 1;
-            match self.prep.next_segment(&mut self.planner, &self.settings) {
+            match self.prep.next_segment(&mut self.planner) {
                 Some(cmd) => {
                     if !io.push_segment(cmd) {
                         break;

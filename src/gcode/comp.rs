@@ -166,37 +166,44 @@ pub enum Corner {
 // it in registers). The host twin is the same code, so the host tests still
 // check it; tests/dialect.rs checks the AVR build against the reference.
 
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn sub(a: &P2, b: &P2) -> P2 {
     [a[0] - b[0], a[1] - b[1]]
 }
 
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn add_scaled(a: &P2, v: &P2, k: f32) -> P2 {
     [a[0] + v[0] * k, a[1] + v[1] * k]
 }
 
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn dot(a: &P2, b: &P2) -> f32 {
     a[0] * b[0] + a[1] * b[1]
 }
 
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn cross(a: &P2, b: &P2) -> f32 {
     a[0] * b[1] - a[1] * b[0]
 }
 
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn len(a: &P2) -> f32 {
     sqrtf(dot(a, a))
 }
 
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn dist(a: &P2, b: &P2) -> f32 {
     len(&sub(a, b))
 }
 
 /// `a` scaled to length 1 (`a` itself when it has no length).
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn unit(a: &P2) -> P2 {
     let l = len(a);
@@ -208,6 +215,7 @@ fn unit(a: &P2) -> P2 {
 }
 
 /// The unit normal on `side` of the unit direction `t`.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn normal(side: Side, t: &P2) -> P2 {
     match side {
@@ -217,12 +225,14 @@ fn normal(side: Side, t: &P2) -> P2 {
 }
 
 /// True when the tool runs on the inside of an arc turning `turn`.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn inside_arc(side: Side, turn: i8) -> bool {
     (side == Side::Left) == (turn > 0)
 }
 
 /// The unit direction of travel of `seg` (from `start`) at its start or end.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 pub fn tangent(start: &P2, seg: &Seg, at_end: bool) -> P2 {
     if seg.turn == 0 {
@@ -239,6 +249,7 @@ pub fn tangent(start: &P2, seg: &Seg, at_end: bool) -> P2 {
 /// The entry move (the first after G41/G42) from the tool at `from` for the
 /// programmed move `prog` (from `from`): LinuxCNC's `convert_straight_comp1`
 /// and `convert_arc_comp1`.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 pub fn entry(side: Side, r: f32, from: &P2, prog: &Seg) -> Result<Seg, CompError> {
     let p = &prog.end;
@@ -272,6 +283,7 @@ pub fn entry(side: Side, r: f32, from: &P2, prog: &Seg) -> Result<Seg, CompError
 
 /// A later move: the programmed move `prog` from `pstart`, offset by `r`
 /// to `side`. Returns the compensated start and the compensated move.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 pub fn offset(side: Side, r: f32, pstart: &P2, prog: &Seg) -> Result<(P2, Seg), CompError> {
     if prog.turn == 0 {
@@ -293,6 +305,7 @@ pub fn offset(side: Side, r: f32, pstart: &P2, prog: &Seg) -> Result<(P2, Seg), 
 /// move `held` (from `held_start`, ending `r` from `p`) and the next one,
 /// `next` from `next_start` (also `r` from `p`). An inside corner's point
 /// is checked to lie on both moves.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 pub fn corner(side: Side, p: &P2, held_start: &P2, held: &Seg, next_start: &P2, next: &Seg) -> Result<Corner, CompError> {
     let n1 = unit(&sub(&held.end, p));
@@ -326,6 +339,7 @@ pub fn corner(side: Side, p: &P2, held_start: &P2, held: &Seg, next_start: &P2, 
 
 /// How far along `seg` (from `start`) the point `x` (on its path) lies: mm
 /// for a line, radians of sweep for an arc (a full circle sweeps 2π).
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn along(start: &P2, seg: &Seg, x: &P2) -> f32 {
     if seg.turn == 0 {
@@ -347,6 +361,7 @@ fn along(start: &P2, seg: &Seg, x: &P2) -> f32 {
 
 /// The crossing of the paths of two moves (lines or circles) nearest to
 /// `guess`.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn intersect(s1: &P2, m1: &Seg, s2: &P2, m2: &Seg, guess: &P2) -> Option<P2> {
     match (m1.turn == 0, m2.turn == 0) {
@@ -367,6 +382,7 @@ fn intersect(s1: &P2, m1: &Seg, s2: &P2, m2: &Seg, guess: &P2) -> Option<P2> {
 }
 
 /// Of two points, the one nearer `guess`.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn nearer(a: P2, b: P2, guess: &P2) -> P2 {
     if dist(&a, guess) <= dist(&b, guess) {
@@ -377,6 +393,7 @@ fn nearer(a: P2, b: P2, guess: &P2) -> P2 {
 }
 
 /// The line through `a` and `b` crossing the circle (`c`, `r`).
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn line_circle(a: &P2, b: &P2, c: &P2, r: f32, guess: &P2) -> Option<P2> {
     let d = unit(&sub(b, a));
@@ -391,6 +408,7 @@ fn line_circle(a: &P2, b: &P2, c: &P2, r: f32, guess: &P2) -> Option<P2> {
 }
 
 /// Two circles crossing.
+// correctness: inlined into its one caller (the note above)
 #[inline(always)]
 fn circle_circle(c1: &P2, r1: f32, c2: &P2, r2: f32, guess: &P2) -> Option<P2> {
     let d = sub(c2, c1);

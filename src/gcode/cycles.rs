@@ -245,6 +245,7 @@ impl Cycle {
     /// Every X, Y, Z the cycle can reach: (low corner, high corner), for the
     /// soft-limit check before anything moves. Not inlined: its frame
     /// stays out of the interpreter's cycle line.
+    // stack: its frame stays out of the interpreter's cycle line
     #[inline(never)]
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
         let mut lo = self.p.hole_xy;

@@ -441,7 +441,7 @@ fn block_profile(moves: &[([i32; N_AXES], f32)], index: usize, st: &Settings) ->
     let mut block = usize::MAX;
     let mut ticks = 0u32;
     let mut out = Vec::new();
-    while let Some(cmd) = prep.next_segment(&mut p, st) {
+    while let Some(cmd) = prep.next_segment(&mut p) {
         match cmd {
             StepperCmd::Block(_) => {
                 block = block.wrapping_add(1);

@@ -47,9 +47,18 @@
 //! remaining distance and current speed² back into it, and it recomputes its
 //! profile when [`Planner::take_exec_replanned`] says a new block changed the
 //! exit speed (grbl's `st_update_plan_block_parameters`).
+//!
+//! The files: the block-to-segment driver and the state here; the profile
+//! in `profile`, the one-segment fast paths in `fast`, the segment loop in
+//! `segment`, time to timer settings in `timer`.
 
-use super::{Prescale, Segment, StBlock, StepperCmd};
-use crate::config::{Settings, MIN_STEP_RATE_HZ};
+mod fast;
+mod profile;
+mod segment;
+mod timer;
+
+use super::{StBlock, StepperCmd};
+use crate::config::MIN_STEP_RATE_HZ;
 use crate::math::sqrtf;
 use crate::planner::Planner;
 use crate::F_CPU_HZ;
@@ -142,76 +151,6 @@ pub struct Prep {
     step_per_mm_valid: bool,
     /// (bits of an acceleration a, 0.5 / a).
     inv_2_accel_cache: (u32, f32),
-}
-
-/// |x| by clearing the sign bit (no soft-float compare).
-#[inline(always)]
-fn abs_f32(x: f32) -> f32 {
-    f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
-}
-
-/// ⌈x⌉ for 0 ≤ x < 2³².
-#[inline]
-fn ceil_u32(x: f32) -> u32 {
-    if x <= 0.0 {
-        return 0;
-    }
-    let t = x as u32;
-    if (t as f32) < x {
-        t + 1
-    } else {
-        t
-    }
-}
-
-in_flash! {
-    /// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
-    /// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
-    /// of flash).
-    static RECIPROCALS: [f32; 13] = {
-        let mut t = [0.0f32; 13];
-        let mut i = 1;
-        while i < 13 {
-            t[i] = 1.0 / i as f32;
-            i += 1;
-        }
-        t
-    };
-}
-
-/// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
-/// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12
-/// this multiplies by 1/n (~140 cycles on the AVR instead of a ~540-cycle
-/// division; within an ulp of it, far below the timer count the period is
-/// rounded to).
-#[inline(never)]
-fn per_tick(cycles: f32, n: u32) -> f32 {
-    match RECIPROCALS.row(n as usize) {
-        Some(r) if n != 0 => cycles * r,
-        _ => crate::math::div_cold(cycles, n as f32),
-    }
-}
-
-/// Timer setting for `cycles` CPU cycles per step event. Rounds up (by up to
-/// one timer count), so a segment is never faster than planned.
-fn timer_for(cycles: f32) -> (u16, Prescale) {
-    // Huge, negative or NaN values end at the slowest setting. The range test
-    // is on the bit pattern: a saturating `as` costs three soft-float compares.
-    let b = cycles.to_bits();
-    let c = if b < 0x4B00_0000 {
-        // SAFETY: 0 ≤ cycles < 2²³ (positive, exponent below 23): in range.
-        (unsafe { cycles.to_int_unchecked::<u32>() }) + 1
-    } else {
-        u32::MAX // ≥ 2²³ cycles, negative or NaN: the slowest setting
-    };
-    if c <= 65535 {
-        let p = c as u16;
-        (if p < MIN_PERIOD_CYCLES { MIN_PERIOD_CYCLES } else { p }, Prescale::Div1)
-    } else if c <= 8 * 65535 {
-        (((c + 7) >> 3) as u16, Prescale::Div8)
-    } else {
-        (65535, Prescale::Div8)
-    }
 }
 
 impl Prep {
@@ -308,9 +247,9 @@ impl Prep {
     }
 
     /// Fill a segment queue: call [`Prep::next_segment`] while `q` has room.
-    pub fn fill<const N: usize>(&mut self, pl: &mut Planner, s: &Settings, q: &mut heapless::spsc::Producer<'_, StepperCmd, N>) {
+    pub fn fill<const N: usize>(&mut self, pl: &mut Planner, q: &mut heapless::spsc::Producer<'_, StepperCmd, N>) {
         while q.ready() {
-            match self.next_segment(pl, s) {
+            match self.next_segment(pl) {
                 Some(c) => {
                     // Cannot fail: ready() was true and we are the only producer.
                     let _ = q.enqueue(c);
@@ -321,9 +260,8 @@ impl Prep {
     }
 
     /// The next command for the ISR, or `None` when there is nothing to do (no
-    /// block, or a hold has stopped). `_s` is unused today (kept so callers need
-    /// not change if prep ever needs a setting).
-    pub fn next_segment(&mut self, pl: &mut Planner, _s: &Settings) -> Option<StepperCmd> {
+    /// block, or a hold has stopped).
+    pub fn next_segment(&mut self, pl: &mut Planner) -> Option<StepperCmd> {
         loop {
             if self.held {
                 return None;
@@ -403,361 +341,6 @@ impl Prep {
         }
     }
 
-    /// The square root of a nominal speed², cached with the cruise figures.
-    fn nominal_speed(&mut self, nominal_sqr: f32) -> f32 {
-        if self.nominal_cache.0 != nominal_sqr.to_bits() {
-            let v = sqrtf(nominal_sqr);
-            self.nominal_cache = (nominal_sqr.to_bits(), v);
-            let cycles_per_mm = if v > 0.0 { crate::math::div_cold(F_CPU, v) } else { 0.0 };
-            self.cruise_cache = (cycles_per_mm, CRUISE_SEGMENT_TIME_S * v);
-        }
-        self.nominal_cache.1
-    }
-
-    /// Fast path for a block that runs entirely at its nominal speed (entry,
-    /// exit and nominal speed² equal, the usual case inside a stream of short
-    /// moves) and is short enough for one cruise segment: the whole block as
-    /// one segment with one division, instead of the profile and the segment
-    /// loop (~1 k instead of ~8 k cycles on the AVR). It produces the segment
-    /// the general path would (same ticks, period within a timer count).
-    fn cruise_block(&mut self, pl: &mut Planner) -> Option<Segment> {
-        if !self.profile_stale || self.holding || self.decel_override {
-            return None;
-        }
-        let exit_sqr = pl.exec_exit_speed_sqr().to_bits();
-        let b = pl.current_block()?;
-        let nominal_bits = b.nominal_speed_sqr.to_bits();
-        if b.entry_speed_sqr.to_bits() != nominal_bits || exit_sqr != nominal_bits || nominal_bits == 0 {
-            return None;
-        }
-        let (mm, n, nominal_sqr) = (b.millimeters, b.step_event_count, b.nominal_speed_sqr);
-        let v = self.nominal_speed(nominal_sqr);
-        let (cycles_per_mm, max_mm) = self.cruise_cache;
-        if !(mm <= max_mm) || n == 0 || n != self.steps_remaining || n > u16::MAX as u32 {
-            return None;
-        }
-        let (period, prescale) = timer_for(per_tick(mm * cycles_per_mm + self.dt_remainder * F_CPU, n));
-        self.profile_stale = false;
-        self.current_speed = v;
-        self.exit_speed = v;
-        self.exit_speed_sqr_bits = nominal_bits;
-        self.dt_remainder = 0.0;
-        self.steps_remaining = 0;
-        self.ramp = Ramp::Cruise;
-        if let Some(b) = pl.current_block_mut() {
-            b.millimeters = 0.0;
-            b.entry_speed_sqr = nominal_sqr;
-            b.max_delta_speed_sqr = 0.0;
-        }
-        self.finish_block(pl);
-        Some(Segment { ticks: n as u16, period, prescale })
-    }
-
-    /// Fast path for the rest of a block that takes at most one ramp segment
-    /// ([`SEGMENT_TIME_S`]) in all: one segment for all of it, its duration
-    /// from the profile in closed form (Δv / a on the ramps, distance × the
-    /// cached cycles per mm at cruise), one division. A stream of short moves
-    /// is made of such blocks; the segment loop costs ~3× more on the AVR. The
-    /// ticks are evenly spaced over the block like in any one segment: at most
-    /// a·T²/8 (0.3 step at 1000 mm/s², 100 steps/mm) from the ideal trapezoid.
-    fn short_block(&mut self, pl: &mut Planner) -> Option<Segment> {
-        if self.holding || self.ramp == Ramp::DecelOverride {
-            return None;
-        }
-        let inv_a = 2.0 * self.inv_2_accel_cache.1; // s² / mm
-        let b = pl.current_block()?;
-        let mm = b.millimeters;
-        let v0 = self.current_speed;
-        let (vmax, v1) = (self.maximum_speed, self.exit_speed);
-        let mut t; // s
-        let cruise_mm; // distance at vmax
-        match self.ramp {
-            Ramp::Accel => {
-                t = (vmax - v0) * inv_a + (vmax - v1) * inv_a;
-                cruise_mm = self.accelerate_until - self.decelerate_after;
-            }
-            Ramp::Cruise => {
-                t = (vmax - v1) * inv_a;
-                cruise_mm = mm - self.decelerate_after;
-            }
-            Ramp::Decel => {
-                t = (v0 - v1) * inv_a;
-                cruise_mm = 0.0;
-            }
-            Ramp::DecelOverride => return None,
-        }
-        if cruise_mm > 0.0 {
-            if self.nominal_cache.1.to_bits() != vmax.to_bits() {
-                return None;
-            }
-            t += cruise_mm * self.cruise_cache.0 * (1.0 / F_CPU);
-        }
-        let n = self.steps_remaining;
-        if !(t <= SEGMENT_TIME_S) || !(t > 0.0) || n == 0 || n > u16::MAX as u32 {
-            return None;
-        }
-        let (period, prescale) = timer_for(per_tick((t + self.dt_remainder) * F_CPU, n));
-        self.current_speed = v1;
-        self.dt_remainder = 0.0;
-        self.steps_remaining = 0;
-        if let Some(b) = pl.current_block_mut() {
-            self.write_back(b, 0.0);
-        }
-        self.finish_block(pl);
-        Some(Segment { ticks: n as u16, period, prescale })
-    }
-
-    /// The velocity profile of the rest of the executing block (grbl).
-    fn compute_profile(&mut self, pl: &mut Planner) {
-        let exit_speed_sqr = pl.exec_exit_speed_sqr();
-        let Some(b) = pl.current_block_mut() else { return };
-        // The executing block starts "now", at the current speed.
-        b.entry_speed_sqr = self.current_speed * self.current_speed;
-        let entry_sqr = b.entry_speed_sqr;
-        let mm = b.millimeters;
-        let a = self.acceleration;
-        if self.inv_2_accel_cache.0 != a.to_bits() {
-            self.inv_2_accel_cache = (a.to_bits(), crate::math::div_cold(0.5, a));
-        }
-        let inv_2_accel = self.inv_2_accel_cache.1;
-        self.mm_complete = 0.0;
-        self.decelerate_after = 0.0;
-        // Any exit speed set below other than sqrt(planned exit²) clears this.
-        self.exit_speed_sqr_bits = u32::MAX;
-        if self.holding {
-            // Forced deceleration to zero speed.
-            self.ramp = Ramp::Decel;
-            let decel_dist = mm - inv_2_accel * entry_sqr;
-            if decel_dist < 0.0 {
-                // The stop is beyond this block.
-                self.exit_speed = sqrtf(entry_sqr - 2.0 * a * mm);
-            } else {
-                self.mm_complete = decel_dist;
-                self.exit_speed = 0.0;
-            }
-            return;
-        }
-        self.ramp = Ramp::Accel;
-        self.accelerate_until = mm;
-        let nominal_sqr = b.nominal_speed_sqr;
-        let nominal = self.nominal_speed(nominal_sqr);
-        self.exit_speed = if exit_speed_sqr.to_bits() == nominal_sqr.to_bits() {
-            nominal
-        } else if exit_speed_sqr.to_bits() == 0 {
-            0.0
-        } else {
-            sqrtf(exit_speed_sqr)
-        };
-        self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
-        let intersect = 0.5 * (mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
-        if entry_sqr > nominal_sqr {
-            self.accelerate_until = mm - inv_2_accel * (entry_sqr - nominal_sqr);
-            if self.accelerate_until <= 0.0 {
-                // Deceleration only; the next block starts at our exit speed.
-                self.ramp = Ramp::Decel;
-                let v2 = entry_sqr - 2.0 * a * mm;
-                self.exit_speed = if v2 > 0.0 { sqrtf(v2) } else { 0.0 };
-                self.exit_speed_sqr_bits = u32::MAX;
-                self.decel_override = true;
-            } else {
-                self.decelerate_after = inv_2_accel * (nominal_sqr - exit_speed_sqr);
-                self.maximum_speed = nominal;
-                self.ramp = Ramp::DecelOverride;
-            }
-        } else if intersect > 0.0 {
-            if intersect < mm {
-                // Trapezoid or triangle.
-                self.decelerate_after = inv_2_accel * (nominal_sqr - exit_speed_sqr);
-                if self.decelerate_after < intersect {
-                    self.maximum_speed = nominal;
-                    if entry_sqr == nominal_sqr {
-                        self.ramp = Ramp::Cruise;
-                    } else {
-                        self.accelerate_until -= inv_2_accel * (nominal_sqr - entry_sqr);
-                    }
-                } else {
-                    self.accelerate_until = intersect;
-                    self.decelerate_after = intersect;
-                    self.maximum_speed = sqrtf(2.0 * a * intersect + exit_speed_sqr);
-                }
-            } else {
-                // Deceleration only.
-                self.ramp = Ramp::Decel;
-            }
-        } else {
-            // Acceleration only.
-            self.accelerate_until = 0.0;
-            self.maximum_speed = self.exit_speed;
-        }
-    }
-
-    /// Cut the next segment off the executing block (grbl's segment loop).
-    /// `None` when the hold has stopped or the piece had no step.
-    fn make_segment(&mut self, pl: &mut Planner) -> Option<Segment> {
-        let a = self.acceleration;
-        let b = pl.current_block_mut()?;
-        let mut dt_max = if self.ramp == Ramp::Cruise { CRUISE_SEGMENT_TIME_S } else { SEGMENT_TIME_S };
-        let mut dt = 0.0f32;
-        let mut time_var = dt_max;
-        let mut mm_remaining = b.millimeters;
-        let mm_segment_start = mm_remaining;
-        loop {
-            let mm_start = mm_remaining;
-            match self.ramp {
-                Ramp::DecelOverride => {
-                    let speed_var = a * time_var;
-                    let mm_var = time_var * (self.current_speed - 0.5 * speed_var);
-                    mm_remaining -= mm_var;
-                    if mm_remaining < self.accelerate_until || mm_var <= 0.0 {
-                        mm_remaining = self.accelerate_until;
-                        time_var = 2.0 * (mm_start - mm_remaining) / (self.current_speed + self.maximum_speed);
-                        self.ramp = Ramp::Cruise;
-                        self.current_speed = self.maximum_speed;
-                    } else {
-                        self.current_speed -= speed_var;
-                    }
-                }
-                Ramp::Accel => {
-                    let speed_var = a * time_var;
-                    mm_remaining -= time_var * (self.current_speed + 0.5 * speed_var);
-                    if mm_remaining < self.accelerate_until {
-                        mm_remaining = self.accelerate_until;
-                        time_var = 2.0 * (mm_start - mm_remaining) / (self.current_speed + self.maximum_speed);
-                        self.ramp = if mm_remaining == self.decelerate_after { Ramp::Decel } else { Ramp::Cruise };
-                        self.current_speed = self.maximum_speed;
-                    } else {
-                        self.current_speed += speed_var;
-                    }
-                }
-                Ramp::Cruise => {
-                    let mm_var = mm_remaining - self.maximum_speed * time_var;
-                    if mm_var < self.decelerate_after {
-                        time_var = (mm_remaining - self.decelerate_after) / self.maximum_speed;
-                        mm_remaining = self.decelerate_after;
-                        self.ramp = Ramp::Decel;
-                        // End the segment here (or one ramp segment later if it
-                        // has no step yet).
-                        dt_max = dt + time_var;
-                    } else {
-                        mm_remaining = mm_var;
-                    }
-                }
-                Ramp::Decel => {
-                    let speed_var = a * time_var;
-                    let mut in_ramp = false;
-                    if self.current_speed > speed_var {
-                        let mm_var = mm_remaining - time_var * (self.current_speed - 0.5 * speed_var);
-                        // Float residue (a millionth of a step left at almost zero
-                        // speed) would make the last piece take ages: end here.
-                        if (mm_var - self.mm_complete) * self.step_per_mm > RAMP_END_EPSILON {
-                            mm_remaining = mm_var;
-                            self.current_speed -= speed_var;
-                            in_ramp = true;
-                        }
-                    }
-                    if !in_ramp {
-                        // End of the block or of the hold's deceleration.
-                        let v = self.current_speed + self.exit_speed;
-                        time_var = if v > 0.0 { 2.0 * (mm_remaining - self.mm_complete) / v } else { 0.0 };
-                        mm_remaining = self.mm_complete;
-                        self.current_speed = self.exit_speed;
-                    }
-                }
-            }
-            dt += time_var;
-            if dt < dt_max {
-                time_var = dt_max - dt;
-            } else if mm_remaining > 0.0 && (mm_segment_start - mm_remaining) * self.step_per_mm < REQ_STEPS_PER_SEGMENT {
-                // Too slow for a step yet: stretch the segment.
-                dt_max += SEGMENT_TIME_S;
-                time_var = dt_max - dt;
-            } else {
-                break;
-            }
-            if mm_remaining <= self.mm_complete {
-                break;
-            }
-        }
-
-        let step_dist_remaining = self.step_per_mm * mm_remaining;
-        let mut n_steps_remaining = ceil_u32(step_dist_remaining);
-        if n_steps_remaining > self.steps_remaining {
-            n_steps_remaining = self.steps_remaining;
-        }
-        if mm_remaining <= 0.0 {
-            n_steps_remaining = 0;
-        }
-        let ticks = self.steps_remaining - n_steps_remaining;
-        let profile_done = mm_remaining == self.mm_complete;
-
-        if ticks == 0 {
-            if self.holding {
-                // Stopped less than a step before the hold point: the stop is
-                // complete; keep the block as it was (grbl).
-                self.held = true;
-                return None;
-            }
-            // A piece with no whole step: carry its time, keep going.
-            self.dt_remainder += dt;
-            self.write_back(b, mm_remaining);
-            if profile_done && mm_remaining <= 0.0 {
-                self.finish_block(pl);
-            }
-            return None;
-        }
-
-        // The ticks run from the previous segment's last tick (dt_remainder
-        // before this segment's start) to this segment's last tick, which comes
-        // `tail` before its end: the time to cover the fraction of a step left.
-        let window = dt + self.dt_remainder;
-        let frac = n_steps_remaining as f32 - step_dist_remaining;
-        let n = ticks as f32;
-        let inv_rate; // s per step event
-        if frac > 0.0 && mm_remaining > 0.0 {
-            // tail = time to cover `frac` steps ending at speed v with
-            // acceleration ±a: frac = v·t ∓ a·t²/2. To second order in a·frac/v²,
-            // t = 2·frac·v / (2v² ± a·frac) = N / D, and then
-            // inv_rate = (window − N/D) / n = (window·D − N) / (D·n): one division.
-            let v = self.current_speed * self.step_per_mm; // steps/s at the end
-            let v2 = v * v;
-            let x = match self.ramp {
-                Ramp::Accel => -(self.acceleration * self.step_per_mm * frac),
-                Ramp::Decel => self.acceleration * self.step_per_mm * frac,
-                _ => 0.0,
-            };
-            let num = 2.0 * frac * v;
-            let den = 2.0 * v2 + x;
-            // Well conditioned (|x| ≤ v²/4) and the last tick after mid-window.
-            if 4.0 * abs_f32(x) < v2 && num < 0.5 * window * den {
-                inv_rate = (window * den - num) / (den * n);
-                self.dt_remainder = window - inv_rate * n;
-            } else {
-                // Near a stop: exact, with a square root.
-                let tail = self.fraction_time(frac, window);
-                inv_rate = (window - tail) / n;
-                self.dt_remainder = tail;
-            }
-        } else {
-            inv_rate = window / n;
-            self.dt_remainder = 0.0;
-        }
-        self.steps_remaining = n_steps_remaining;
-        let (period, prescale) = timer_for(F_CPU * inv_rate);
-        debug_assert!(ticks <= u16::MAX as u32);
-        let seg = Segment { ticks: ticks as u16, period, prescale };
-
-        self.write_back(b, mm_remaining);
-        if profile_done {
-            if mm_remaining > 0.0 {
-                // A hold stopped inside the block.
-                self.held = true;
-            } else {
-                self.finish_block(pl);
-            }
-        }
-        Some(seg)
-    }
-
     /// Record progress in the executing block: distance left, current speed².
     /// Stored values stay ≥ +0.0 (the planner compares them as bit patterns).
     fn write_back(&self, b: &mut crate::planner::Block, mm_remaining: f32) {
@@ -765,30 +348,6 @@ impl Prep {
         b.millimeters = mm;
         b.entry_speed_sqr = self.current_speed * self.current_speed;
         b.max_delta_speed_sqr = 2.0 * self.acceleration * mm;
-    }
-
-    /// Time to cover the last `frac` (< 1) step of a segment that ends at the
-    /// current speed, s: the last tick comes that long before the segment ends.
-    /// grbl charges it at the segment's mean speed, which puts the last tick of
-    /// every ramp segment early (accelerating) or late (decelerating).
-    fn fraction_time(&self, frac: f32, window: f32) -> f32 {
-        let v = self.current_speed * self.step_per_mm; // steps/s at the end
-        let t = if self.ramp == Ramp::Decel {
-            // Decelerating into the end: frac = v·t + a·t²/2.
-            let a = self.acceleration * self.step_per_mm;
-            2.0 * frac / (v + sqrtf(v * v + 2.0 * a * frac))
-        } else if v > 0.0 {
-            frac / v
-        } else {
-            0.0
-        };
-        // Never let the last tick come before the window's midpoint.
-        let max = 0.5 * window;
-        if t > max {
-            max
-        } else {
-            t
-        }
     }
 
     /// The executing block is fully prepared: drop it from the planner.
@@ -801,23 +360,5 @@ impl Prep {
 impl Default for Prep {
     fn default() -> Self {
         Self::new()
-    }
-}
-
-#[cfg(test)]
-mod per_tick_tests {
-    use super::per_tick;
-
-    #[test]
-    fn per_tick_is_the_division_within_an_ulp() {
-        let mut x = 1.0f32;
-        for _ in 0..2000 {
-            x = x * 1.37 % 800_000.0 + 31.0;
-            for n in 1..=20u32 {
-                let (got, want) = (per_tick(x, n), x / n as f32);
-                let ulps = (got.to_bits() as i64 - want.to_bits() as i64).abs();
-                assert!(ulps <= 1, "{x} / {n}: {got} vs {want}");
-            }
-        }
     }
 }

@@ -183,7 +183,7 @@ fn run_moves(s: &Settings, moves: &[([i32; N_AXES], f32, bool)]) -> (Machine, Pl
                 Err(e) => panic!("{e:?}"),
             }
         }
-        match prep.next_segment(&mut pl, s) {
+        match prep.next_segment(&mut pl) {
             Some(c) => m.exec(c),
             None => {
                 if next >= moves.len() {
@@ -262,7 +262,7 @@ fn segment_ticks_add_up_to_each_blocks_step_event_count() {
         while next < moves.len() && pl.push_line(moves[next].0, moves[next].1, moves[next].2, &s).is_ok() {
             next += 1;
         }
-        match prep.next_segment(&mut pl, &s) {
+        match prep.next_segment(&mut pl) {
             Some(c) => {
                 match c {
                     StepperCmd::Block(b) => per_block.push((b.step_event_count, 0)),
@@ -429,7 +429,7 @@ fn feed_hold_decelerates_within_the_limit_then_resume_reaches_the_exact_end() {
     pl.push_line([2000, 0, 0, 0], 3000.0, false, &s).unwrap();
     // Run until 5 mm are done (cruising).
     while m.motor[0] < 500 {
-        m.exec(prep.next_segment(&mut pl, &s).unwrap());
+        m.exec(prep.next_segment(&mut pl).unwrap());
     }
     let before = m.ran.len();
     let at_hold = m.motor[0];
@@ -437,7 +437,7 @@ fn feed_hold_decelerates_within_the_limit_then_resume_reaches_the_exact_end() {
     assert!((v0 - 50.0).abs() < 0.5);
     prep.hold();
     assert!(prep.is_holding() && !prep.is_held());
-    while let Some(c) = prep.next_segment(&mut pl, &s) {
+    while let Some(c) = prep.next_segment(&mut pl) {
         m.exec(c);
     }
     assert!(prep.is_held());
@@ -450,11 +450,11 @@ fn feed_hold_decelerates_within_the_limit_then_resume_reaches_the_exact_end() {
     // The block is still there with the distance left.
     let left = pl.current_block().unwrap().millimeters;
     assert!((left - (2000 - stop) as f32 / 100.0).abs() < 0.02, "left {left}");
-    assert!(prep.next_segment(&mut pl, &s).is_none());
+    assert!(prep.next_segment(&mut pl).is_none());
 
     prep.resume();
     let after = m.ran.len();
-    while let Some(c) = prep.next_segment(&mut pl, &s) {
+    while let Some(c) = prep.next_segment(&mut pl) {
         m.exec(c);
     }
     assert_eq!(m.motor[0], 2000);
@@ -481,7 +481,7 @@ fn feed_hold_in_a_stream_of_short_moves_stops_across_blocks_and_resumes() {
             prep.hold();
             held_at = Some(m.ran.len());
         }
-        match prep.next_segment(&mut pl, &s) {
+        match prep.next_segment(&mut pl) {
             Some(c) => m.exec(c),
             None if prep.is_held() => {
                 let stop = m.motor[0];
@@ -506,12 +506,12 @@ fn a_hold_with_nothing_queued_is_complete_at_once() {
     let mut pl = Planner::new();
     let mut prep = Prep::new();
     prep.hold();
-    assert!(prep.next_segment(&mut pl, &s).is_none());
+    assert!(prep.next_segment(&mut pl).is_none());
     assert!(prep.is_held());
     prep.resume();
     pl.push_line([100, 0, 0, 0], 600.0, false, &s).unwrap();
     let mut m = Machine::new(&s);
-    while let Some(c) = prep.next_segment(&mut pl, &s) {
+    while let Some(c) = prep.next_segment(&mut pl) {
         m.exec(c);
     }
     assert_eq!(m.motor[0], 100);
@@ -524,17 +524,17 @@ fn reset_forgets_the_block_in_progress() {
     let mut prep = Prep::new();
     pl.push_line([2000, 0, 0, 0], 3000.0, false, &s).unwrap();
     for _ in 0..5 {
-        prep.next_segment(&mut pl, &s).unwrap();
+        prep.next_segment(&mut pl).unwrap();
     }
     assert!(prep.is_busy());
     prep.reset();
     pl.clear();
     pl.set_position([123, 0, 0, 0]);
     assert!(!prep.is_busy());
-    assert!(prep.next_segment(&mut pl, &s).is_none());
+    assert!(prep.next_segment(&mut pl).is_none());
     pl.push_line([223, 0, 0, 0], 600.0, false, &s).unwrap();
     let mut m = Machine::new(&s);
-    while let Some(c) = prep.next_segment(&mut pl, &s) {
+    while let Some(c) = prep.next_segment(&mut pl) {
         m.exec(c);
     }
     assert_eq!(m.motor[0], 100);
@@ -564,7 +564,7 @@ fn the_segment_queue_can_be_filled_through_a_heapless_producer() {
     let (mut p, mut c) = q.split();
     let mut m = Machine::new(&s);
     loop {
-        prep.fill(&mut pl, &s, &mut p);
+        prep.fill(&mut pl, &mut p);
         if c.len() == 0 {
             break;
         }

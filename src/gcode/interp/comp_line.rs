@@ -3,9 +3,17 @@
 //! the line's own actions are handed out one per call. The geometry is in
 //! [`super::super::comp`].
 
-use super::*;
+use super::arc_line::new_arc;
+use super::command::Command;
+use super::error::Error;
+use super::line_run::{Phase, Progress};
+use super::modal::ModalCopy;
+use super::tool_words::{is_tool_change, tool_pocket};
+use super::units::{same_f32, to_mm, to_steps};
+use super::{Ctx, Interp};
 use crate::gcode::comp::{self, Corner, Held, Seg, Side, P2};
-use crate::gcode::CutterComp;
+use crate::gcode::{CutterComp, Line, Motion, Plane, Stopping, Word};
+use crate::planner::arc;
 
 /// What [`Interp::comp_line`] leaves to the ordinary path of a line.
 pub(super) enum CompOutcome {
@@ -34,7 +42,8 @@ impl Interp {
     }
 
     /// Apply a mode change the ordinary path earned (see [`CompOutcome`]).
-    #[inline(always)] // an f32 argument: see the note in comp.rs
+    // correctness: an f32 argument miscompiled as a call on the AVR (the note in comp.rs)
+    #[inline(always)]
     pub(super) fn comp_apply(&mut self, mode: Option<(Option<Side>, f32)>) {
         if let Some((side, radius_mm)) = mode {
             self.comp.set(side, radius_mm);
@@ -43,6 +52,7 @@ impl Interp {
 
     /// A line while compensation is on, or turned on or off by it.
     /// `motion`: the line's motion mode; `target`: in `run.target`.
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
     #[inline(never)]
     pub(super) fn comp_line(
         &mut self,
@@ -203,7 +213,8 @@ impl Interp {
 
     /// Set up the held move `h` to run to `end` (its own end, or an inside
     /// corner's point), then phase `then`.
-    #[inline(always)] // see the note in comp.rs
+    // correctness: f32 and point arguments miscompiled as a call on the AVR (the note in comp.rs)
+    #[inline(always)]
     fn comp_flush(&mut self, cx: &Ctx, h: &Held, end: &P2, then: Phase) -> Result<(), Error> {
         let end3 = [end[0], end[1], h.z];
         self.run.chord_feed = h.feed;
@@ -277,7 +288,8 @@ impl Interp {
 /// The side and radius a G41/G42/G41.1/G42.1 line asks for: G41/G42 D<tool>
 /// (the spindle tool without D) take the tool table's diameter; G41.1/G42.1
 /// D<diameter> give it.
-#[inline(always)] // returns 8 bytes or less: see the note in comp.rs
+// correctness: an (f32, Side) result miscompiled as a call on the AVR (the note in comp.rs)
+#[inline(always)]
 fn comp_mode(cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<(Side, f32), Error> {
     let (side, direct) = match l.cutter_comp {
         Some(CutterComp::Left) => (Side::Left, false),
@@ -303,38 +315,4 @@ fn comp_mode(cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<(Side, f32), Error> {
         }
     };
     Ok((side, diameter * 0.5))
-}
-
-/// [`Interp::arc_spec`]'s home: the centre words of an arc line.
-impl Interp {
-    /// The centre of an arc line from `start` (R, or I/J/K as offsets or,
-    /// under G90.1, work coordinates).
-    pub(super) fn arc_spec(&self, g: &ModalCopy, l: &Line, start: [f32; 3]) -> Result<arc::Centre, Error> {
-        let (a0, a1) = match g.plane {
-            Plane::Xy => (0, 1),
-            Plane::Zx => (2, 0),
-            Plane::Yz => (1, 2),
-        };
-        let off_words = [Word::I, Word::J, Word::K];
-        let r = l.word(Word::R).map(|r| to_mm(g.inches, r));
-        let mut centre_off = [0.0f32; 3];
-        let mut any_off = false;
-        for (a, &w) in off_words.iter().enumerate() {
-            if let Some(v) = l.word(w) {
-                let v = word_mm(g.inches, a, v);
-                // G90.1: the word is the centre's work coordinate.
-                centre_off[a] = if g.arc_absolute { work_to_machine(self, g, a, v) - start[a] } else { v };
-                any_off = true;
-            }
-        }
-        if g.arc_absolute && any_off && (l.word(off_words[a0]).is_none() || l.word(off_words[a1]).is_none()) {
-            return Err(Error::BadWord(F!("arc under G90.1: give both centre coordinates of the plane")));
-        }
-        match (r, any_off) {
-            (Some(r), false) => Ok(arc::Centre::Radius(r)),
-            (None, true) => Ok(arc::Centre::Offset(centre_off)),
-            (Some(_), true) => Err(Error::BadWord(F!("arc: give R or I/J/K, not both"))),
-            (None, false) => Err(Error::Coded(crate::gcode::interp::grbl::ARC_NO_OFFSET, F!("arc needs R or I/J/K"))),
-        }
-    }
 }

@@ -1,0 +1,111 @@
+//! The travel checks of a move: soft limits on the target rounded to steps,
+//! the tool magazine's keep-out zone, and the mm → steps conversion cache
+//! that the checks and the queued move share ([`Interp::steps_of`]).
+
+use super::error::Error;
+use super::units::to_steps;
+use super::Interp;
+use crate::config::Settings;
+use crate::N_AXES;
+
+impl Interp {
+    /// Absolute mm → absolute steps, rounded per axis (no accumulated
+    /// error). An axis whose mm value is that of its last conversion reuses
+    /// the result (a float multiply and a rounding, ~330 cycles on the AVR;
+    /// a streamed XY move leaves Z and E where they were).
+    pub fn steps_of(&mut self, s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
+        }
+        steps_cached(&mut self.steps_cache, s, mm)
+    }
+
+    /// Soft limits: the target, rounded to steps as it will be queued, must
+    /// lie within 0..=travel (rounded to steps) on X, Y and Z. Integer
+    /// compares on the steps [`Interp::steps_of`] caches for the move itself.
+    pub fn check_soft_limits(&mut self, s: &Settings, t: &[f32; N_AXES]) -> Result<(), Error> {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
+        }
+        soft_limits(&mut self.steps_cache, &self.travel_steps, s, t)
+    }
+
+    /// [`Interp::target`] in steps (see [`Interp::steps_of`]).
+    pub fn target_steps(&mut self, s: &Settings) -> [i32; N_AXES] {
+        if !self.conv_fresh {
+            self.refresh_conv(s);
+        }
+        steps_cached(&mut self.steps_cache, s, &self.run.target)
+    }
+
+    /// The settings changed: the step conversions are made afresh.
+    pub fn settings_changed(&mut self) {
+        self.conv_fresh = false;
+    }
+
+    /// Empty the steps cache (an all-ones pattern is a NaN, never a
+    /// position) and convert the travel.
+    pub(super) fn refresh_conv(&mut self, s: &Settings) {
+        for c in self.steps_cache.iter_mut() {
+            c.0 = u32::MAX;
+        }
+        for a in 0..3 {
+            self.travel_steps[a] = to_steps(s.travel_mm[a], s.steps_per_mm[a]);
+        }
+        self.conv_fresh = true;
+    }
+}
+
+/// [`Interp::check_soft_limits`] over the interpreter's caches (fresh).
+pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32; 3], s: &Settings, t: &[f32; N_AXES]) -> Result<(), Error> {
+    if !s.soft_limits {
+        return Ok(());
+    }
+    let st = steps_cached(cache, s, t);
+    for a in 0..3 {
+        if st[a] < 0 || st[a] > travel_steps[a] {
+            return Err(Error::SoftLimit);
+        }
+    }
+    Ok(())
+}
+
+/// [`Interp::steps_of`]'s conversion through `cache`.
+// speed: every move converts its target here (a call cost ping-pong lines/s)
+#[inline(always)]
+fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
+    let mut st = [0i32; N_AXES];
+    for a in 0..N_AXES {
+        let c = &mut cache[a];
+        if c.0 != mm[a].to_bits() {
+            *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
+        }
+        st[a] = c.1;
+    }
+    st
+}
+
+/// A straight move from `a` to `b` must not enter the tool magazine's
+/// keep-out zone (only the tool change, which does not come through here,
+/// goes in).
+pub(super) fn keep_out(s: &Settings, a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
+    if s.station.enters_keep_out([a[0], a[1], a[2]], [b[0], b[1], b[2]]) {
+        return Err(Error::KeepOut);
+    }
+    Ok(())
+}
+
+/// An arc or a canned cycle by its bounding box, with the start point
+/// (the cycle's first move starts there). `a` and `b` are opposite
+/// corners, in either order per axis (the Z flip of a cycle's user bounds
+/// swaps them).
+pub(super) fn keep_out_box(s: &Settings, from: &[f32; N_AXES], a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
+    let min = |x: f32, y: f32| if x < y { x } else { y };
+    let max = |x: f32, y: f32| if x > y { x } else { y };
+    let l = core::array::from_fn(|i| min(from[i], min(a[i], b[i])));
+    let h = core::array::from_fn(|i| max(from[i], max(a[i], b[i])));
+    if s.station.box_enters_keep_out(l, h) {
+        return Err(Error::KeepOut);
+    }
+    Ok(())
+}

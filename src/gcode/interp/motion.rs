@@ -1,0 +1,124 @@
+//! The motion part of a line: its target (G90/G91, G53, polar words, E),
+//! the checks every move gets (feed, soft limits, keep-out zone), then the
+//! move itself or, through their own modules, an arc, a canned cycle or
+//! compensation.
+
+use super::command::Command;
+use super::comp_line::CompOutcome;
+use super::error::Error;
+use super::limits::{keep_out, soft_limits};
+use super::line_run::Phase;
+use super::modal::ModalCopy;
+use super::offsets::work_to_machine;
+use super::units::word_mm;
+use super::{axis_words_are_settings, has_axis_words, Ctx, Interp, AXIS_WORDS};
+use crate::gcode::{Line, Motion, NonModal, Word};
+
+impl Interp {
+    /// The motion part of a line: target, checks, then (through
+    /// [`Interp::arc_line`] for arcs, [`Interp::cycle_line`] for cycles)
+    /// [`Interp::commit_line`].
+    // stack: a frame of its own, off Interp::start's (ldd reach; see its doc)
+    #[inline(never)]
+    pub(super) fn motion_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
+        let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
+        // The target is worked out in place (`run.target` means nothing
+        // until the line commits): no copy on the way to the move.
+        self.run.target = self.pos_mm;
+        if self.comp.side.is_some() {
+            // Under compensation the programmed position, not the tool's.
+            for a in 0..3 {
+                self.run.target[a] = self.prog_pos(a);
+            }
+        }
+        let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
+        for (a, &w) in AXIS_WORDS.iter().enumerate() {
+            if let Some(v) = l.word(w) {
+                let v = word_mm(g.inches, a, v);
+                self.run.target[a] = if machine_coords {
+                    v
+                } else if g.incremental {
+                    self.prog_pos(a) + v
+                } else {
+                    work_to_machine(self, g, a, v)
+                };
+            }
+        }
+        if machine_coords && matches!(g.motion, Motion::Cycle(_)) {
+            return Err(Error::BadWord(F!("G53 not allowed with a canned cycle (G80 first)")));
+        }
+        if l.words.has_polar() {
+            self.polar_checks(g, l, machine_coords)?;
+            if !(g.incremental && matches!(g.motion, Motion::Cycle(_))) {
+                let p = self.polar_point(g, l)?;
+                self.run.target[0] = work_to_machine(self, g, 0, p[0]);
+                self.run.target[1] = work_to_machine(self, g, 1, p[1]);
+            }
+        }
+        if !any_axis && matches!(l.motion, Some(Motion::ProbeToward | Motion::ProbeTowardNoError)) {
+            return Err(Error::BadWord(F!("G38.2/G38.3: all axes missing with motion code, nothing moved")));
+        }
+        let motion = if machine_coords && !matches!(g.motion, Motion::Rapid | Motion::Linear) { Motion::Linear } else { g.motion };
+        // E0 (the carousel) moves with G0/G1 `E`, in its own units and without
+        // offsets (Repetier's E0 motor), so all four motors can move at once.
+        let e_word = if axis_words_are_settings(l) { None } else { l.word(Word::E) };
+        if let Some(v) = e_word {
+            if !matches!(motion, Motion::Rapid | Motion::Linear) {
+                return Err(Error::BadWord(F!("E only with G0/G1")));
+            }
+            self.run.target[3] = if g.incremental { self.pos_mm[3] + v } else { v };
+        }
+        let mode = match self.comp_line(cx, g, l, motion, any_axis, e_word.is_some())? {
+            CompOutcome::Done(r) => return r,
+            CompOutcome::Ordinary(mode) => mode,
+        };
+        if let Motion::Cycle(kind) = g.motion {
+            if any_axis || l.motion.is_some() {
+                return self.cycle_line(cx, g, l, kind);
+            }
+        }
+        let mut do_motion = None;
+        if any_axis || e_word.is_some() || matches!(l.motion, Some(Motion::ArcCw | Motion::ArcCcw)) {
+            match motion {
+                Motion::Cancel => {
+                    return Err(Error::BadWord(F!(
+                        "axis words without a motion mode (G80 active; $154=1 keeps the mode from before a cycle)"
+                    )))
+                }
+                Motion::Rapid => {}
+                _ => {
+                    if !(g.feed > 0.0) {
+                        return Err(Error::BadFeed);
+                    }
+                }
+            }
+            if !self.conv_fresh {
+                self.refresh_conv(cx.settings);
+            }
+            soft_limits(&mut self.steps_cache, &self.travel_steps, cx.settings, &self.run.target)?;
+            keep_out(cx.settings, &self.pos_mm, &self.run.target)?;
+            do_motion = Some(motion);
+        }
+        match do_motion {
+            Some(mo @ (Motion::ArcCw | Motion::ArcCcw)) => {
+                let target = self.run.target;
+                let r = self.arc_line(cx, g, l, &target, mo);
+                if r.is_ok() {
+                    self.comp_apply(mode);
+                }
+                r
+            }
+            _ => {
+                self.commit_line(g, do_motion);
+                self.comp_apply(mode);
+                // A line with nothing but its move (a streamed G1): the move
+                // now, without a turn of `next`'s phases.
+                if do_motion.is_some() && !self.run.extras {
+                    self.run.phase = if l.other_m.is_none() && l.stopping.is_none() { Phase::Done } else { Phase::OtherM };
+                    return Ok(self.motion());
+                }
+                Ok(None)
+            }
+        }
+    }
+}

@@ -1,0 +1,291 @@
+//! The value words of a line: [`Word`] (the letters, their bits) and
+//! [`Words`], the set of words present with their values, tested by mask.
+
+/// Value words, in the bit order of [`Words`].
+///
+/// `B` is the G37 broken-tool tolerance (docs/SPEC.md §5); `A`, `C` (rotary axes),
+/// `U`, `V`, `W` are axes this machine does not have, and `O` is a program
+/// number or an O-word (see [`parse`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Word {
+    B,
+    D,
+    E,
+    F,
+    H,
+    I,
+    J,
+    K,
+    L,
+    N,
+    P,
+    Q,
+    R,
+    S,
+    T,
+    X,
+    Y,
+    Z,
+    /// `@`: polar radius (LinuxCNC), mm or inches.
+    At,
+    /// `^`: polar angle (LinuxCNC), degrees counter-clockwise from +X.
+    Caret,
+}
+
+impl Word {
+    /// Number of value words.
+    pub const COUNT: usize = 20;
+    /// Every word, in bit order.
+    pub const ALL: [Word; Word::COUNT] = [
+        Word::B,
+        Word::D,
+        Word::E,
+        Word::F,
+        Word::H,
+        Word::I,
+        Word::J,
+        Word::K,
+        Word::L,
+        Word::N,
+        Word::P,
+        Word::Q,
+        Word::R,
+        Word::S,
+        Word::T,
+        Word::X,
+        Word::Y,
+        Word::Z,
+        Word::At,
+        Word::Caret,
+    ];
+
+    /// The word for a letter, any case (and `@`, `^`); `None` for letters
+    /// outside the dialect and for `G` and `M`, which are codes.
+    pub fn from_letter(c: u8) -> Option<Word> {
+        Some(match c.to_ascii_uppercase() {
+            b'B' => Word::B,
+            b'D' => Word::D,
+            b'E' => Word::E,
+            b'F' => Word::F,
+            b'H' => Word::H,
+            b'I' => Word::I,
+            b'J' => Word::J,
+            b'K' => Word::K,
+            b'L' => Word::L,
+            b'N' => Word::N,
+            b'P' => Word::P,
+            b'Q' => Word::Q,
+            b'R' => Word::R,
+            b'S' => Word::S,
+            b'T' => Word::T,
+            b'X' => Word::X,
+            b'Y' => Word::Y,
+            b'Z' => Word::Z,
+            b'@' => Word::At,
+            b'^' => Word::Caret,
+            _ => return None,
+        })
+    }
+
+    /// The upper-case letter of the word (`@`, `^` for the polar words). A
+    /// match, not a table: on AVR a table would be copied into RAM.
+    pub fn letter(self) -> u8 {
+        match self {
+            Word::B => b'B',
+            Word::D => b'D',
+            Word::E => b'E',
+            Word::F => b'F',
+            Word::H => b'H',
+            Word::I => b'I',
+            Word::J => b'J',
+            Word::K => b'K',
+            Word::L => b'L',
+            Word::N => b'N',
+            Word::P => b'P',
+            Word::Q => b'Q',
+            Word::R => b'R',
+            Word::S => b'S',
+            Word::T => b'T',
+            Word::X => b'X',
+            Word::Y => b'Y',
+            Word::Z => b'Z',
+            Word::At => b'@',
+            Word::Caret => b'^',
+        }
+    }
+
+    /// The word of bit `i` ([`Word::ALL`]`[i]`, by a match).
+    pub(super) fn from_index(i: u8) -> Option<Word> {
+        let letter = match i {
+            0 => b'B',
+            1 => b'D',
+            2 => b'E',
+            3 => b'F',
+            4 => b'H',
+            5 => b'I',
+            6 => b'J',
+            7 => b'K',
+            8 => b'L',
+            9 => b'N',
+            10 => b'P',
+            11 => b'Q',
+            12 => b'R',
+            13 => b'S',
+            14 => b'T',
+            15 => b'X',
+            16 => b'Y',
+            17 => b'Z',
+            18 => b'@',
+            19 => b'^',
+            _ => return None,
+        };
+        Word::from_letter(letter)
+    }
+
+    /// The presence mask of `words` (for [`Words::first_outside`]).
+    pub const fn mask(words: &[Word]) -> u32 {
+        let mut m = 0;
+        let mut i = 0;
+        while i < words.len() {
+            m |= words[i].bit();
+            i += 1;
+        }
+        m
+    }
+
+    /// Bit of this word in a presence mask.
+    ///
+    /// A variable 32-bit shift is a loop on the AVR (up to 17 turns of four
+    /// shifts, ~100 cycles); a byte is shifted and placed instead.
+    #[inline]
+    const fn bit(self) -> u32 {
+        let i = self as u8;
+        let b = (1u8 << (i & 7)) as u32;
+        match i >> 3 {
+            0 => b,
+            1 => b << 8,
+            _ => b << 16,
+        }
+    }
+}
+
+/// The value words of one line: a presence mask and one f32 per word.
+///
+/// Values are in the units written on the line (the interpreter applies
+/// G20/G21 and G90/G91); every value is finite and within ±1e6.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Words {
+    /// Bit `w as u32` set when word `w` is present.
+    present: u32,
+    /// Value per word, 0.0 when absent.
+    values: [f32; Word::COUNT],
+}
+
+impl Words {
+    /// No words.
+    pub const fn new() -> Self {
+        Words { present: 0, values: [0.0; Word::COUNT] }
+    }
+
+    /// The value of word `w`, if present. Always inlined: the callers name
+    /// the word, so the mask test folds to one byte test (as a call, ~110
+    /// cycles with the variable shift building the mask).
+    // speed: the mask test folds to one byte test (~110 cycles as a call)
+    #[inline(always)]
+    pub fn get(&self, w: Word) -> Option<f32> {
+        if self.contains(w) {
+            self.values.get(w as usize).copied()
+        } else {
+            None
+        }
+    }
+
+    /// True if word `w` is present.
+    pub fn contains(&self, w: Word) -> bool {
+        self.present & w.bit() != 0
+    }
+
+    /// Set word `w`. Returns false (and changes nothing) if it was already
+    /// present.
+    pub fn insert(&mut self, w: Word, value: f32) -> bool {
+        if self.contains(w) {
+            return false;
+        }
+        if let Some(slot) = self.values.get_mut(w as usize) {
+            *slot = value;
+            self.present |= w.bit();
+        }
+        true
+    }
+
+    /// Take word `w` out, returning its value. An interpreter can take the
+    /// words each code uses and then reject whatever is left over.
+    pub fn remove(&mut self, w: Word) -> Option<f32> {
+        let v = self.get(w);
+        self.present &= !w.bit();
+        if let Some(slot) = self.values.get_mut(w as usize) {
+            *slot = 0.0;
+        }
+        v
+    }
+
+    /// True when any of X, Y, Z is present (one mask test).
+    #[inline]
+    pub fn has_xyz(&self) -> bool {
+        const XYZ: u32 = Word::X.bit() | Word::Y.bit() | Word::Z.bit();
+        self.present & XYZ != 0
+    }
+
+    /// True when no word is present.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.present == 0
+    }
+
+    /// True when any of X, Y, Z or the polar words `@`, `^` is present: the
+    /// line names a point.
+    #[inline]
+    pub fn has_position(&self) -> bool {
+        const POINT: u32 = Word::mask(&[Word::X, Word::Y, Word::Z, Word::At, Word::Caret]);
+        self.present & POINT != 0
+    }
+
+    /// True when every present word is in `mask` (a [`Word::mask`]): one
+    /// test.
+    pub fn within(&self, mask: u32) -> bool {
+        self.present & !mask == 0
+    }
+
+    /// True when `@` or `^` is present.
+    #[inline]
+    pub fn has_polar(&self) -> bool {
+        const POLAR: u32 = Word::mask(&[Word::At, Word::Caret]);
+        self.present & POLAR != 0
+    }
+
+    /// The first present word, in bit order, that is not in `allowed` (a
+    /// [`Word::mask`]): a word no code on the line uses.
+    pub fn first_outside(&self, allowed: u32) -> Option<Word> {
+        let extra = self.present & !allowed;
+        // `Word::ALL` is a table (RAM on AVR): the letters' match instead.
+        let mut i = 0u8;
+        while i < Word::COUNT as u8 {
+            if extra & (1 << i) != 0 {
+                return Word::from_index(i);
+            }
+            i += 1;
+        }
+        None
+    }
+
+    /// The first present word in bit order (e.g. to name a left-over word).
+    pub fn first(&self) -> Option<Word> {
+        Word::ALL.iter().copied().find(|&w| self.contains(w))
+    }
+
+    /// The present words and their values, in bit order.
+    pub fn iter(&self) -> impl Iterator<Item = (Word, f32)> + '_ {
+        Word::ALL.iter().filter_map(move |&w| self.get(w).map(|v| (w, v)))
+    }
+}

@@ -1,0 +1,194 @@
+//! Bytes into lines: [`LineAssembler`] collects the main loop's bytes into
+//! trimmed lines of at most [`MAX_LINE_LEN`] and flags the lines to drop
+//! ([`Assembled`]: too long, overrun, binary byte).
+
+use super::checker::checksum_star;
+use super::line_cut::{folded_len, Keep, LineCut};
+use super::rx_store::RX_GAP;
+use super::{ProtoError, MAX_LINE_LEN};
+
+/// What [`LineAssembler::push`] reports when a line ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Assembled {
+    /// A complete, non-empty line: read it with [`LineAssembler::line`].
+    Line,
+    /// The line was longer than [`MAX_LINE_LEN`]; it is dropped.
+    TooLong,
+    /// [`LineAssembler::mark_overrun`] was called during this line; it is dropped.
+    Overrun,
+    /// The line held a byte outside printable ASCII and tab; it is dropped.
+    BadByte,
+}
+
+impl Assembled {
+    /// The protocol error for a dropped line, `None` for [`Assembled::Line`].
+    pub fn error(self) -> Option<ProtoError> {
+        match self {
+            Assembled::Line => None,
+            Assembled::TooLong => Some(ProtoError::TooLong),
+            Assembled::Overrun => Some(ProtoError::Overrun),
+            Assembled::BadByte => Some(ProtoError::BadByte),
+        }
+    }
+}
+
+/// Flag bits of [`LineAssembler`].
+const F_TOO_LONG: u8 = 1 << 0;
+const F_OVERRUN: u8 = 1 << 1;
+const F_BAD_BYTE: u8 = 1 << 2;
+/// The last push completed a line that `line()` may return.
+const F_READY: u8 = 1 << 3;
+
+/// The UTF-8 byte-order mark that Windows editors write at the start of a
+/// file: text, not data. Skipped at the start of a line.
+pub const BOM: [u8; 3] = [0xEF, 0xBB, 0xBF];
+
+/// Collects bytes into lines in a fixed buffer (RAM: `MAX_LINE_LEN` + 3 bytes).
+///
+/// `\n` or `\r` ends a line, so `\r\n` gives one line and one ignored empty
+/// line. Leading blanks are not stored; trailing blanks are trimmed. Blank
+/// lines give no result, hence no `ok`.
+pub struct LineAssembler {
+    buf: [u8; MAX_LINE_LEN],
+    /// Bytes stored for the line in progress (or of the completed line while
+    /// `F_READY` is set), ≤ MAX_LINE_LEN.
+    len: u16,
+    /// `F_*` bits.
+    flags: u8,
+    /// The last dropped line started with `N` (see [`LineAssembler::dropped_numbered`]).
+    dropped_n: bool,
+    /// Comments of the line in progress (1 byte).
+    cut: LineCut,
+}
+
+impl Default for LineAssembler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl LineAssembler {
+    /// An empty assembler.
+    pub const fn new() -> Self {
+        LineAssembler { buf: [0; MAX_LINE_LEN], len: 0, flags: 0, dropped_n: false, cut: LineCut::new() }
+    }
+
+    /// True when the line just reported as dropped (too long, overrun, bad
+    /// byte) started with `N`: a numbered line, to be asked for again.
+    pub fn dropped_numbered(&self) -> bool {
+        self.dropped_n
+    }
+
+    /// Feed one byte from the RX ring. Returns `Some` when a line ends; after
+    /// `Some(Assembled::Line)`, [`line`](Self::line) holds its text until the
+    /// next push.
+    pub fn push(&mut self, b: u8) -> Option<Assembled> {
+        if self.flags & F_READY != 0 {
+            self.flags = 0;
+            self.len = 0;
+        }
+        match b {
+            b'\n' | b'\r' => self.finish(),
+            RX_GAP => {
+                self.mark_overrun();
+                None
+            }
+            // Blanks before the text are not stored; blanks that arrive with
+            // the buffer full are dropped, since only a later non-blank can
+            // make the line too long.
+            b' ' | b'\t' if self.len == 0 || self.len as usize == MAX_LINE_LEN => None,
+            _ => {
+                let len = self.len as usize;
+                if b >= 0x80 && !self.cut.in_comment() {
+                    // Text, not data: a byte-order mark at the start of the
+                    // line is dropped once whole (`finish` refuses a part).
+                    if len < BOM.len() && self.buf.get(..len) == BOM.get(..len) && BOM.get(len) == Some(&b) {
+                        if len + 1 == BOM.len() {
+                            self.len = 0;
+                            return None;
+                        }
+                    } else {
+                        self.flags |= F_BAD_BYTE;
+                    }
+                } else if (b < 0x20 && b != b'\t') || b == 0x7f {
+                    self.flags |= F_BAD_BYTE;
+                }
+                match self.cut.keep(b, len) {
+                    Keep::Store => {
+                        if let Some(slot) = self.buf.get_mut(len) {
+                            *slot = b;
+                            self.len += 1;
+                        }
+                    }
+                    Keep::Drop => {}
+                    Keep::Fold => self.len = folded_len(self.buf.get(..len).unwrap_or(&[])) as u16,
+                    Keep::Full => self.flags |= F_TOO_LONG,
+                }
+                None
+            }
+        }
+    }
+
+    /// The RX ring dropped bytes: the line in progress is reported as
+    /// [`Assembled::Overrun`] when it ends, even if what arrived of it is blank
+    /// (the lost bytes may have held whole lines).
+    ///
+    /// Call it just before pushing the first byte that the ISR stored after it
+    /// dropped one, so that the damaged line, not an earlier one, is marked.
+    pub fn mark_overrun(&mut self) {
+        if self.flags & F_READY != 0 {
+            self.flags = 0;
+            self.len = 0;
+        }
+        self.flags |= F_OVERRUN;
+    }
+
+    /// Forget the line in progress (after an e-stop, or when a job aborts).
+    pub fn reset(&mut self) {
+        self.flags = 0;
+        self.len = 0;
+        self.cut = LineCut::new();
+    }
+
+    /// The line completed by the last [`push`](Self::push), trimmed, without
+    /// its terminator. Empty unless that push returned `Some(Assembled::Line)`.
+    pub fn line(&self) -> &[u8] {
+        if self.flags & F_READY == 0 {
+            return &[];
+        }
+        self.buf.get(..self.len as usize).unwrap_or(&[])
+    }
+
+    /// End of line: classify it and set up `line()`.
+    fn finish(&mut self) -> Option<Assembled> {
+        let flags = self.flags;
+        // Trim trailing blanks (leading ones were never stored).
+        while self.len > 0 && matches!(self.buf.get(self.len as usize - 1), Some(b' ' | b'\t')) {
+            self.len -= 1;
+        }
+        let line = self.buf.get(..self.len as usize).unwrap_or(&[]);
+        // Comment text was dropped from a checksummed line: its checksum
+        // covered that text and can no longer be checked.
+        let cut_checksum = self.cut.cut() && matches!(line.first(), Some(b'N' | b'n')) && checksum_star(line).is_some();
+        self.cut = LineCut::new();
+        let result = if flags & F_OVERRUN != 0 {
+            Some(Assembled::Overrun)
+        } else if flags & F_TOO_LONG != 0 || cut_checksum {
+            Some(Assembled::TooLong)
+        } else if flags & F_BAD_BYTE != 0 || line.first() == BOM.first() {
+            Some(Assembled::BadByte)
+        } else if self.len == 0 {
+            None
+        } else {
+            Some(Assembled::Line)
+        };
+        if result == Some(Assembled::Line) {
+            self.flags = F_READY;
+        } else {
+            self.dropped_n = self.len > 0 && matches!(self.buf.first(), Some(b'N' | b'n'));
+            self.flags = 0;
+            self.len = 0;
+        }
+        result
+    }
+}

@@ -1,0 +1,104 @@
+//! The velocity profile of the rest of the executing block (grbl's
+//! trapezoid: accelerate, cruise, decelerate; a forced deceleration for a
+//! hold), and the cached square root of its nominal speed².
+
+use super::{Prep, Ramp, CRUISE_SEGMENT_TIME_S, F_CPU};
+use crate::math::sqrtf;
+use crate::planner::Planner;
+
+impl Prep {
+    /// The square root of a nominal speed², cached with the cruise figures.
+    pub(super) fn nominal_speed(&mut self, nominal_sqr: f32) -> f32 {
+        if self.nominal_cache.0 != nominal_sqr.to_bits() {
+            let v = sqrtf(nominal_sqr);
+            self.nominal_cache = (nominal_sqr.to_bits(), v);
+            let cycles_per_mm = if v > 0.0 { crate::math::div_cold(F_CPU, v) } else { 0.0 };
+            self.cruise_cache = (cycles_per_mm, CRUISE_SEGMENT_TIME_S * v);
+        }
+        self.nominal_cache.1
+    }
+
+    /// The velocity profile of the rest of the executing block (grbl).
+    pub(super) fn compute_profile(&mut self, pl: &mut Planner) {
+        let exit_speed_sqr = pl.exec_exit_speed_sqr();
+        let Some(b) = pl.current_block_mut() else { return };
+        // The executing block starts "now", at the current speed.
+        b.entry_speed_sqr = self.current_speed * self.current_speed;
+        let entry_sqr = b.entry_speed_sqr;
+        let mm = b.millimeters;
+        let a = self.acceleration;
+        if self.inv_2_accel_cache.0 != a.to_bits() {
+            self.inv_2_accel_cache = (a.to_bits(), crate::math::div_cold(0.5, a));
+        }
+        let inv_2_accel = self.inv_2_accel_cache.1;
+        self.mm_complete = 0.0;
+        self.decelerate_after = 0.0;
+        // Any exit speed set below other than sqrt(planned exit²) clears this.
+        self.exit_speed_sqr_bits = u32::MAX;
+        if self.holding {
+            // Forced deceleration to zero speed.
+            self.ramp = Ramp::Decel;
+            let decel_dist = mm - inv_2_accel * entry_sqr;
+            if decel_dist < 0.0 {
+                // The stop is beyond this block.
+                self.exit_speed = sqrtf(entry_sqr - 2.0 * a * mm);
+            } else {
+                self.mm_complete = decel_dist;
+                self.exit_speed = 0.0;
+            }
+            return;
+        }
+        self.ramp = Ramp::Accel;
+        self.accelerate_until = mm;
+        let nominal_sqr = b.nominal_speed_sqr;
+        let nominal = self.nominal_speed(nominal_sqr);
+        self.exit_speed = if exit_speed_sqr.to_bits() == nominal_sqr.to_bits() {
+            nominal
+        } else if exit_speed_sqr.to_bits() == 0 {
+            0.0
+        } else {
+            sqrtf(exit_speed_sqr)
+        };
+        self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
+        let intersect = 0.5 * (mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
+        if entry_sqr > nominal_sqr {
+            self.accelerate_until = mm - inv_2_accel * (entry_sqr - nominal_sqr);
+            if self.accelerate_until <= 0.0 {
+                // Deceleration only; the next block starts at our exit speed.
+                self.ramp = Ramp::Decel;
+                let v2 = entry_sqr - 2.0 * a * mm;
+                self.exit_speed = if v2 > 0.0 { sqrtf(v2) } else { 0.0 };
+                self.exit_speed_sqr_bits = u32::MAX;
+                self.decel_override = true;
+            } else {
+                self.decelerate_after = inv_2_accel * (nominal_sqr - exit_speed_sqr);
+                self.maximum_speed = nominal;
+                self.ramp = Ramp::DecelOverride;
+            }
+        } else if intersect > 0.0 {
+            if intersect < mm {
+                // Trapezoid or triangle.
+                self.decelerate_after = inv_2_accel * (nominal_sqr - exit_speed_sqr);
+                if self.decelerate_after < intersect {
+                    self.maximum_speed = nominal;
+                    if entry_sqr == nominal_sqr {
+                        self.ramp = Ramp::Cruise;
+                    } else {
+                        self.accelerate_until -= inv_2_accel * (nominal_sqr - entry_sqr);
+                    }
+                } else {
+                    self.accelerate_until = intersect;
+                    self.decelerate_after = intersect;
+                    self.maximum_speed = sqrtf(2.0 * a * intersect + exit_speed_sqr);
+                }
+            } else {
+                // Deceleration only.
+                self.ramp = Ramp::Decel;
+            }
+        } else {
+            // Acceleration only.
+            self.accelerate_until = 0.0;
+            self.maximum_speed = self.exit_speed;
+        }
+    }
+}
