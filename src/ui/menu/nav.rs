@@ -103,6 +103,7 @@ impl Ui {
 
     /// What the encoder did since the last call: `detents` (+ = clockwise)
     /// and `press`. Returns what the firmware should do.
+    // layout: without it the landing pad cannot be linked (menu/mod.rs, Inlining)
     #[inline(never)]
     pub fn step(&mut self, detents: i8, press: bool, v: &View) -> Cmd {
         match self.screen {
@@ -229,6 +230,7 @@ impl Ui {
         Cmd::Tool(op)
     }
 
+    // layout: without it the landing pad cannot be linked (menu/mod.rs, Inlining)
     #[inline(never)]
     fn press(&mut self, v: &View) -> Cmd {
         let sel = self.sel;
@@ -346,6 +348,7 @@ impl Ui {
         }
     }
 
+    // layout: without it the landing pad cannot be linked (menu/mod.rs, Inlining)
     #[inline(never)]
     fn act(&mut self, m: MenuId, a: Act, v: &View) -> Cmd {
         let idle = v.state == State::Idle && !v.job_active();

@@ -26,6 +26,7 @@ pub fn state_text(s: State, homed: bool) -> Text {
 
 /// The status screen to read from a step away: the state and the tool,
 /// the work position in double-size digits, then the feed (or the alarm).
+// layout: without it the landing pad cannot be linked (menu/mod.rs, Inlining)
 #[inline(never)]
 pub(super) fn big_status_line(row: usize, v: &View, tool: u8, host: &crate::hostcodes::HostState, l: &mut Line) {
     match row {
@@ -41,7 +42,6 @@ pub(super) fn big_status_line(row: usize, v: &View, tool: u8, host: &crate::host
     }
 }
 
-#[inline(never)]
 pub(super) fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcodes::HostState, l: &mut Line) {
     match row {
         0 => {
@@ -106,6 +106,7 @@ pub(super) fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcode
     }
 }
 
+// layout: without it the landing pad cannot be linked (menu/mod.rs, Inlining)
 #[inline(never)]
 fn job_status(v: &View, l: &mut Line) {
     let pct = |l: &mut Line| {
@@ -158,7 +159,6 @@ fn job_status(v: &View, l: &mut Line) {
 }
 
 /// Which alarm, in the operator's words; a hard limit names its switch.
-#[inline(never)]
 fn alarm_line(v: &View, l: &mut Line) {
     let t = match v.alarm {
         Some(Alarm::HardLimit) => Text::AlHardLimit,

@@ -24,6 +24,7 @@ pub(super) fn tool_and_note(l: &mut Line, m: &Machine, t: u8, note: Option<Text>
 /// Entry `e` of a tool list: "< Back", then T0..T12 with what is known of
 /// each (for a change: in the spindle, pocket empty; for a confirmation:
 /// the old and new tool of the interrupted change).
+// flash: 8 B less out of line (and 2 B less stack on the display path)
 #[inline(never)]
 pub(super) fn pick_line(e: u8, confirm: bool, v: &View, m: &Machine, l: &mut Line) {
     if e == 0 {
@@ -51,7 +52,6 @@ pub(super) fn pick_line(e: u8, confirm: bool, v: &View, m: &Machine, l: &mut Lin
 
 /// Row `t` (1..=12) of the tool table, `T3*  25.000    2.000` (length and
 /// diameter, mm; * = in the spindle), from the tool table in RAM.
-#[inline(never)]
 pub(super) fn table_line(t: u8, v: &View, m: &Machine, l: &mut Line) {
     let c = tool_and_note(l, m, t, None);
     if t == v.tool {
@@ -64,6 +64,8 @@ pub(super) fn table_line(t: u8, v: &View, m: &Machine, l: &mut Line) {
 /// Point `p` of the station (`$170 + p`) and its machine coordinate, as
 /// `?` and `M114` show it (+Z up: the heights below the Z home switch
 /// are negative).
+// flash: 12 B less out of line (inlined, the display path's stack
+// would be 5 B shallower: it is not the deepest)
 #[inline(never)]
 pub(super) fn station_line(p: u8, s: &crate::config::Station, l: &mut Line) {
     l.text(1, point_text(p));
