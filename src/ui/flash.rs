@@ -20,7 +20,6 @@
 /// `b` is an element of a static declared with
 /// `#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]`
 /// (anything else reads the flash byte at that address: wrong, not unsafe).
-#[inline(always)]
 pub fn read_byte(b: &u8) -> u8 {
     // SAFETY: `b` is a valid reference, to program memory on the AVR (see
     // above), which `lpm` reads; a plain load on the host.
@@ -28,6 +27,7 @@ pub fn read_byte(b: &u8) -> u8 {
 }
 
 /// Read element `i` of a flash-resident `[u16]` (see [`read_byte`]).
+// flash: 4 B less inlined (the call costs more than the two `lpm`s)
 #[inline(always)]
 pub fn read_u16(table: &[u16], i: usize) -> u16 {
     let p: *const u8 = (&table[i] as *const u16).cast();
@@ -141,7 +141,6 @@ macro_rules! flash_texts {
         }
 
         impl ufmt::uDisplay for Text {
-            #[inline(never)]
             fn fmt<W: ufmt::uWrite + ?Sized>(&self, f: &mut ufmt::Formatter<'_, W>) -> Result<(), W::Error> {
                 // Through FStr: one chunking loop for every writer type.
                 ufmt::uDisplay::fmt(&self.as_fstr(), f)

@@ -1,0 +1,179 @@
+//! The fixed menus as data: what each entry says ([`Text`]) and does
+//! ([`Act`]), menu after menu ([`MenuId`]), two bytes an entry in flash.
+
+use crate::ui::flash;
+use crate::ui::text::Text;
+
+/// A fieldless `u8` enum and its checked inverse `from_u8` (a compare
+/// chain: no transmute, and no table that the AVR would copy to RAM).
+macro_rules! u8_enum {
+    ($(#[$m:meta])* $vis:vis enum $name:ident { $($(#[$vm:meta])* $v:ident,)* }) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+        #[repr(u8)]
+        $vis enum $name { $($(#[$vm])* $v,)* }
+
+        impl $name {
+            /// The variant whose discriminant is `b`, if there is one.
+            pub(super) fn from_u8(b: u8) -> Option<$name> {
+                $(if b == $name::$v as u8 {
+                    return Some($name::$v);
+                })*
+                None
+            }
+        }
+    };
+}
+
+u8_enum! {
+    /// What an entry does when pressed.
+    pub enum Act {
+        Back,
+        Files,
+        JobMenu,
+        JogMenu,
+        HomeMenu,
+        Settings,
+        Info,
+        PauseResume,
+        Abort,
+        Override,
+        JogAxis,
+        JogStep,
+        JogNow,
+        HomeAll,
+        HomeZ,
+        HomeY,
+        HomeX,
+        ToolsMenu,
+        ChangeTool,
+        MeasureLength,
+        MeasureDia,
+        ToolTable,
+        ConfirmSpindle,
+        /// Leave the alarm state (`$X`/M999).
+        Unlock,
+        /// Tools > Changer: the station's points.
+        Changer,
+        /// Jog > Zero <axis>: the work zero of the jog axis here.
+        ZeroAxis,
+        /// Jog > Probe Z zero: probe down, Z zero where it touches.
+        ProbeZ,
+        /// Jog > Work G5x: the next work system (G54 … G59, round).
+        WorkSystem,
+        /// Tools > Tool numbers: the tool number kept in each pocket.
+        ToolNumbers,
+        OptStop,
+    }
+}
+
+/// The menus with fixed entries.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[repr(u8)]
+pub enum MenuId {
+    Main,
+    Job,
+    Jog,
+    Home,
+    Tools,
+    /// Opened from the status screen in an alarm: what gets out of it.
+    Alarm,
+}
+
+const fn item(t: Text, a: Act) -> [u8; 2] {
+    [t as u8, a as u8]
+}
+
+/// Every fixed entry, menu after menu (see MENU_START), in flash.
+#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+pub(super) static ITEMS: [[u8; 2]; 38] = [
+    // Main
+    item(Text::Status, Act::Back),
+    item(Text::RunFromSd, Act::Files),
+    item(Text::Job, Act::JobMenu),
+    item(Text::Jog, Act::JogMenu),
+    item(Text::Home, Act::HomeMenu),
+    item(Text::Tools, Act::ToolsMenu),
+    item(Text::Settings, Act::Settings),
+    item(Text::Info, Act::Info),
+    // Job
+    item(Text::Back, Act::Back),
+    item(Text::Pause, Act::PauseResume),
+    item(Text::Abort, Act::Abort),
+    item(Text::FeedOverride, Act::Override),
+    item(Text::OptStop, Act::OptStop),
+    // Jog
+    item(Text::Back, Act::Back),
+    item(Text::Axis, Act::JogAxis),
+    item(Text::Step, Act::JogStep),
+    item(Text::JogNow, Act::JogNow),
+    item(Text::ZeroAxis, Act::ZeroAxis),
+    item(Text::ProbeZ, Act::ProbeZ),
+    item(Text::WorkSystem, Act::WorkSystem),
+    // Home
+    item(Text::Back, Act::Back),
+    item(Text::HomeAll, Act::HomeAll),
+    item(Text::HomeZ, Act::HomeZ),
+    item(Text::HomeY, Act::HomeY),
+    item(Text::HomeX, Act::HomeX),
+    // Tools
+    item(Text::Back, Act::Back),
+    item(Text::ChangeTool, Act::ChangeTool),
+    item(Text::MeasureLength, Act::MeasureLength),
+    item(Text::MeasureDia, Act::MeasureDia),
+    item(Text::ToolTable, Act::ToolTable),
+    item(Text::ConfirmSpindle, Act::ConfirmSpindle),
+    item(Text::Changer, Act::Changer),
+    item(Text::ToolNumbers, Act::ToolNumbers),
+    // Alarm
+    item(Text::Status, Act::Back),
+    item(Text::Unlock, Act::Unlock),
+    item(Text::HomeAll, Act::HomeAll),
+    item(Text::Jog, Act::JogMenu),
+    item(Text::ConfirmSpindle, Act::ConfirmSpindle),
+];
+
+/// First entry of each menu in ITEMS, plus the end.
+#[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
+static MENU_START: [u8; 7] = [0, 8, 13, 20, 25, 33, 38];
+
+impl MenuId {
+    fn range(self) -> (usize, usize) {
+        let i = self as usize;
+        let a = flash::read_byte(&MENU_START[i]) as usize;
+        let b = flash::read_byte(&MENU_START[i + 1]) as usize;
+        (a, b)
+    }
+
+    /// Number of entries.
+    pub fn len(self) -> usize {
+        let (a, b) = self.range();
+        b - a
+    }
+
+    /// True for a menu without entries (none is).
+    pub fn is_empty(self) -> bool {
+        self.len() == 0
+    }
+
+    /// Entry `i`: its label and action.
+    pub fn item(self, i: usize) -> (Text, Act) {
+        let (a, _) = self.range();
+        let e = &ITEMS[a + i];
+        let (t, c) = (flash::read_byte(&e[0]), flash::read_byte(&e[1]));
+        // `item` made both bytes from a Text and an Act: the fallback is
+        // never taken.
+        (Text::from_u8(t).unwrap_or(Text::Back), Act::from_u8(c).unwrap_or(Act::Back))
+    }
+
+    pub(super) fn title(self) -> Text {
+        match self {
+            MenuId::Main => Text::MainMenu,
+            MenuId::Job => Text::Job,
+            MenuId::Jog => Text::Jog,
+            MenuId::Home => Text::Home,
+            MenuId::Tools => Text::Tools,
+            MenuId::Alarm => Text::AlarmMenu,
+        }
+    }
+}
