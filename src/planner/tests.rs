@@ -1,4 +1,8 @@
+use super::junction::REVERSAL_STEP_S;
 use super::*;
+use crate::config::Settings;
+use crate::N_AXES;
+use core::mem::size_of;
 
 fn s() -> Settings {
     Settings::DEFAULT

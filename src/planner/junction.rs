@@ -1,0 +1,103 @@
+//! Junction maths: the entry speed² allowed where one block meets the next
+//! (grbl's junction deviation rule), with the cap on an axis' speed step where
+//! it reverses. Used when a block is queued and when the overrides re-plan the
+//! ring.
+
+use super::float_bits::{abs_f32, half, lt_nn, min_nn};
+use crate::config::Settings;
+use crate::math::sqrtf;
+use crate::N_AXES;
+
+/// Cosine beyond which a junction counts as a full reversal / a straight line.
+const JUNCTION_COS_LIMIT: f32 = 0.999_999;
+/// At a junction where an axis reverses, its speed steps from +v·|u_prev| to
+/// −v·|u| at once, between a deceleration and an acceleration of the same
+/// sign. Seen through the recorder's 20 ms window (docs/SPEC.md §11 "measured
+/// acceleration") that step adds step/20 ms to the ramps' acceleration: the
+/// demo job's 153° corner (junction deviation alone: 1.7 mm/s, a 3.2 mm/s
+/// step on X) measured 1157 mm/s² at a 1000 mm/s² setting. The step is kept
+/// to the speed change the axis' own acceleration gives in this time (0.5 mm/s
+/// at 1000 mm/s², +2.5 %). Junctions where no axis reverses (curves, the
+/// short chords of arcs) are not affected.
+pub(super) const REVERSAL_STEP_S: f32 = 0.0005;
+/// Entry speed² used for a straight junction (then limited by the nominal speeds).
+const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
+
+/// The junction speed² between a block along `prev_unit` and the next along
+/// `unit` (grbl's junction deviation rule), (mm/s)²: `accel` is (this
+/// block's, the previous block's) acceleration, `cap` the smaller nominal
+/// speed² of the two: a junction at least as fast as that is
+/// [`JUNCTION_SPEED_SQR_STRAIGHT`] without the square root (`cap_cache`
+/// holds (bits of cap, cap²)). Used when a block is queued and when the
+/// overrides re-plan the ring.
+#[allow(clippy::too_many_arguments)]
+// correctness: as a call, `cap` goes on the stack, and LLVM-AVR reads stack
+// arguments one byte low on the ATmega2560 (it counts a 2-byte return address;
+// the PC is 3 bytes): `cap_sqr_cache` then held garbage and tools/bench's corner
+// job measured 2499 mm/s², not 1033. Speed too: ping-pong 5.794 s, not 5.739.
+#[inline(always)]
+pub(super) fn junction_sqr(
+    same_dir: bool,
+    prev_unit: &[f32; N_AXES],
+    unit: &[f32; N_AXES],
+    moving: u8,
+    accel: (f32, f32),
+    cap: f32,
+    cap_cache: &mut (u32, f32),
+    s: &Settings,
+) -> f32 {
+    if same_dir {
+        return JUNCTION_SPEED_SQR_STRAIGHT;
+    }
+    let mut cos_theta = 0.0f32;
+    for i in 0..N_AXES {
+        if moving & (1 << i) != 0 && prev_unit[i].to_bits() != 0 {
+            cos_theta -= prev_unit[i] * unit[i];
+        }
+    }
+    // |cos θ| beyond the limit, on the bit pattern (a soft-float
+    // compare costs ~50 cycles).
+    let cos_bits = cos_theta.to_bits();
+    let beyond = cos_bits & 0x7FFF_FFFF > JUNCTION_COS_LIMIT.to_bits();
+    if beyond && cos_bits & 0x8000_0000 == 0 {
+        0.0 // full reversal
+    } else if beyond {
+        JUNCTION_SPEED_SQR_STRAIGHT
+    } else {
+        let a = min_nn(accel.0, accel.1);
+        let ad = a * s.junction_deviation_mm;
+        let h = half(1.0 - cos_theta); // sin²(θ/2)
+        let mut reversing = 0u8;
+        for i in 0..N_AXES {
+            let (p, u) = (prev_unit[i].to_bits(), unit[i].to_bits());
+            if (p ^ u) & 0x8000_0000 != 0 && p & 0x7FFF_FFFF != 0 && u & 0x7FFF_FFFF != 0 {
+                reversing |= 1 << i;
+            }
+        }
+        // The deviation rule gives v² = a·δ·s / (1 − s), s = sin(θ/2).
+        // It reaches the cap L = min(nominal²) when s ≥ L / (a·δ + L),
+        // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the
+        // division (most junctions of a smooth curve).
+        if cap_cache.0 != cap.to_bits() {
+            *cap_cache = (cap.to_bits(), cap * cap);
+        }
+        let k = ad + cap;
+        if reversing == 0 && !lt_nn(h * (k * k), cap_cache.1) {
+            JUNCTION_SPEED_SQR_STRAIGHT
+        } else {
+            let sin_theta_d2 = sqrtf(h);
+            let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
+            // An axis that reverses here jumps from +v·u_prev to −v·u
+            // in one step, between a deceleration and an acceleration of
+            // the same sign: limit that jump to what the axis'
+            // acceleration gives in REVERSAL_STEP_S (see there).
+            for i in 0..N_AXES {
+                if reversing & (1 << i) != 0 {
+                    let dv = REVERSAL_STEP_S * s.accel_mm_per_s2[i] / (abs_f32(prev_unit[i]) + abs_f32(unit[i]));
+                    v_sqr = min_nn(v_sqr, dv * dv);
+                }
+            }
+            v_sqr
+        }
+    }
+}

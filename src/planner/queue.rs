@@ -1,0 +1,351 @@
+//! Queuing a move (grbl's `plan_buffer_line`): from a target in steps and a
+//! speed to a [`Block`] in the ring, with its backlash take-up, path length
+//! and unit vector, acceleration and nominal speed (per-axis and step-rate
+//! limits) and its junction with the previous block; then the look-ahead. A
+//! plain feed move may be accepted now and planned on the next call
+//! ([`Planner::accept_line`]).
+
+use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
+use super::block::{Block, PlanError, Push, Speed};
+use super::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
+use super::junction::junction_sqr;
+use super::ring::{next_index, Planner, BLOCK_BUFFER_LEN, ROOTS_LEN};
+use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
+use crate::math::{round_i32, sqrtf};
+use crate::N_AXES;
+
+/// The square-root cache's entry for `n` ≥ 1: (n, √n, 1/√n). Not inlined:
+/// behind a cache test LLVM-AVR would compute it every time (`math::div_cold`).
+// speed: inlined (LLVM's choice), the cache miss is computed on every call
+#[inline(never)]
+fn root_entry(n: u32) -> (u32, f32, f32) {
+    let r = sqrtf(n as f32);
+    (n, r, 1.0 / r)
+}
+
+impl Planner {
+    /// Queue a straight move to `target` (absolute steps, X Y Z E) at
+    /// `feed_mm_per_min` (mm/min along the path, ignored when `rapid`: then each
+    /// axis may run at its max feed). Zero-length moves queue nothing.
+    pub fn push_line(&mut self, target: [i32; N_AXES], feed_mm_per_min: f32, rapid: bool, s: &Settings) -> Result<Push, PlanError> {
+        self.push(target, if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) }, s, false)
+    }
+
+    /// [`Planner::push_line`] at `speed`.
+    pub fn push_move(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
+        self.push(target, speed, s, false)
+    }
+
+    /// [`Planner::push_line`] for the firmware, which calls
+    /// [`Planner::settings_changed`] whenever it replaces the settings. A plain
+    /// feed move (X/Y/Z, no
+    /// backlash take-up, too slow to ever be rate-capped, so nothing to
+    /// report but `queued`) is only accepted:
+    /// it takes its slot and moves [`Planner::position`], and is planned by
+    /// the next [`Planner::flush`] (which the next accept does first, and
+    /// prep's caller before taking segments). The firmware sends `ok` in
+    /// between, so a host that waits for it (ping-pong) sends the next line
+    /// while this one is planned (~10 k cycles on the AVR).
+    pub fn accept_line(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
+        self.push(target, speed, s, true)
+    }
+
+    /// [`Planner::push_move`] (`may_defer` false) or [`Planner::accept_line`].
+    fn push(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings, may_defer: bool) -> Result<Push, PlanError> {
+        let rapid = speed == Speed::Rapid;
+        let (feed_mm_per_min, pct, programmed) = match speed {
+            Speed::Rapid => (0.0, 100, 0),
+            Speed::Feed(f) => (f, self.feed_pct, ((f + 0.5) as u16).max(1)),
+            Speed::Fixed(f) => (f, 100, 0),
+        };
+        let inv_feed = if rapid {
+            0.0
+        } else {
+            if !(feed_mm_per_min > 0.0 && feed_mm_per_min.is_finite()) {
+                return Err(PlanError::BadFeed);
+            }
+            // s/mm at the feed times the override: 6000 / (feed · percent).
+            // The key: the feed's bits (a feed is > 0: the sign bit is free)
+            // and whether the override applies; `set_overrides` clears it.
+            let bits = feed_mm_per_min.to_bits() | ((pct != 100) as u32) << 31;
+            if self.feed_cache.0 != bits {
+                self.feed_cache = (bits, crate::math::div_cold(6000.0, feed_mm_per_min * pct as f32));
+            }
+            self.feed_cache.1
+        };
+
+        let mut delta = [0i32; N_AXES];
+        let mut moving = 0u8;
+        let mut dir = 0u8;
+        for i in 0..N_AXES {
+            let d = target[i].wrapping_sub(self.position[i]);
+            delta[i] = d;
+            if d != 0 {
+                moving |= 1 << i;
+            }
+            if d < 0 {
+                dir |= 1 << i;
+            }
+        }
+        if moving == 0 {
+            return Ok(Push::default());
+        }
+
+        // Backlash: axes that reverse with a known previous direction.
+        let mut take_up = [0i32; N_AXES];
+        let mut take_up_any = false;
+        let reversing = moving & self.dir_known & (dir ^ self.last_dir);
+        if reversing != 0 {
+            for i in 0..3 {
+                if reversing & (1 << i) != 0 && s.backlash_mm[i] > 0.0 {
+                    let n = round_i32(s.backlash_mm[i] * s.steps_per_mm[i]);
+                    if n > 0 {
+                        take_up[i] = if dir & (1 << i) != 0 { -n } else { n };
+                        take_up_any = true;
+                    }
+                }
+            }
+        }
+        // The move accepted before this one is planned first.
+        self.flush(s);
+        let need = 1 + take_up_any as usize;
+        if BLOCK_BUFFER_LEN - (self.len as usize) < need {
+            return Err(PlanError::Full);
+        }
+        // The slot(s) this move takes, deferred or not, carry its line.
+        self.blocks[self.head as usize].line = self.line_tag;
+        if take_up_any {
+            self.blocks[next_index(self.head) as usize].line = self.line_tag;
+        }
+
+        if !(may_defer && self.axis_fresh) {
+            if self.axis.refresh(s) {
+                // Limits changed: the same direction no longer means the same limits.
+                self.previous_limits_valid = false;
+            }
+            self.axis_fresh = may_defer;
+        }
+        let mut push = Push::default();
+        if may_defer && !take_up_any && !rapid && moving & 0b1000 == 0 && lt_nn(self.axis.defer_min_inv_feed, inv_feed) {
+            // Never capped (see `AxisCache::defer_min_inv_feed`); floored or
+            // not, which is not reported, prep runs it the same.
+            self.pending = Some((delta, inv_feed, programmed));
+            push.queued = 1;
+        } else {
+            if take_up_any {
+                let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, 0, s);
+                for i in 0..3 {
+                    self.backlash_offset[i] += take_up[i];
+                }
+                push.queued += 1;
+                push.rate_capped |= capped;
+                push.rate_floored |= floored;
+            }
+            let flags = if rapid { Block::RAPID } else { 0 };
+            let (capped, floored) = self.queue_block(&delta, inv_feed, flags, programmed, s);
+            push.queued += 1;
+            push.rate_capped |= capped;
+            push.rate_floored |= floored;
+        }
+        self.position = target;
+        self.last_dir = (self.last_dir & !moving) | (dir & moving);
+        self.dir_known |= moving;
+        if !may_defer {
+            self.recalculate();
+        }
+        Ok(push)
+    }
+
+    /// The settings changed: the next [`Planner::accept_line`] compares them
+    /// with what the per-axis cache was made from ([`Planner::push_line`]
+    /// always does).
+    pub fn settings_changed(&mut self) {
+        self.axis_fresh = false;
+    }
+
+    /// Plan the move [`Planner::accept_line`] left pending, if any (with the
+    /// settings it was accepted under: the per-axis cache is as it was then).
+    pub fn flush(&mut self, s: &Settings) {
+        if let Some((delta, inv_feed, programmed)) = self.pending.take() {
+            self.queue_block(&delta, inv_feed, 0, programmed, s);
+        }
+    }
+
+    /// Build a block for `delta` (steps, not all zero) at `inv_feed` s/mm (0 =
+    /// rapid), link it to the previous one and re-plan. Returns (rate capped,
+    /// rate floored). The caller has checked there is room.
+    ///
+    /// AVR cost (simavr, 16 MHz, see the module doc): ~9–13 k cycles including
+    /// the re-plan; every f32 multiply is ~170 cycles, a divide or sqrt ~500.
+    fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
+        let prev_unit = self.previous_unit_vec;
+        let prev_nominal_sqr = self.previous_nominal_speed_sqr;
+        let prev_accel = self.previous_acceleration;
+        let prev_t_axes = self.previous_t_axes;
+        let prev_valid = self.previous_limits_valid;
+        let first = self.len == 0;
+        let ax = &self.axis;
+        // Built in place in its slot.
+        let b = &mut self.blocks[self.head as usize];
+        b.flags = flags;
+        b.feed = feed;
+        b.step_event_count = 0;
+        b.direction_bits = 0;
+        b.entry_speed_sqr = 0.0;
+        let mut unit = [0f32; N_AXES];
+        let mut moving = 0u8;
+        for i in 0..N_AXES {
+            let d = delta[i];
+            let n = d.unsigned_abs();
+            b.steps[i] = n;
+            if n > b.step_event_count {
+                b.step_event_count = n;
+            }
+            if d != 0 {
+                moving |= 1 << i;
+                if d < 0 {
+                    b.direction_bits |= 1 << i;
+                }
+            }
+        }
+        // Path length and unit vector.
+        let (mm, inv_mm);
+        if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
+            // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
+            // of short moves repeats a few dozen values of the integer Σd²,
+            // whose root and inverse root are cached: no square root and no
+            // division (~1 k cycles on the AVR) on a hit.
+            let mut sum_sqr = 0u32;
+            for i in 0..3 {
+                let n = b.steps[i] as u16;
+                sum_sqr += crate::math::mul_u16(n, n);
+            }
+            let e = &mut self.roots[(sum_sqr & (ROOTS_LEN as u32 - 1)) as usize];
+            if e.0 != sum_sqr {
+                *e = root_entry(sum_sqr);
+            }
+            let (root, inv_root) = (e.1, e.2);
+            mm = root * ax.mm_per_step[0];
+            inv_mm = inv_root * s.steps_per_mm[0];
+            for i in 0..3 {
+                if moving & (1 << i) != 0 {
+                    unit[i] = delta[i] as f32 * inv_root;
+                }
+            }
+        } else {
+            // Path length: XYZ distance, or the E distance for an E-only move.
+            // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    unit[i] = delta[i] as f32 * ax.mm_per_step[i];
+                }
+            }
+            let mut xyz_sqr = 0.0f32;
+            for i in 0..3 {
+                if moving & (1 << i) != 0 {
+                    xyz_sqr += unit[i] * unit[i];
+                }
+            }
+            mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
+            inv_mm = 1.0 / mm;
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    unit[i] *= inv_mm;
+                }
+            }
+        }
+        let mut same_dir = prev_valid;
+        for i in 0..N_AXES {
+            same_dir &= unit[i].to_bits() == prev_unit[i].to_bits();
+        }
+
+        // Per-axis limits: the path may go at most as fast (and accelerate at most
+        // as hard) as the slowest axis allows, scaled by its share of the motion.
+        // They depend on the direction only: a block in the same direction as the
+        // last one (a stream of collinear moves) reuses them.
+        let (acceleration, t_axes) = if same_dir {
+            (prev_accel, prev_t_axes)
+        } else if moving & !ax.uniform == 0 {
+            // Every moving axis has axis 0's limits: the largest |u| decides
+            // (exactly: rounding keeps the order of the products).
+            let mut u_max = 0.0f32;
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    u_max = max_nn(u_max, abs_f32(unit[i]));
+                }
+            }
+            (1.0 / (u_max * ax.inv_accel[0]), u_max * ax.inv_max_speed[0])
+        } else {
+            let mut inv_accel = 0.0f32; // s²/mm along the path
+            let mut t_axes = 0.0f32; // s/mm along the path
+            for i in 0..N_AXES {
+                if moving & (1 << i) != 0 {
+                    let u = abs_f32(unit[i]);
+                    let ia = u * ax.inv_accel[i];
+                    if lt_nn(inv_accel, ia) {
+                        inv_accel = ia;
+                    }
+                    let t = u * ax.inv_max_speed[i];
+                    if lt_nn(t_axes, t) {
+                        t_axes = t;
+                    }
+                }
+            }
+            (1.0 / inv_accel, t_axes)
+        };
+        let mut t = if lt_nn(t_axes, inv_feed) { inv_feed } else { t_axes };
+        if flags & Block::RAPID != 0 && self.rapid_pct != 100 {
+            t *= 100.0 / self.rapid_pct as f32;
+        }
+        // Step-rate limits: the dominant axis makes step_event_count steps
+        // over mm. At time per mm t the rate stays within them while the
+        // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
+        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's).
+        let steps_per_mm = b.step_event_count as f32 * inv_mm;
+        if self.rate_cache.0 != t.to_bits() {
+            self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
+        }
+        let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
+        let mut capped = false;
+        let mut floored = false;
+        if lt_nn(max_steps_per_mm, steps_per_mm) {
+            t = steps_per_mm * INV_MAX_STEP_RATE;
+            capped = true;
+        } else if lt_nn(steps_per_mm, min_steps_per_mm) {
+            t = steps_per_mm * INV_MIN_STEP_RATE;
+            floored = true;
+        }
+        // t is usually the same as for the last block (the feed is modal).
+        if self.nominal_cache.0 != t.to_bits() {
+            let v = crate::math::div_cold(1.0, t);
+            self.nominal_cache = (t.to_bits(), v * v);
+        }
+        let nominal_speed_sqr = self.nominal_cache.1;
+
+        // Junction with the previous block (grbl): max entry speed from the
+        // junction deviation, never above either block's nominal speed.
+        b.max_entry_speed_sqr = if first {
+            0.0
+        } else {
+            let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
+            let junction_sqr =
+                junction_sqr(same_dir, &prev_unit, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
+            min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
+        };
+        b.millimeters = mm;
+        b.acceleration = acceleration;
+        b.nominal_speed_sqr = nominal_speed_sqr;
+        b.max_delta_speed_sqr = times2(acceleration * mm);
+
+        self.previous_unit_vec = unit;
+        self.previous_nominal_speed_sqr = nominal_speed_sqr;
+        self.previous_acceleration = acceleration;
+        self.previous_t_axes = t_axes;
+        self.previous_limits_valid = true;
+
+        self.head = next_index(self.head);
+        self.len += 1;
+        self.stale = true;
+        (capped, floored)
+    }
+}

@@ -1,0 +1,269 @@
+//! The block ring: the [`Planner`] state (the ring of [`Block`]s, the
+//! look-ahead marks, the commanded position and the caches the other planner
+//! files fill), its size and RAM budget, and the ring's bookkeeping: which
+//! block executes, dropping it, the position, emptying the ring.
+
+use super::axis_cache::AxisCache;
+use super::block::Block;
+use crate::N_AXES;
+use core::mem::size_of;
+
+/// Blocks in the ring. RAM: 16 × 48 B = 768 B (host layout; 46 B per block on
+/// AVR, 736 B). grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md §11). 16 blocks
+/// of 0.1 mm hold 1.6 mm of look-ahead, more than the 1.25 mm needed to stop from
+/// 50 mm/s at 1000 mm/s², so a stream of short moves can still run at full feed.
+/// 32 blocks overflowed the stack: every string literal is copied to RAM on AVR
+/// (about 3.5 KB here), which leaves too little room; see docs/ARCHITECTURE.md "RAM".
+pub const BLOCK_BUFFER_LEN: usize = 16;
+
+/// RAM budget of the whole planner (ring + state), bytes.
+pub const PLANNER_RAM_BUDGET: usize = 1700;
+
+const _: () = assert!(size_of::<Block>() * BLOCK_BUFFER_LEN <= 1536);
+const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
+const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
+
+/// Entries of the square-root cache (a power of two). 8 entries hit 88 % of
+/// the benchmark's 0.1 mm circle (19 distinct lengths).
+pub(super) const ROOTS_LEN: usize = 8;
+
+/// The block ring and the look-ahead state.
+pub struct Planner {
+    /// The ring; valid blocks are `tail`, tail+1, … (`len` of them).
+    pub(super) blocks: [Block; BLOCK_BUFFER_LEN],
+    /// Copied into each block queued ([`Block::line`]); the SD job sets it
+    /// to the line it hands out.
+    pub line_tag: u16,
+    /// The feed override, percent (M220, grbl's 0x90-0x94, the menu), and
+    /// the rapid override (100, 50 or 25): [`Planner::set_overrides`].
+    pub(super) feed_pct: u16,
+    pub(super) rapid_pct: u8,
+    /// Index of the executing (oldest) block.
+    pub(super) tail: u8,
+    /// Index where the next block goes.
+    pub(super) head: u8,
+    /// Blocks queued.
+    pub(super) len: u8,
+    /// Newest block whose entry speed is optimal (grbl `block_buffer_planned`).
+    pub(super) planned: u8,
+    /// A re-plan may have changed the executing block's exit speed.
+    pub(super) exec_replanned: bool,
+    /// Blocks were queued since the last look-ahead pass (see
+    /// [`Planner::settle`]).
+    pub(super) stale: bool,
+    /// Axes (bits) whose last direction is known, for backlash.
+    pub(super) dir_known: u8,
+    /// Last direction of each axis (bit set = negative), for backlash.
+    pub(super) last_dir: u8,
+    /// Commanded position after the last queued block, steps.
+    pub(super) position: [i32; N_AXES],
+    /// Motor position minus commanded position after the last queued block
+    /// (backlash take-ups), steps, X Y Z.
+    pub(super) backlash_offset: [i32; 3],
+    /// Unit vector of the last queued block.
+    pub(super) previous_unit_vec: [f32; N_AXES],
+    /// Nominal speed² of the last queued block, (mm/s)².
+    pub(super) previous_nominal_speed_sqr: f32,
+    /// Acceleration of the last queued block, mm/s².
+    pub(super) previous_acceleration: f32,
+    /// Per-axis speed limit of the last queued block as time per mm, s/mm.
+    pub(super) previous_t_axes: f32,
+    /// `previous_acceleration` and `previous_t_axes` match the current settings.
+    pub(super) previous_limits_valid: bool,
+    /// Bits of the last feed seen and 1/feed, s/mm (the feed is modal, so it
+    /// rarely changes between blocks).
+    pub(super) feed_cache: (u32, f32),
+    /// Bits of the last time per mm `t` and the nominal speed² 1/t², (mm/s)².
+    pub(super) nominal_cache: (u32, f32),
+    /// Bits of the last time per mm before the step-rate limits, and it
+    /// times `MAX_STEP_RATE_HZ` and `MIN_STEP_RATE_HZ`, steps/mm.
+    pub(super) rate_cache: (u32, f32, f32),
+    /// Bits of the last junction cap `L` (a speed²) and L².
+    pub(super) cap_sqr_cache: (u32, f32),
+    /// (n, √n, 1/√n) for path lengths in steps, squared (n ≥ 1), direct
+    /// mapped on n's low bits. RAM: 12 B each.
+    pub(super) roots: [(u32, f32, f32); ROOTS_LEN],
+    /// Settings-derived per-axis values.
+    pub(super) axis: AxisCache,
+    /// A move accepted by [`Planner::accept_line`] and not planned yet: its
+    /// steps, time per mm (s/mm) and programmed feed ([`Block::feed`]). It
+    /// holds a ring slot.
+    pub(super) pending: Option<([i32; N_AXES], f32, u16)>,
+    /// `axis` matches the settings [`Planner::accept_line`] is given, until
+    /// [`Planner::settings_changed`] (saves comparing 12 settings per move).
+    pub(super) axis_fresh: bool,
+}
+
+#[inline]
+pub(super) const fn next_index(i: u8) -> u8 {
+    if i as usize + 1 == BLOCK_BUFFER_LEN {
+        0
+    } else {
+        i + 1
+    }
+}
+
+#[inline]
+pub(super) const fn prev_index(i: u8) -> u8 {
+    if i == 0 {
+        BLOCK_BUFFER_LEN as u8 - 1
+    } else {
+        i - 1
+    }
+}
+
+impl Planner {
+    /// An empty planner at position 0.
+    pub const fn new() -> Self {
+        Planner {
+            blocks: [Block::EMPTY; BLOCK_BUFFER_LEN],
+            line_tag: 0,
+            feed_pct: 100,
+            rapid_pct: 100,
+            tail: 0,
+            head: 0,
+            len: 0,
+            planned: 0,
+            exec_replanned: false,
+            stale: false,
+            dir_known: 0,
+            last_dir: 0,
+            position: [0; N_AXES],
+            backlash_offset: [0; 3],
+            previous_unit_vec: [0.0; N_AXES],
+            previous_nominal_speed_sqr: 0.0,
+            previous_acceleration: 0.0,
+            previous_t_axes: 0.0,
+            previous_limits_valid: false,
+            feed_cache: (0, 0.0),
+            nominal_cache: (0, 0.0),
+            rate_cache: (0, 0.0, 0.0),
+            cap_sqr_cache: (0, 0.0),
+            roots: [(0, 0.0, 0.0); ROOTS_LEN],
+            axis: AxisCache::EMPTY,
+            pending: None,
+            axis_fresh: false,
+        }
+    }
+
+    /// The executing (oldest) block, if any.
+    pub fn current_block(&self) -> Option<&Block> {
+        if self.len == 0 {
+            None
+        } else {
+            Some(&self.blocks[self.tail as usize])
+        }
+    }
+
+    /// The executing block, for prep to record progress in.
+    pub fn current_block_mut(&mut self) -> Option<&mut Block> {
+        if self.len == 0 {
+            None
+        } else {
+            Some(&mut self.blocks[self.tail as usize])
+        }
+    }
+
+    /// The i-th queued block, 0 = executing.
+    pub fn block(&self, i: usize) -> Option<&Block> {
+        if i >= self.len as usize {
+            None
+        } else {
+            Some(&self.blocks[(self.tail as usize + i) % BLOCK_BUFFER_LEN])
+        }
+    }
+
+    /// Drop the executing block (prep has prepared all its steps).
+    pub fn discard_current_block(&mut self) {
+        if self.len == 0 {
+            return;
+        }
+        if self.planned == self.tail {
+            self.planned = next_index(self.tail);
+        }
+        self.tail = next_index(self.tail);
+        self.len -= 1;
+    }
+
+    /// Exit speed² of the executing block, (mm/s)²: the next block's entry speed,
+    /// or 0 when it is the last one.
+    pub fn exec_exit_speed_sqr(&self) -> f32 {
+        if self.len <= 1 {
+            0.0
+        } else {
+            self.blocks[next_index(self.tail) as usize].entry_speed_sqr
+        }
+    }
+
+    /// True once (then cleared) when a re-plan may have changed the executing
+    /// block's exit speed, so prep must recompute its profile.
+    pub fn take_exec_replanned(&mut self) -> bool {
+        core::mem::replace(&mut self.exec_replanned, false)
+    }
+
+    /// Commanded position after the last queued block, steps (X Y Z E). Backlash
+    /// take-ups are not included.
+    pub fn position(&self) -> [i32; N_AXES] {
+        self.position
+    }
+
+    /// Set the commanded position (after homing, G92-free resync after an
+    /// abort). Call with the queue empty. Resets the backlash offset to 0: the
+    /// motors are where the new position says; the slack state (last direction)
+    /// is kept.
+    pub fn set_position(&mut self, p: [i32; N_AXES]) {
+        self.position = p;
+        self.backlash_offset = [0; 3];
+    }
+
+    /// Motor steps minus commanded steps after the last queued block, X Y Z: the
+    /// sum of the queued backlash take-ups since the last `set_position`. When the
+    /// queue is idle, reported position = motor step count − this.
+    pub fn backlash_offset_steps(&self) -> [i32; 3] {
+        self.backlash_offset
+    }
+
+    /// Blocks queued (including the executing one and a pending move).
+    pub fn len(&self) -> usize {
+        self.len as usize + self.pending.is_some() as usize
+    }
+
+    /// No block queued (and none pending).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// No free slot (a move with a backlash take-up needs 2).
+    pub fn is_full(&self) -> bool {
+        self.len() == BLOCK_BUFFER_LEN
+    }
+
+    /// Free slots.
+    pub fn free(&self) -> usize {
+        BLOCK_BUFFER_LEN - self.len()
+    }
+
+    /// Drop every block (e-stop, limit, abort). The position is kept as the end
+    /// of the dropped moves: the caller must `set_position` to the true motor
+    /// position. Backlash directions become unknown.
+    pub fn clear(&mut self) {
+        self.pending = None;
+        self.stale = false;
+        self.tail = 0;
+        self.head = 0;
+        self.len = 0;
+        self.planned = 0;
+        self.exec_replanned = false;
+        self.dir_known = 0;
+        self.previous_unit_vec = [0.0; N_AXES];
+        self.previous_nominal_speed_sqr = 0.0;
+        self.previous_acceleration = 0.0;
+        self.previous_limits_valid = false;
+    }
+}
+
+impl Default for Planner {
+    fn default() -> Self {
+        Self::new()
+    }
+}
