@@ -8,7 +8,7 @@
 //!  serial bytes ─► Machine::push_bytes
 //!  SD job       ─► one line per turn while the planner has room ─► Machine::run_job_line
 //!  menu command ─► jog / home / start a file / Tools line (at the top level, never nested in a wait)
-//!  Machine::idle ─► segment prep, realtime ─► Io::background: encoder, one display slice
+//!  Machine::idle ─► segment prep, realtime ─► Host::background: encoder, one display slice
 //! ```
 //!
 //! The SD card sits behind `embedded-sdmmc` (`VolumeManager` with one
@@ -35,12 +35,12 @@ use mill::machine::Machine;
 use mill::protocol::MAX_LINE_LEN;
 use mill::ui::menu::{Cmd, Ui, View};
 use mill::ui::sd::{Name, SdJob, Turn};
-use sd::{FixedClock, SdDelay, Storage};
+use sd::{FixedClock, SdDelay, SdFiles};
 
 /// The hardware behind `Io`, plus the UI and the SD job.
 struct Hw {
     eeprom: Eeprom,
-    sd: Storage,
+    sd: SdFiles,
     job: SdJob,
     ui: Ui,
     view: View,
@@ -72,7 +72,7 @@ pub fn run() -> ! {
     let (bus, cs) = SpiBus::new(dp.SPI, &dp.PORTB, ClockDiv::SD_INIT);
     let mut oled = Sh1106::new(Twi::new(dp.TWI, crate::board::oled::I2C_HZ));
     let oled = if oled.init().is_ok() { Some(oled) } else { None };
-    let sd = Storage {
+    let sd = SdFiles {
         vm: VolumeManager::new_with_limits(
             SdCard::new_with_options(
                 SdDevice { bus, cs },

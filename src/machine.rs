@@ -4,7 +4,7 @@
 //! ```text
 //!  bytes ─► protocol::LineAssembler ─► protocol::LineChecker ─► gcode::parse
 //!        ─► Interp::next (gcode::interp: modal state, returns a Command)
-//!        ─► Machine::dispatch ─► Machine::queue_line ─► Planner ─► Prep ─► Io::push_segment
+//!        ─► Machine::dispatch ─► Machine::queue_line ─► Planner ─► Prep ─► Stepper::push_segment
 //! ```
 //!
 //! This file owns the [`Machine`] itself (its state, construction and
@@ -70,7 +70,7 @@ pub mod toolchange;
 
 pub use alarm::Alarm;
 pub use homing::home;
-pub use io::{Io, Realtime, SdJobFlags, StepperStatus, Switches};
+pub use io::{Host, Inputs, Io, Outputs, Realtime, SdJobFlags, Stepper, StepperStatus, Storage, Switches};
 
 /// Machine state, as reported by `?` (grbl 1.1 names).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -316,7 +316,7 @@ impl Machine {
     }
 
     /// The M115 / boot firmware line.
-    pub fn firmware_line(&self, io: &mut impl Io) {
+    pub fn firmware_line(&self, io: &mut impl ufmt::uWrite) {
         uwriteln!(
             io,
             "{}{}{}",
@@ -347,7 +347,7 @@ impl Machine {
     }
 
     /// Print `x,y,z` with three decimals.
-    pub fn write_xyz(&self, io: &mut impl Io, v: [f32; N_AXES]) {
+    pub fn write_xyz(&self, io: &mut impl ufmt::uWrite, v: [f32; N_AXES]) {
         uwrite!(io, "{},{},{}", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
     }
 }

@@ -7,7 +7,7 @@ use super::Hw;
 use crate::board::{self, serial, stepper, wdt};
 use core::convert::Infallible;
 use mill::gcode::interp;
-use mill::machine::{Io, Machine, Realtime, StepperStatus};
+use mill::machine::{Host, Inputs, Machine, Outputs, Realtime, Stepper, StepperStatus, Storage};
 use mill::stepper::StepperCmd;
 use mill::ui::menu::{Cmd, Screen};
 use mill::ui::sd::{self as sdjob, req, Card};
@@ -31,39 +31,7 @@ impl ufmt::uWrite for Hw {
     }
 }
 
-impl Io for Hw {
-    fn poll(&mut self) -> Realtime {
-        wdt::feed();
-        let rt = board::take_realtime();
-        if rt & board::realtime::RESET != 0 && self.job.active() {
-            // A soft reset ends an SD job too (its abort finishes at once:
-            // the reset leaves nothing moving).
-            self.job.abort();
-        }
-        let ui = self.job.take_requests() | core::mem::take(&mut self.requests);
-        let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
-        Realtime {
-            status: rt & board::realtime::STATUS != 0,
-            hold: rt & board::realtime::HOLD != 0 || ui & req::HOLD != 0,
-            resume: rt & board::realtime::RESUME != 0 || ui & req::RESUME != 0,
-            estop: rt & board::realtime::ESTOP != 0,
-            limit: m & stepper::motion::LIMIT != 0,
-            home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
-            probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
-            abort: ui & req::ABORT != 0,
-            abort_keep_spindle: ui & req::KEEP_SPINDLE != 0,
-            reset: rt & board::realtime::RESET != 0,
-            jog_cancel: rt & board::realtime::JOG_CANCEL != 0,
-            reset_moving: rt & board::realtime::RESET_MOVING != 0,
-            motion_ovr: board::take_overrides(&board::MOTION_OVR),
-            accessory_ovr: board::take_overrides(&board::ACCESSORY_OVR),
-        }
-    }
-
-    fn flush_rx(&mut self) {
-        while serial::read().is_some() {}
-    }
-
+impl Stepper for Hw {
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
         stepper::push(cmd)
     }
@@ -105,7 +73,48 @@ impl Io for Hw {
     fn set_watch(&mut self, w: mill::stepper::rings::Watch) {
         stepper::set_watch(w);
     }
+}
 
+impl Inputs for Hw {
+    fn poll(&mut self) -> Realtime {
+        wdt::feed();
+        let rt = board::take_realtime();
+        if rt & board::realtime::RESET != 0 && self.job.active() {
+            // A soft reset ends an SD job too (its abort finishes at once:
+            // the reset leaves nothing moving).
+            self.job.abort();
+        }
+        let ui = self.job.take_requests() | core::mem::take(&mut self.requests);
+        let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
+        Realtime {
+            status: rt & board::realtime::STATUS != 0,
+            hold: rt & board::realtime::HOLD != 0 || ui & req::HOLD != 0,
+            resume: rt & board::realtime::RESUME != 0 || ui & req::RESUME != 0,
+            estop: rt & board::realtime::ESTOP != 0,
+            limit: m & stepper::motion::LIMIT != 0,
+            home_tripped: m & stepper::motion::HOME_TRIPPED != 0,
+            probe_tripped: m & stepper::motion::PROBE_TRIPPED != 0,
+            abort: ui & req::ABORT != 0,
+            abort_keep_spindle: ui & req::KEEP_SPINDLE != 0,
+            reset: rt & board::realtime::RESET != 0,
+            jog_cancel: rt & board::realtime::JOG_CANCEL != 0,
+            reset_moving: rt & board::realtime::RESET_MOVING != 0,
+            motion_ovr: board::take_overrides(&board::MOTION_OVR),
+            accessory_ovr: board::take_overrides(&board::ACCESSORY_OVR),
+        }
+    }
+
+    fn switches(&self) -> mill::machine::Switches {
+        let i = board::inputs();
+        mill::machine::Switches { home: i.home, carousel_home: i.carousel_home, tool_setter: i.tool_setter }
+    }
+
+    fn millis(&self) -> u32 {
+        board::millis()
+    }
+}
+
+impl Outputs for Hw {
     fn drivers(&mut self, on: bool) {
         board::drivers_enable(on);
     }
@@ -121,16 +130,9 @@ impl Io for Hw {
     fn coolant(&mut self, on: bool) {
         board::coolant_set(on);
     }
+}
 
-    fn switches(&self) -> mill::machine::Switches {
-        let i = board::inputs();
-        mill::machine::Switches { home: i.home, carousel_home: i.carousel_home, tool_setter: i.tool_setter }
-    }
-
-    fn millis(&self) -> u32 {
-        board::millis()
-    }
-
+impl Storage for Hw {
     fn eeprom_read(&mut self, addr: u16, buf: &mut [u8]) {
         let _ = self.eeprom.read(addr, buf);
     }
@@ -138,9 +140,11 @@ impl Io for Hw {
     fn eeprom_write(&mut self, addr: u16, data: &[u8]) {
         let _ = self.eeprom.write(addr, data);
     }
+}
 
-    fn free_ram(&self) -> u16 {
-        board::free_ram()
+impl Host for Hw {
+    fn flush_rx(&mut self) {
+        while serial::read().is_some() {}
     }
 
     fn rx_pending(&self) -> usize {

@@ -7,7 +7,7 @@
 use super::Hw;
 use crate::board;
 use mill::gcode::interp;
-use mill::machine::{Io, Machine};
+use mill::machine::{Inputs, Machine};
 use mill::ui::menu::{Cmd, Reply, Screen};
 use mill::ui::render::Line;
 use mill::ui::sd::{req, Card, Name, SdError};

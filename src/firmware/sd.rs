@@ -37,7 +37,7 @@ pub(super) type SdDev = SdCard<SdDevice, SdDelay>;
 type Volumes = VolumeManager<SdDev, FixedClock, 1, 1, 1>;
 
 /// The SD card behind `mill::ui::sd::Card`.
-pub(super) struct Storage {
+pub(super) struct SdFiles {
     pub(super) vm: Volumes,
     pub(super) vol: Option<RawVolume>,
     pub(super) file: Option<RawFile>,
@@ -54,7 +54,7 @@ fn map_err<E: core::fmt::Debug + core::error::Error>(e: embedded_sdmmc::Error<E>
     }
 }
 
-impl Storage {
+impl SdFiles {
     fn set_clock(&mut self, div: ClockDiv) {
         self.vm.device(|d| d.spi(|s| s.bus.set_clock(div)));
     }
@@ -67,7 +67,7 @@ impl Storage {
     }
 }
 
-impl Card for Storage {
+impl Card for SdFiles {
     fn detected(&self) -> bool {
         board::sd_detected()
     }

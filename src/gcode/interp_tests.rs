@@ -4,7 +4,7 @@
 //! of an arc), which is what these tests check; the step timing is the
 //! simavr tests' business. `cycle_tests.rs` drives the same fake board.
 
-use crate::machine::{Io, Machine, Realtime, StepperStatus, Switches};
+use crate::machine::{Host, Inputs, Machine, Outputs, Realtime, Stepper, StepperStatus, Storage, Switches};
 use crate::stepper::StepperCmd;
 use crate::N_AXES;
 use core::convert::Infallible;
@@ -49,11 +49,10 @@ impl ufmt::uWrite for FakeIo {
     }
 }
 
-impl Io for FakeIo {
-    fn poll(&mut self) -> Realtime {
-        self.ms = self.ms.wrapping_add(1);
-        Realtime { resume: self.auto_resume, ..Realtime::default() }
-    }
+impl Stepper for FakeIo {
+    fn stop_motion(&mut self) {}
+    fn clear_stop(&mut self) {}
+    fn set_watch(&mut self, _: crate::stepper::rings::Watch) {}
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
         if let StepperCmd::Block(b) = cmd {
             for a in 0..N_AXES {
@@ -65,43 +64,60 @@ impl Io for FakeIo {
         }
         true
     }
+
     fn segment_space(&self) -> usize {
         16
     }
+
     fn stepper(&self) -> StepperStatus {
         StepperStatus { position: self.pos, busy: false, trip_position: self.pos, tripped: false }
     }
+
     fn set_stepper_position(&mut self, p: [i32; N_AXES]) {
         self.pos = p;
     }
-    fn stop_motion(&mut self) {}
-    fn clear_stop(&mut self) {}
-    fn set_watch(&mut self, _: crate::stepper::rings::Watch) {}
+}
+
+impl Inputs for FakeIo {
+    fn poll(&mut self) -> Realtime {
+        self.ms = self.ms.wrapping_add(1);
+        Realtime { resume: self.auto_resume, ..Realtime::default() }
+    }
+
+    fn switches(&self) -> Switches {
+        Switches::default()
+    }
+
+    fn millis(&self) -> u32 {
+        self.ms
+    }
+}
+
+impl Outputs for FakeIo {
     fn drivers(&mut self, _on: bool) {}
     fn carousel_driver(&mut self, _on: bool) {}
     fn spindle(&mut self, duty: u8) {
         self.spindle = duty;
     }
+
     fn coolant(&mut self, on: bool) {
         self.coolant = on;
     }
-    fn switches(&self) -> Switches {
-        Switches::default()
-    }
-    fn millis(&self) -> u32 {
-        self.ms
-    }
+}
+
+impl Storage for FakeIo {
     fn eeprom_read(&mut self, addr: u16, buf: &mut [u8]) {
         let a = addr as usize;
         buf.copy_from_slice(&self.eeprom[a..a + buf.len()]);
     }
+
     fn eeprom_write(&mut self, addr: u16, data: &[u8]) {
         let a = addr as usize;
         self.eeprom[a..a + data.len()].copy_from_slice(data);
     }
-    fn free_ram(&self) -> u16 {
-        1000
-    }
+}
+
+impl Host for FakeIo {
     fn rx_pending(&self) -> usize {
         0
     }

@@ -2,7 +2,7 @@
 //! [`Machine::clear_alarm`]), the hard limits the ISR watches and their
 //! re-arming, an abort's end, and grbl's soft reset (0x18).
 
-use super::{Io, Machine, State, LIMIT_REARM_MS};
+use super::{Inputs, Io, Machine, Outputs, State, Stepper, LIMIT_REARM_MS};
 use crate::stepper::rings::Watch;
 use ufmt::{uwrite, uwriteln};
 
@@ -48,7 +48,7 @@ impl Alarm {
 impl Machine {
     /// Enter the alarm state: stop steps, spindle off, forget the queue.
     #[inline(never)]
-    pub fn raise(&mut self, io: &mut impl Io, alarm: Alarm) {
+    pub fn raise(&mut self, io: &mut (impl Stepper + Outputs + ufmt::uWrite), alarm: Alarm) {
         io.stop_motion();
         io.spindle(0);
         io.coolant(false);
@@ -84,7 +84,7 @@ impl Machine {
     }
 
     /// M999: leave the alarm state. Position stays unknown until homed.
-    pub fn clear_alarm(&mut self, io: &mut impl Io) {
+    pub fn clear_alarm(&mut self, io: &mut (impl Inputs + Stepper)) {
         // A switch still closed (the axis stopped on it) is not armed until
         // it opens, or the alarm would come back at once.
         self.limits_held = io.switches().home & 0b111;
@@ -102,7 +102,7 @@ impl Machine {
     /// Arm the hard limit of each held axis (see [`Machine::limits_held`])
     /// whose switch has read open for [`LIMIT_REARM_MS`]: longer than a
     /// switch's bounce, so it is not re-armed on a bounce.
-    pub(super) fn rearm_limits(&mut self, io: &mut impl Io) {
+    pub(super) fn rearm_limits(&mut self, io: &mut (impl Inputs + Stepper)) {
         let now = io.millis() as u16;
         let open = self.limits_held & !io.switches().home;
         if open == 0 {
@@ -117,7 +117,7 @@ impl Machine {
     /// homing cycle (`State::Home`), pull-offs included, as in grbl: an axis
     /// not yet homed may rest on its closed switch, and a real switch stays
     /// closed for its hysteresis and bounces after it opens.
-    pub fn apply_watch(&mut self, io: &mut impl Io, homing: u8, probe: bool) {
+    pub fn apply_watch(&mut self, io: &mut impl Stepper, homing: u8, probe: bool) {
         let arm = self.settings.hard_limits && homing == 0 && self.state != State::Home;
         let limits = if arm { 0b111 & !self.limits_held } else { 0 };
         // A real switch that closed at machine 0 may stay closed for its
@@ -142,7 +142,7 @@ impl Machine {
     /// The abort's deceleration has ended: drop the queue, keep the
     /// position, turn the spindle off. Waits in progress fail with
     /// `Error::Aborted`, so the line that was running stops too.
-    pub(super) fn finish_abort(&mut self, io: &mut impl Io) {
+    pub(super) fn finish_abort(&mut self, io: &mut (impl Stepper + Outputs)) {
         self.aborting = false;
         self.holding = false;
         io.stop_motion();
@@ -209,7 +209,7 @@ impl Machine {
     }
 
     /// Spindle and coolant off (and remembered as off): aborts, program end.
-    pub fn spindle_off(&mut self, io: &mut impl Io) {
+    pub fn spindle_off(&mut self, io: &mut impl Outputs) {
         self.interp.spindle_on = false;
         self.spindle_stopped = false;
         self.interp.coolant_m = 9;

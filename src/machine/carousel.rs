@@ -15,7 +15,7 @@
 //! off, slow seek, and position 0 is the step where the switch closed on the
 //! slow approach. The carousel stays there (0°).
 
-use super::{Alarm, CmdResult, Io, Machine, State};
+use super::{Alarm, CmdResult, Inputs, Io, Machine, State};
 use crate::axis;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
@@ -75,7 +75,7 @@ pub fn home_command(m: &mut Machine, io: &mut impl Io, back: bool, only_if_unhom
 /// G203: `Motor0 Pos:<pitches> Endstop Hit:<0|1>`. The position is the
 /// commanded one (where G201 put it), as Repetier reports it; the switch is
 /// read now.
-pub fn report(m: &Machine, io: &mut impl Io) {
+pub fn report(m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     let pos = Micros::from_mm(m.interp.pos_mm[axis::E]);
     let hit = io.switches().carousel_home as u8;
     uwriteln!(io, "{}{}{}{}", F!("Motor0 Pos:"), pos, F!(" Endstop Hit:"), hit).ok();

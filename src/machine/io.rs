@@ -1,7 +1,9 @@
-//! The hardware as the controller sees it: the [`Io`] trait and the
-//! values it reports ([`Realtime`] requests, [`StepperStatus`],
-//! [`Switches`]). The firmware implements it over `board`
-//! (`src/firmware.rs`), the host tests over `crate::fake_board`.
+//! The hardware as the controller sees it: narrow traits split as
+//! embedded-hal splits its own ([`Stepper`], [`Inputs`], [`Outputs`],
+//! [`Storage`], [`Host`]), [`Io`] their sum, and the values they report
+//! ([`Realtime`] requests, [`StepperStatus`], [`Switches`]). The firmware
+//! implements them over `board` (`src/firmware/io.rs`), the host tests over
+//! `crate::fake_board`.
 
 use super::{CmdResult, Machine};
 use crate::gcode::interp;
@@ -59,10 +61,9 @@ pub struct Switches {
     pub tool_setter: bool,
 }
 
-/// The hardware as the controller sees it.
-pub trait Io: ufmt::uWrite<Error = Infallible> {
-    /// Feed the watchdog and collect realtime events.
-    fn poll(&mut self) -> Realtime;
+/// The stepper ISR and its rings (`board::stepper`): segments in, the
+/// position and the trip latch out, and what the ISR watches.
+pub trait Stepper {
     /// Queue a command for the stepper ISR; false if the ring is full.
     fn push_segment(&mut self, cmd: StepperCmd) -> bool;
     /// Free slots in the segment ring.
@@ -76,7 +77,7 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     /// Accept segments again after a stop; clears trip flags.
     fn clear_stop(&mut self);
     /// The ISR is stopped (e-stop, hard limit, homing or probe trip) and
-    /// drops every segment it is given until [`Io::clear_stop`].
+    /// drops every segment it is given until [`Stepper::clear_stop`].
     fn stepper_stopped(&self) -> bool {
         false
     }
@@ -85,6 +86,22 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     /// `release`: steps above 0 where a homed axis' switch may still be
     /// closed (the homing pull-off, per axis X Y Z).
     fn set_watch(&mut self, w: Watch);
+}
+
+/// What the controller reads of the world: the realtime requests collected
+/// since the last poll, the switches and the clock.
+pub trait Inputs {
+    /// Feed the watchdog and collect realtime events.
+    fn poll(&mut self) -> Realtime;
+    /// Current switch levels.
+    fn switches(&self) -> Switches;
+    /// Milliseconds since boot.
+    fn millis(&self) -> u32;
+}
+
+/// What the controller switches: the stepper drivers, the spindle, the
+/// coolant.
+pub trait Outputs {
     /// Enable or disable the stepper drivers.
     fn drivers(&mut self, on: bool);
     /// Enable or disable the carousel (E0) driver alone (G204).
@@ -93,16 +110,20 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn spindle(&mut self, duty: u8);
     /// Coolant output (M7/M8 on, M9 off).
     fn coolant(&mut self, on: bool);
-    /// Current switch levels.
-    fn switches(&self) -> Switches;
-    /// Milliseconds since boot.
-    fn millis(&self) -> u32;
+}
+
+/// Non-volatile storage: the EEPROM (settings, tool records, the change
+/// journal, the setter's calibration, grbl's stored texts).
+pub trait Storage {
     /// Read EEPROM bytes.
     fn eeprom_read(&mut self, addr: u16, buf: &mut [u8]);
     /// Write EEPROM bytes (only the ones that differ are programmed).
     fn eeprom_write(&mut self, addr: u16, data: &[u8]);
-    /// RAM never touched by the stack since boot, bytes.
-    fn free_ram(&self) -> u16;
+}
+
+/// The host's side: the serial link (replies go out through `uWrite`), the
+/// SD card commands that arrive on it, and the standalone UI's turn.
+pub trait Host: ufmt::uWrite<Error = Infallible> {
     /// Bytes waiting in the serial RX ring.
     fn rx_pending(&self) -> usize;
     /// Throw away every byte waiting in the serial RX ring (soft reset).
@@ -122,7 +143,14 @@ pub trait Io: ufmt::uWrite<Error = Infallible> {
     fn background(&mut self, _m: &Machine) {}
 }
 
-/// What an SD command may change of the machine ([`Io::sd_command`]): M24
+/// The hardware as the controller sees it: every narrow trait at once.
+/// Implemented for anything that implements them all; code that needs
+/// less asks for less (`impl Storage`, `impl Stepper`, …).
+pub trait Io: Stepper + Inputs + Outputs + Storage + Host {}
+
+impl<T: Stepper + Inputs + Outputs + Storage + Host + ?Sized> Io for T {}
+
+/// What an SD command may change of the machine ([`Host::sd_command`]): M24
 /// starts a job, which needs the abort count to watch and sets `sd_job`.
 pub struct SdJobFlags<'a> {
     /// [`Machine::sd_job`]: set when a job starts.

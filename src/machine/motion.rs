@@ -4,7 +4,7 @@
 //! wait ([`Machine::wait_step`]: top up the segment ring, serve realtime
 //! requests, send the keepalive).
 
-use super::{after_eq, Alarm, CmdResult, Io, Machine, State, RETRACT_FEED_MM_PER_MIN};
+use super::{after_eq, Alarm, CmdResult, Inputs, Io, Machine, State, Stepper, RETRACT_FEED_MM_PER_MIN};
 use crate::gcode::interp;
 use crate::planner::{PlanError, Speed};
 use crate::N_AXES;
@@ -243,7 +243,7 @@ impl Machine {
     }
 
     /// True when nothing is planned, prepared or stepping.
-    pub fn motion_done(&self, io: &impl Io) -> bool {
+    pub fn motion_done(&self, io: &impl Stepper) -> bool {
         self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy
     }
 
@@ -277,7 +277,7 @@ impl Machine {
 
     /// After the ISR stopped on a trip (or a finished move): drop whatever is
     /// left of the queue and take the stepper's position as the truth.
-    pub fn resync_after_stop(&mut self, io: &mut impl Io) {
+    pub fn resync_after_stop(&mut self, io: &mut impl Stepper) {
         io.stop_motion();
         self.planner.clear();
         self.prep.reset();
@@ -295,7 +295,7 @@ impl Machine {
     /// host times out (docs/SPEC.md §4). Every wait loop calls it through
     /// [`Machine::wait_step`]. Not for SD-job or menu lines: no host waits
     /// for those.
-    pub fn keepalive(&mut self, io: &mut impl Io) {
+    pub fn keepalive(&mut self, io: &mut (impl Inputs + ufmt::uWrite)) {
         let every = self.host.busy_interval_s as u32 * 1000;
         if !self.serial_line || every == 0 {
             return;
@@ -311,7 +311,7 @@ impl Machine {
     /// stopped: it drops what it is given, so the whole queue would be
     /// prepared into it before the stop is served (an M112 sent behind a
     /// full queue was reported 0.75 s late).
-    pub fn fill_segments(&mut self, io: &mut impl Io) {
+    pub fn fill_segments(&mut self, io: &mut impl Stepper) {
         // A move the planner accepted without planning it yet (so that `ok`
         // went out sooner) is planned now, before prep looks at the ring.
         self.planner.flush(&self.settings);

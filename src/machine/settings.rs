@@ -2,7 +2,7 @@
 //! the menu's teach), and storing and loading the settings image in EEPROM
 //! (M500, M501, boot).
 
-use super::{startup, CmdResult, Io, Machine, EEPROM_SETTINGS_ADDR};
+use super::{startup, CmdResult, Io, Machine, Storage, EEPROM_SETTINGS_ADDR};
 use crate::config::Settings;
 use crate::dollar;
 use crate::gcode::interp;
@@ -131,14 +131,14 @@ impl Machine {
     }
 
     /// Save the settings image to EEPROM (M500).
-    pub fn save_settings(&mut self, io: &mut impl Io) {
+    pub fn save_settings(&mut self, io: &mut impl Storage) {
         self.interp.store_settings(&mut self.settings);
         let img = self.settings.to_bytes();
         io.eeprom_write(EEPROM_SETTINGS_ADDR, &img);
     }
 
     /// Load the settings from EEPROM (M501). False if the image is invalid.
-    pub fn load_settings(&mut self, io: &mut impl Io) -> bool {
+    pub fn load_settings(&mut self, io: &mut impl Storage) -> bool {
         let mut img = [0u8; Settings::IMAGE_LEN];
         io.eeprom_read(EEPROM_SETTINGS_ADDR, &mut img);
         let loaded = self.settings.load_image(&img);

@@ -29,7 +29,7 @@ impl Letters {
         }
     }
 
-    fn write(&self, io: &mut impl Io) {
+    fn write(&self, io: &mut impl ufmt::uWrite) {
         if self.len > self.head {
             io.write_str(crate::protocol::ascii_str(&self.buf[..self.len as usize])).ok();
         }
