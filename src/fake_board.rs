@@ -6,7 +6,10 @@
 //! Where it sits: it replaces `src/firmware.rs` + `src/board` under
 //! [`Machine`](crate::machine::Machine) in `cargo test`, so that homing, a
 //! tool change, G37, alarms and feed holds run on the host (see
-//! `controller_tests.rs`) with no simulator.
+//! `controller_tests.rs`) with no simulator. It is the one host fake: the
+//! gcode tests (`gcode/interp_tests.rs`, `gcode/cycle_tests.rs`) run their
+//! lines on it too and read the path of block end points it records
+//! ([`FakeBoard::path`]).
 //!
 //! ```text
 //!  Machine ─ Stepper::push_segment ─► stepper::rings::Rings (the board's own
@@ -200,6 +203,13 @@ pub struct FakeBoard {
     pub phys: [i64; N_AXES],
     /// Every output step, in order.
     pub steps: Vec<Step>,
+    /// The counted position at the end of each planner block, in the order
+    /// the blocks were handed to the board (one per chord of an arc), and
+    /// the millisecond each was handed over: the path the gcode tests check.
+    pub path: Vec<[i32; N_AXES]>,
+    pub path_ms: Vec<u32>,
+    /// Where the last block handed over ends (counted steps).
+    block_end: [i32; N_AXES],
 
     /// Physical position at which each home switch closes (closed at or below it).
     pub home_at: [i64; 3],
@@ -234,6 +244,8 @@ pub struct FakeBoard {
     /// Every output change, with its cycle.
     pub outputs: Vec<(u64, Output)>,
 
+    /// Every poll reports `~` (resume): M0/M1 pauses end at once.
+    pub auto_resume: bool,
     /// Scripted events not yet fired.
     script: Vec<(At, Event)>,
     /// Realtime requests collected since the last poll.
@@ -278,6 +290,9 @@ impl FakeBoard {
             pos: [0; N_AXES],
             phys: [2250, 2250, 2250, 0],
             steps: Vec::new(),
+            path: Vec::new(),
+            path_ms: Vec::new(),
+            block_end: [0; N_AXES],
             home_at: [0; 3],
             hysteresis: [0; 3],
             home_closed: [false; 3],
@@ -295,6 +310,7 @@ impl FakeBoard {
             drivers: false,
             carousel_driver: false,
             outputs: Vec::new(),
+            auto_resume: false,
             script: Vec::new(),
             rt: Realtime::default(),
         };
@@ -598,7 +614,18 @@ impl ufmt::uWrite for FakeBoard {
 
 impl Stepper for FakeBoard {
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
-        self.rings.get_mut().push(&cmd, &MAP, &mut self.st)
+        let taken = self.rings.get_mut().push(&cmd, &MAP, &mut self.st);
+        if let (true, StepperCmd::Block(b)) = (taken, cmd) {
+            if !b.take_up {
+                for a in 0..N_AXES {
+                    let s = b.steps[a] as i32;
+                    self.block_end[a] += if b.direction_bits & (1 << a) != 0 { -s } else { s };
+                }
+            }
+            self.path.push(self.block_end);
+            self.path_ms.push(self.ms());
+        }
+        taken
     }
 
     fn segment_space(&self) -> usize {
@@ -620,6 +647,7 @@ impl Stepper for FakeBoard {
         let tripped = self.tripped();
         self.rings.get_mut().set_position(p, tripped, &MAP, &self.st);
         self.pos = p;
+        self.block_end = p;
     }
 
     fn stop_motion(&mut self) {
@@ -639,6 +667,7 @@ impl Stepper for FakeBoard {
         let cur = self.st.cur;
         self.rings.get_mut().clear(cur, q, &mut self.st);
         self.stopped = false;
+        self.block_end = q;
     }
 
     fn stepper_stopped(&self) -> bool {
@@ -660,7 +689,8 @@ impl Inputs for FakeBoard {
         assert!(self.polls <= self.poll_limit, "{} polls ({} ms): the controller is stuck waiting", self.polls, self.ms());
         self.advance(self.poll_cycles);
         let rt = core::mem::take(&mut self.rt);
-        Realtime { limit: self.limit_hit, home_tripped: self.home_tripped, probe_tripped: self.probe_tripped, ..rt }
+        let resume = rt.resume || self.auto_resume;
+        Realtime { limit: self.limit_hit, home_tripped: self.home_tripped, probe_tripped: self.probe_tripped, resume, ..rt }
     }
 
     fn switches(&self) -> Switches {
