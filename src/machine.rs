@@ -126,6 +126,26 @@ pub const EEPROM_SETTINGS_ADDR: u16 = 0;
 /// cut, at a cutting feed rather than a rapid.
 pub const RETRACT_FEED_MM_PER_MIN: f32 = 600.0;
 
+/// Where the line being run came from. One at a time: serial lines, SD
+/// job lines and menu lines all run from the main loop's top level, never
+/// inside another line's wait (the menu's commands wait for the top level,
+/// the SD job's next line for the main loop's job turn).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum LineSource {
+    /// No line is running.
+    None,
+    /// A serial line: its host waits for the `ok` (keepalive), and its
+    /// block number tags its moves.
+    Serial,
+    /// A serial line during which a soft reset (0x18) happened: it ends
+    /// without an `ok` or an error (grbl drops it).
+    SerialReset,
+    /// A line of the SD job: the only lines that may move while a job runs.
+    Job,
+    /// A line the menu runs, or a startup block: no host waits for it.
+    Menu,
+}
+
 /// The controller.
 pub struct Machine {
     /// The spindle override, percent (grbl's 0x99–0x9D), the duty the
@@ -175,22 +195,22 @@ pub struct Machine {
     last_busy_ms: u32,
     /// M117 message, M73 progress, M113 keepalive interval.
     pub host: crate::hostcodes::HostState,
-    /// A serial line is being run: its host waits for the `ok` (keepalive).
-    serial_line: bool,
-    /// A soft reset (0x18) happened while the current serial line ran: it
-    /// ends without an `ok` or an error (grbl drops it).
-    silenced: bool,
+    /// Where the line being run came from (serial, SD job, menu, none).
+    source: LineSource,
 
     /// Realtime events of the last poll (trip flags persist until cleared).
     last_rt: Realtime,
-    /// The host numbers its lines (so dropped lines get `Resend:`).
+    /// The host numbers its lines (so dropped lines get `Resend:`): a
+    /// property of the serial host's last line, kept after it ended (a
+    /// line dropped after an overrun is answered as the one before it) and
+    /// while other sources run, so not part of [`LineSource`].
     numbered: bool,
-    /// An SD job is under way: serial lines may only ask for status.
+    /// An SD job is under way: serial lines may only ask for status. Not
+    /// part of [`LineSource`]: the job goes on across its lines, and serial
+    /// lines run between them.
     pub sd_job: bool,
     /// `io.millis()` when the running SD job started (M31).
     pub job_start_ms: u32,
-    /// The line being executed comes from the SD job.
-    job_line: bool,
     /// An abort is decelerating; the queue is dropped once stopped.
     aborting: bool,
     /// The abort decelerating leaves the spindle on (see
@@ -253,8 +273,7 @@ impl Machine {
             holding: false,
             last_busy_ms: 0,
             host: crate::hostcodes::HostState::new(),
-            serial_line: false,
-            silenced: false,
+            source: LineSource::None,
             last_rt: Realtime {
                 status: false,
                 hold: false,
@@ -277,7 +296,6 @@ impl Machine {
             numbered: false,
             sd_job: false,
             job_start_ms: 0,
-            job_line: false,
             aborting: false,
             abort_keeps_spindle: false,
             aborts: 0,

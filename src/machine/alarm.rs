@@ -2,7 +2,7 @@
 //! [`Machine::clear_alarm`]), the hard limits the ISR watches and their
 //! re-arming, an abort's end, and grbl's soft reset (0x18).
 
-use super::{Inputs, Io, Machine, Outputs, State, Stepper, LIMIT_REARM_MS};
+use super::{Inputs, Io, LineSource, Machine, Outputs, State, Stepper, LIMIT_REARM_MS};
 use crate::stepper::rings::Watch;
 use ufmt::{uwrite, uwriteln};
 
@@ -194,7 +194,9 @@ impl Machine {
         io.flush_rx();
         self.asm.reset();
         self.aborts = self.aborts.wrapping_add(1);
-        self.silenced = self.serial_line;
+        if self.source == LineSource::Serial {
+            self.source = LineSource::SerialReset;
+        }
         if self.alarm.is_none() {
             // Whatever ran (a move, homing, a tool change, a probe) is over.
             self.state = State::Idle;

@@ -5,7 +5,7 @@
 //! and the interpreter, one [`Command`] at a time into
 //! [`Machine::dispatch`](super::Machine).
 
-use super::{Alarm, CmdResult, Io, Machine, SdJobFlags, State};
+use super::{Alarm, CmdResult, Io, LineSource, Machine, SdJobFlags, State};
 use crate::gcode::interp::{self, Command};
 use crate::protocol::Assembled;
 use ufmt::{uwrite, uwriteln};
@@ -96,7 +96,6 @@ impl Machine {
         // Numbered for the resend protocol: N and a checksum (an N alone is a
         // file's block number, which the protocol does not track).
         self.numbered = matches!(raw.first(), Some(b'N' | b'n')) && raw.contains(&b'*');
-        self.silenced = false;
         match self.chk.check(raw) {
             Err(crate::protocol::ProtoError::LineNumber) => {
                 // A line sent after one that failed (the host had several in
@@ -111,7 +110,7 @@ impl Machine {
             }
             Ok(cmd) => {
                 self.note_host(cmd);
-                self.serial_line = true;
+                self.source = LineSource::Serial;
                 if self.numbered {
                     self.planner.line_tag = self.chk.last_line() as u16;
                 }
@@ -126,11 +125,11 @@ impl Machine {
                     Some((code, arg)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, code, arg),
                     None => self.execute(cmd, io),
                 };
-                self.serial_line = false;
+                let source = core::mem::replace(&mut self.source, LineSource::None);
                 if self.sd_job && !was_running {
                     self.job_start_ms = io.millis();
                 }
-                if self.silenced {
+                if source == LineSource::SerialReset {
                     // A soft reset ended the line: grbl prints nothing more
                     // for it (the banner already went out).
                     return;
@@ -227,9 +226,9 @@ impl Machine {
         if crate::hostcodes::sd_code(text).is_some() {
             return Err(interp::Error::BadWord(F!("SD commands are not allowed inside an SD job")));
         }
-        self.job_line = true;
+        self.source = LineSource::Job;
         let r = self.execute(text, io);
-        self.job_line = false;
+        self.source = LineSource::None;
         r
     }
 
@@ -238,12 +237,20 @@ impl Machine {
     #[inline(never)]
     pub fn run_menu_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
         self.line_aborts = self.aborts;
-        self.execute(text, io)
+        self.source = LineSource::Menu;
+        let r = self.execute(text, io);
+        self.source = LineSource::None;
+        r
     }
 
     /// True while the line being run comes from the SD job.
     pub fn in_job_line(&self) -> bool {
-        self.job_line
+        self.source == LineSource::Job
+    }
+
+    /// A serial line is running (its host waits for the `ok`).
+    pub(super) fn in_serial_line(&self) -> bool {
+        matches!(self.source, LineSource::Serial | LineSource::SerialReset)
     }
 
     /// Parse and run one command line (without N and checksum).
@@ -260,7 +267,7 @@ impl Machine {
         // A serial line's block number (`N10 G1 …`, grbl senders): its moves
         // carry it for `?`'s `Ln:` (a Marlin host's N is the checker's, set
         // in `run_raw_line`; an SD job tags its own lines).
-        if self.serial_line && !self.numbered {
+        if self.in_serial_line() && !self.numbered {
             self.planner.line_tag = crate::protocol::block_number(text);
         }
         self.run_line(&line, io)
@@ -279,7 +286,7 @@ impl Machine {
                 atc: &self.atc,
                 alarm: self.alarm.is_some(),
                 estop: self.alarm == Some(Alarm::EmergencyStop),
-                status_only: self.sd_job && !self.job_line,
+                status_only: self.sd_job && self.source != LineSource::Job,
             };
             // Matched by reference: the command is not copied again.
             let r = self.interp.next(&cx, l);

@@ -297,7 +297,7 @@ impl Machine {
     /// for those.
     pub fn keepalive(&mut self, io: &mut (impl Inputs + ufmt::uWrite)) {
         let every = self.host.busy_interval_s as u32 * 1000;
-        if !self.serial_line || every == 0 {
+        if !self.in_serial_line() || every == 0 {
             return;
         }
         let now = io.millis();
