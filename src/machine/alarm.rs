@@ -123,7 +123,7 @@ impl Machine {
         // A real switch that closed at machine 0 may stay closed for its
         // hysteresis; homing checked that the pull-off clears it.
         let mut release = [0u16; 3];
-        let pulloff = if self.settings.homing_pulloff_mm >= 0.1 { self.settings.homing_pulloff_mm } else { 0.1 };
+        let pulloff = super::homing::cycle::pulloff_mm(self.settings.homing_pulloff_mm);
         for (a, r) in release.iter_mut().enumerate() {
             let steps = crate::math::round_i32(pulloff * self.settings.steps_per_mm[a]);
             *r = steps.clamp(0, u16::MAX as i32) as u16;

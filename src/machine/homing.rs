@@ -1,10 +1,16 @@
-//! Homing: G28 / `$H` for X, Y, Z (fast seek, back off, slow seek, back
-//! off, per axis in the order Z, Y, X) and the one switch seek that it and
-//! the carousel's homing share ([`Machine::seek_switch`]).
+//! Homing: the runner of G28 / `$H` for X, Y, Z, which performs the
+//! actions of the pure cycle ([`cycle`]: fast seek, back off, slow seek,
+//! back off, per axis in the order Z, Y, X) through the planner, and the
+//! one switch seek that it and the carousel's homing share
+//! ([`Machine::seek_switch`]).
 
-use super::{Alarm, CmdResult, Io, Machine, State};
+pub mod cycle;
+
+use super::{Alarm, CmdResult, Inputs, Io, Machine, State};
 use crate::gcode::interp;
+use crate::math::round_i32;
 use crate::planner::Speed;
+use cycle::{Action, Cycle, Event, Request};
 
 impl Machine {
     /// One homing seek, the only one (G28's axes and the carousel's G205):
@@ -28,39 +34,12 @@ impl Machine {
         self.resync_after_stop(io);
         Ok(tripped)
     }
-
-    /// A linear axis' homing seek toward its switch (−) by up to `dist_mm`.
-    pub(super) fn home_seek(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> Result<bool, interp::Error> {
-        let steps = crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
-        self.seek_switch(io, axis, -steps, feed)
-    }
-
-    /// Move `axis` away from its switch by `dist_mm` (no switch watching:
-    /// the caller is in `State::Home`, so hard limits are off), then check
-    /// the switch let go: a pull-off shorter than the switch's hysteresis
-    /// fails here, not later as a hard limit on the first move (grbl's
-    /// alarm 8). The switch opened hysteresis-worth of travel before the
-    /// end of the pull-off, so its bounce is long over.
-    pub(super) fn home_pulloff(&mut self, io: &mut impl Io, axis: usize, dist_mm: f32, feed: f32) -> CmdResult {
-        let mut target = io.stepper().position;
-        target[axis] += crate::math::round_i32(dist_mm * self.settings.steps_per_mm[axis]);
-        self.queue_line(io, target, Speed::Fixed(feed))?;
-        self.wait_idle(io)?;
-        if io.switches().home & (1 << axis) != 0 {
-            return self.home_fail(io);
-        }
-        Ok(())
-    }
-
-    pub(super) fn home_fail(&mut self, io: &mut impl Io) -> CmdResult {
-        self.raise(io, Alarm::HomingFailed);
-        Err(interp::Error::HomingFailed)
-    }
 }
 
 /// G28: home the axes in `mask` in the order Z, Y, X: fast seek, back off,
-/// slow seek, back off. Position 0 is where the switch trips on the slow
-/// approach; the final back-off is counted (position = pull-off distance).
+/// slow seek, back off ([`cycle`]'s table). Position 0 is where the switch
+/// trips on the slow approach; the final back-off is counted (position =
+/// pull-off distance).
 #[inline(never)]
 pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     if m.alarm.is_some() {
@@ -75,7 +54,7 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     m.state = State::Home;
     // Hard limits off for the whole cycle (see `apply_watch`).
     m.apply_watch(io, 0, false);
-    let r = home_axes(m, io, mask);
+    let r = run(m, io, mask);
     if m.state == State::Home {
         m.state = if prev == State::Alarm || prev == State::Home { State::Idle } else { prev };
     }
@@ -93,30 +72,73 @@ pub fn home(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
     Ok(())
 }
 
-/// The per-axis part of [`home`], in `State::Home`.
-fn home_axes(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
-    let s = m.settings;
-    for axis in [2usize, 1, 0] {
-        if mask & (1 << axis) == 0 {
-            continue;
-        }
-        m.homed &= !(1 << axis);
-        // `max` without f32::max (compiler-builtins' fmaximum_numf, 142 bytes).
-        let pulloff = if s.homing_pulloff_mm >= 0.1 { s.homing_pulloff_mm } else { 0.1 };
-        if io.switches().home & (1 << axis) != 0 {
-            // Starting on the switch: move off it first (fails if it stays closed).
-            m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
-        }
-        let travel = s.travel_mm[axis] * 1.1;
-        if !m.home_seek(io, axis, travel, s.homing_seek_mm_per_min)? {
-            return m.home_fail(io);
-        }
-        m.home_pulloff(io, axis, pulloff, s.homing_seek_mm_per_min)?;
-        if !m.home_seek(io, axis, pulloff * 2.0, s.homing_feed_mm_per_min)? {
-            return m.home_fail(io);
-        }
-        m.home_pulloff(io, axis, pulloff, s.homing_feed_mm_per_min)?;
-        m.homed |= 1 << axis;
+/// Perform the cycle's actions until it ends, in `State::Home`.
+fn run(m: &mut Machine, io: &mut impl Io, mask: u8) -> CmdResult {
+    let s = &m.settings;
+    let req = Request {
+        mask,
+        travel_mm: [s.travel_mm[0], s.travel_mm[1], s.travel_mm[2]],
+        pulloff_mm: s.homing_pulloff_mm,
+        seek_feed_mm_per_min: s.homing_seek_mm_per_min,
+        locate_feed_mm_per_min: s.homing_feed_mm_per_min,
+    };
+    let mut c = Cycle::new(&req);
+    // The error of the action that was stopped (an alarm, an abort).
+    let mut stopped = interp::Error::Aborted;
+    let mut a = c.start();
+    loop {
+        let ev = match a {
+            Action::Done => return Ok(()),
+            Action::Fail => {
+                m.raise(io, Alarm::HomingFailed);
+                return Err(interp::Error::HomingFailed);
+            }
+            Action::Stop => return Err(stopped),
+            Action::Unhome { axis } => {
+                m.homed &= !(1 << axis);
+                Event::Done
+            }
+            Action::Homed { axis } => {
+                m.homed |= 1 << axis;
+                Event::Done
+            }
+            Action::ReadSwitch { axis } => switch(io, axis),
+            Action::PullOff { axis, mm, feed_mm_per_min } => match pull_off(m, io, axis as usize, mm, feed_mm_per_min) {
+                Ok(()) => switch(io, axis),
+                Err(e) => {
+                    stopped = e;
+                    Event::Stopped
+                }
+            },
+            Action::Seek { axis, mm, feed_mm_per_min } => {
+                // Toward the switch (−).
+                let steps = round_i32(mm * m.settings.steps_per_mm[axis as usize]);
+                match m.seek_switch(io, axis as usize, -steps, feed_mm_per_min) {
+                    Ok(tripped) => Event::Seek(tripped),
+                    Err(e) => {
+                        stopped = e;
+                        Event::Stopped
+                    }
+                }
+            }
+        };
+        a = c.step(ev);
     }
-    Ok(())
+}
+
+/// The cycle's answer when it asks for `axis`' home switch.
+fn switch(io: &impl Inputs, axis: u8) -> Event {
+    Event::Switch(io.switches().home & (1 << axis) != 0)
+}
+
+/// Move `axis` away from its switch by `mm` (no switch watching: the
+/// caller is in `State::Home`, so hard limits are off) and wait until it
+/// stands; the cycle then reads the switch, which must have let go. The
+/// switch opened hysteresis-worth of travel before the end of the
+/// pull-off, so its bounce is long over.
+fn pull_off(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: f32) -> CmdResult {
+    let mut target = io.stepper().position;
+    target[axis] += round_i32(mm * m.settings.steps_per_mm[axis]);
+    m.queue_line(io, target, Speed::Fixed(feed))?;
+    m.wait_idle(io)
 }
