@@ -143,6 +143,7 @@ fn panic_test(last: &mut u64, b: u8) {
 }
 
 /// The SD job's turn: at most one line.
+// stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
 #[inline(never)]
 fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
     // Up to four lines per turn while the planner has room, as a serial host

@@ -239,6 +239,7 @@ impl Machine {
     /// `static` initialised with [`Machine::new`] would carry a 1.5 KB image
     /// in flash (`.data`) of which 71 bytes are not zero. Not inlined, so no
     /// machine-sized temporary stays in the caller's (never-returning) frame.
+    // stack: out of the never-returning main frame (this file's two inlined: stack high-water 1734 -> 2668 B)
     #[inline(never)]
     pub fn init(slot: &mut core::mem::MaybeUninit<Machine>) -> &mut Machine {
         // Built with zeroed settings, which LLVM writes in place, then the
@@ -304,6 +305,7 @@ impl Machine {
     }
 
     /// Start-up: load settings, print the banner and the reset reason.
+    // stack: out of the never-returning main frame (this file's two inlined: stack high-water 1734 -> 2668 B)
     #[inline(never)]
     pub fn boot(&mut self, io: &mut impl Io, reset_cause: FStr, watchdog: bool) {
         let mut img = [0u8; Settings::IMAGE_LEN];

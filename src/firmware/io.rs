@@ -160,6 +160,7 @@ impl Host for Hw {
         sdjob::capture(&mut self.job, &mut self.sd, line, &mut SerialOut)
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn background(&mut self, m: &Machine) {
         // The card pulled mid-job ends the job now, even while one of its

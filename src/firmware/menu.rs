@@ -18,6 +18,7 @@ const JOG_FEED_MM_PER_MIN: f32 = 1200.0;
 
 impl Hw {
     /// Menu commands: realtime ones now, the rest for the main loop.
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     pub(super) fn command_now(&mut self, cmd: Cmd) {
         match cmd {
@@ -56,6 +57,7 @@ impl Hw {
     }
 
     /// Read the file names for the Files screen (count, and the visible ones).
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     pub(super) fn refresh_names(&mut self) {
         let (first, _) = self.ui.visible_files();
@@ -75,6 +77,7 @@ impl Hw {
     }
 
     /// The name of file `i` in directory order.
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     pub(super) fn file_name(&mut self, i: u8) -> Option<Name> {
         let mut k: u8 = 0;
@@ -92,6 +95,7 @@ impl Hw {
 }
 
 /// The menu's commands that run at the top level.
+// stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
 #[inline(never)]
 pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
     if !board::sd_detected() && hw.sd.vol.is_some() && !hw.job.active() {
@@ -193,6 +197,7 @@ pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
 /// The menu's edit stored through the serial lines: `$n=<value>`, or for
 /// a pocket's tool number `G10 L1 P<old> Q0` then `G10 L1 P<new> Q<p>`
 /// (the old number put back if the new one is refused).
+// stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
 #[inline(never)]
 fn store_edit(m: &mut Machine, hw: &mut Hw, e: mill::ui::menu::Edit, um: i32) -> mill::machine::CmdResult {
     use mill::ui::menu::Edit;

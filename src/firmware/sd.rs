@@ -72,6 +72,7 @@ impl Card for SdFiles {
         board::sd_detected()
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn mount(&mut self) -> Result<(), SdError> {
         if !board::sd_detected() {
@@ -94,6 +95,7 @@ impl Card for SdFiles {
         Ok(())
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn unmount(&mut self) {
         // Handles are dropped whatever the card says (it may be gone).
@@ -106,6 +108,7 @@ impl Card for SdFiles {
         self.vm.device(|d| d.mark_card_uninit());
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError> {
         let vol = self.vol.ok_or(SdError::NoCard)?;
@@ -120,6 +123,7 @@ impl Card for SdFiles {
         r.map_err(map_err)
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError> {
         self.close_file()?;
@@ -138,6 +142,7 @@ impl Card for SdFiles {
         self.vm.file_length(f).map_err(map_err)
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError> {
         let f = self.file.ok_or(SdError::NotFound)?;
@@ -147,18 +152,21 @@ impl Card for SdFiles {
         self.vm.read(f, buf).map_err(|_| SdError::ReadFailed)
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn seek(&mut self, pos: u32) -> Result<(), SdError> {
         let f = self.file.ok_or(SdError::NotFound)?;
         self.vm.file_seek_from_start(f, pos).map_err(|_| SdError::ReadFailed)
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn write(&mut self, data: &[u8]) -> Result<(), SdError> {
         let f = self.file.ok_or(SdError::NotFound)?;
         self.vm.write(f, data).map_err(|_| SdError::WriteFailed)
     }
 
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
     fn close(&mut self) -> Result<(), SdError> {
         self.close_file()

@@ -9,6 +9,7 @@ use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
 
 /// M114: work position (user frame) and the step counters.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn position(m: &Machine, io: &mut (impl Stepper + ufmt::uWrite)) {
     let internal = io.stepper().position;
@@ -33,6 +34,7 @@ pub fn position(m: &Machine, io: &mut (impl Stepper + ufmt::uWrite)) {
 }
 
 /// M119: the switches.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn switches(_m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     let s = io.switches();
@@ -50,6 +52,7 @@ pub fn switches(_m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
 }
 
 /// M503: the settings as the codes that set them.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn settings(m: &Machine, io: &mut impl ufmt::uWrite) {
     let s = &m.settings;
@@ -125,6 +128,7 @@ pub fn settings(m: &Machine, io: &mut impl ufmt::uWrite) {
 /// M31, as Marlin answers it: `echo:Print time: 1h 2m 3s` (leading zero
 /// units left out), the time since the running SD job started; `0s` when
 /// no job runs (a streamed job has no start this firmware knows of).
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn print_time(m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     let s = if m.sd_job { (io.millis().wrapping_sub(m.job_start_ms) / 1000) as i32 } else { 0 };

@@ -12,7 +12,6 @@ use ufmt::uwriteln;
 impl Machine {
     /// M92 / M201 / M203 (`values`: X Y Z E, NaN where absent), once the
     /// machine is still.
-    #[inline(never)]
     pub(super) fn axis_settings(&mut self, io: &mut impl Io, code: u16, values: [f32; N_AXES]) -> CmdResult {
         self.wait_idle(io)?;
         let mut s = self.settings;
@@ -36,7 +35,6 @@ impl Machine {
     }
 
     /// `$<n>=<v>`: check the value, then store all settings at once.
-    #[inline(never)]
     pub fn set_setting(&mut self, io: &mut impl Io, n: u8, v: f32) -> CmdResult {
         let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
         let mut s = self.settings;
@@ -60,7 +58,6 @@ impl Machine {
     /// Y point B, Z1, Z2, the travel height) becomes where the machine is,
     /// through the same checks as `$170=…`. Refused until homed (the
     /// position means nothing before).
-    #[inline(never)]
     pub fn teach_station(&mut self, io: &mut impl Io, p: u8) -> CmdResult {
         if self.homed & 0b111 != 0b111 {
             return Err(interp::Error::NotHomed);
