@@ -27,8 +27,14 @@
 //! | `FinalPullOff` | always | pull off at the locate feed (counted: position = pull-off) |
 //! | `Homed` | always | the axis' position is known |
 
-/// The axes in the order they are homed (Z, Y, X).
-pub const ORDER: [u8; 3] = [2, 1, 0];
+/// Axes G28 homes (X, Y, Z).
+pub const N_LINEAR: u8 = 3;
+
+/// The `i`-th axis to home: Z, Y, X (computed, not a table: a `const`
+/// array indexed at run time would be copied into RAM on AVR).
+fn nth_axis(i: u8) -> Option<u8> {
+    (i < N_LINEAR).then(|| N_LINEAR - 1 - i)
+}
 
 /// Shortest pull-off, mm: a switch needs some travel to let go.
 pub const MIN_PULLOFF_MM: f32 = 0.1;
@@ -200,7 +206,8 @@ pub fn pulloff_mm(mm: f32) -> f32 {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cycle {
     req: Request,
-    /// Index into [`ORDER`] of the axis being homed; `ORDER.len()` when done.
+    /// How many axes of the order Z, Y, X are behind (homed or not in the
+    /// mask): the axis being homed is `nth_axis(axis_at)`.
     axis_at: u8,
     /// Index of the current row in [`TABLE`].
     at: u8,
@@ -223,7 +230,7 @@ impl Cycle {
         if self.end.is_some() {
             return None;
         }
-        let axis = *ORDER.get(self.axis_at as usize)?;
+        let axis = nth_axis(self.axis_at)?;
         row_at(self.at as usize).map(|r| (axis, r.state))
     }
 
@@ -265,7 +272,7 @@ impl Cycle {
 
     /// From `axis_at` on, the first axis of the mask, at its first row.
     fn next_axis(&mut self) {
-        while let Some(&a) = ORDER.get(self.axis_at as usize) {
+        while let Some(a) = nth_axis(self.axis_at) {
             if self.req.mask & (1 << a) != 0 {
                 self.on_switch = false;
                 self.at = self.next_row(0) as u8;
@@ -292,7 +299,7 @@ impl Cycle {
 
     /// The action of the current row of the current axis.
     fn action(&mut self) -> Action {
-        let Some(&axis) = ORDER.get(self.axis_at as usize) else {
+        let Some(axis) = nth_axis(self.axis_at) else {
             return self.finish(Action::Done);
         };
         let Some(row) = row_at(self.at as usize) else {
