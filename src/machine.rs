@@ -13,7 +13,7 @@
 //! | child | what it owns |
 //! |---|---|
 //! | [`io`] | the [`Io`] trait: the hardware as the controller sees it |
-//! | [`line`] | bytes into lines, the resend protocol, replies, running a line |
+//! | [`line`](mod@line) | bytes into lines, the resend protocol, replies, running a line |
 //! | [`dispatch`] | carrying out each `Command` of the interpreter |
 //! | [`motion`] | the one way into the planner, jogs, G38, every wait |
 //! | [`realtime`] | the main loop's turn: realtime requests, overrides, M0 |

@@ -2,7 +2,7 @@
 //! actions of the pure cycle ([`cycle`]: fast seek, back off, slow seek,
 //! back off, per axis in the order Z, Y, X) through the planner, and the
 //! one switch seek that it and the carousel's homing share
-//! ([`Machine::seek_switch`]).
+//! (`Machine::seek_switch`).
 
 pub mod cycle;
 
