@@ -631,7 +631,7 @@ fn feed_override_bytes_change_the_speed_of_the_move_in_progress() {
 
 /// The stepper is producing steps (or has some queued).
 fn stepping(io: &FakeBoard) -> bool {
-    crate::machine::Io::stepper(io).busy
+    crate::machine::Stepper::stepper(io).busy
 }
 
 /// M112 in the middle of a move: the RX interrupt halts the stepper and

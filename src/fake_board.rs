@@ -6,12 +6,15 @@
 //! Where it sits: it replaces `src/firmware.rs` + `src/board` under
 //! [`Machine`](crate::machine::Machine) in `cargo test`, so that homing, a
 //! tool change, G37, alarms and feed holds run on the host (see
-//! `controller_tests.rs`) with no simulator.
+//! `controller_tests.rs`) with no simulator. It is the one host fake: the
+//! gcode tests (`gcode/interp_tests.rs`, `gcode/cycle_tests.rs`) run their
+//! lines on it too and read the path of block end points it records
+//! ([`FakeBoard::path`]).
 //!
 //! ```text
-//!  Machine ─ Io::push_segment ─► stepper::rings::Rings (the board's own
+//!  Machine ─ Stepper::push_segment ─► stepper::rings::Rings (the board's own
 //!                                 bookkeeping) ─► Chunk / Seg ring arrays
-//!        ◄─ Io::poll ─ clock += poll_cycles ─► timer ISR twin (one event per period):
+//!        ◄─ Inputs::poll ─ clock += poll_cycles ─► timer ISR twin (one event per period):
 //!                      output `pending`, check armed switches, load a segment,
 //!                      Chunk::tick_out ─► physical and counted positions, step log
 //! ```
@@ -28,7 +31,7 @@
 //! (`firmware.rs`'s `poll`; M112 and Ctrl-X halt the stepper at once, as the
 //! RX interrupt does).
 //!
-//! What is a model: time passes only in [`Io::poll`] ([`FakeBoard::poll_cycles`]
+//! What is a model: time passes only in [`Inputs::poll`] ([`FakeBoard::poll_cycles`]
 //! CPU cycles each, 250 µs by default: one main-loop turn), the switches
 //! (home switches close at or below a settable physical position, with
 //! optional hysteresis; the carousel switch is a window per revolution; the
@@ -38,15 +41,15 @@
 //!
 //! Positions: `phys` is where the motors really are (steps from where each
 //! home switch closes), `pos` is the firmware's counted position (moved by
-//! [`Io::set_stepper_position`]). The board counts no steps: [`Rings`]
+//! [`Stepper::set_stepper_position`]). The board counts no steps: [`Rings`]
 //! rebuilds the position from the retired chunks and `Chunk::steps_done` of
 //! the running one ([`FakeBoard::reconstructed_position`]); the fake counts
 //! them as well, and after every timer event that steps, and on every
-//! [`Io::stepper`], it asserts that the two agree (and that the latched trip
+//! [`Stepper::stepper`], it asserts that the two agree (and that the latched trip
 //! position is where the ISR stopped), so every controller test also checks
 //! the board's bookkeeping.
 
-use crate::machine::{Io, Realtime, StepperStatus, Switches};
+use crate::machine::{Host, Inputs, Outputs, Realtime, Stepper, StepperStatus, Storage, Switches};
 use crate::stepper::queue::{Seg, StepMap};
 use crate::stepper::rings::host::Statics;
 use crate::stepper::rings::Rings;
@@ -162,7 +165,7 @@ pub struct FakeBoard {
     pub out: String,
     /// CPU cycles since boot (16 MHz).
     pub cycles: u64,
-    /// Cycles each [`Io::poll`] lets pass (one main-loop turn).
+    /// Cycles each [`Inputs::poll`] lets pass (one main-loop turn).
     pub poll_cycles: u64,
     /// Polls so far.
     pub polls: u64,
@@ -176,7 +179,7 @@ pub struct FakeBoard {
     /// The rings and the ISR's state.
     st: Statics,
     /// The board's main-loop bookkeeping (`board::stepper::MAIN`); in a
-    /// cell because `Io::stepper` and `Io::segment_space` take `&self`.
+    /// cell because `Stepper::stepper` and `Stepper::segment_space` take `&self`.
     rings: RefCell<Rings>,
     /// A segment was loaded since the ring was last found empty.
     running: bool,
@@ -200,6 +203,13 @@ pub struct FakeBoard {
     pub phys: [i64; N_AXES],
     /// Every output step, in order.
     pub steps: Vec<Step>,
+    /// The counted position at the end of each planner block, in the order
+    /// the blocks were handed to the board (one per chord of an arc), and
+    /// the millisecond each was handed over: the path the gcode tests check.
+    pub path: Vec<[i32; N_AXES]>,
+    pub path_ms: Vec<u32>,
+    /// Where the last block handed over ends (counted steps).
+    block_end: [i32; N_AXES],
 
     /// Physical position at which each home switch closes (closed at or below it).
     pub home_at: [i64; 3],
@@ -234,6 +244,8 @@ pub struct FakeBoard {
     /// Every output change, with its cycle.
     pub outputs: Vec<(u64, Output)>,
 
+    /// Every poll reports `~` (resume): M0/M1 pauses end at once.
+    pub auto_resume: bool,
     /// Scripted events not yet fired.
     script: Vec<(At, Event)>,
     /// Realtime requests collected since the last poll.
@@ -278,6 +290,9 @@ impl FakeBoard {
             pos: [0; N_AXES],
             phys: [2250, 2250, 2250, 0],
             steps: Vec::new(),
+            path: Vec::new(),
+            path_ms: Vec::new(),
+            block_end: [0; N_AXES],
             home_at: [0; 3],
             hysteresis: [0; 3],
             home_closed: [false; 3],
@@ -295,6 +310,7 @@ impl FakeBoard {
             drivers: false,
             carousel_driver: false,
             outputs: Vec::new(),
+            auto_resume: false,
             script: Vec::new(),
             rt: Realtime::default(),
         };
@@ -596,17 +612,20 @@ impl ufmt::uWrite for FakeBoard {
     }
 }
 
-impl Io for FakeBoard {
-    fn poll(&mut self) -> Realtime {
-        self.polls += 1;
-        assert!(self.polls <= self.poll_limit, "{} polls ({} ms): the controller is stuck waiting", self.polls, self.ms());
-        self.advance(self.poll_cycles);
-        let rt = core::mem::take(&mut self.rt);
-        Realtime { limit: self.limit_hit, home_tripped: self.home_tripped, probe_tripped: self.probe_tripped, ..rt }
-    }
-
+impl Stepper for FakeBoard {
     fn push_segment(&mut self, cmd: StepperCmd) -> bool {
-        self.rings.get_mut().push(&cmd, &MAP, &mut self.st)
+        let taken = self.rings.get_mut().push(&cmd, &MAP, &mut self.st);
+        if let (true, StepperCmd::Block(b)) = (taken, cmd) {
+            if !b.take_up {
+                for a in 0..N_AXES {
+                    let s = b.steps[a] as i32;
+                    self.block_end[a] += if b.direction_bits & (1 << a) != 0 { -s } else { s };
+                }
+            }
+            self.path.push(self.block_end);
+            self.path_ms.push(self.ms());
+        }
+        taken
     }
 
     fn segment_space(&self) -> usize {
@@ -628,6 +647,7 @@ impl Io for FakeBoard {
         let tripped = self.tripped();
         self.rings.get_mut().set_position(p, tripped, &MAP, &self.st);
         self.pos = p;
+        self.block_end = p;
     }
 
     fn stop_motion(&mut self) {
@@ -647,6 +667,7 @@ impl Io for FakeBoard {
         let cur = self.st.cur;
         self.rings.get_mut().clear(cur, q, &mut self.st);
         self.stopped = false;
+        self.block_end = q;
     }
 
     fn stepper_stopped(&self) -> bool {
@@ -660,7 +681,34 @@ impl Io for FakeBoard {
         self.rings.get_mut().set_watch(w);
         self.watch = w;
     }
+}
 
+impl Inputs for FakeBoard {
+    fn poll(&mut self) -> Realtime {
+        self.polls += 1;
+        assert!(self.polls <= self.poll_limit, "{} polls ({} ms): the controller is stuck waiting", self.polls, self.ms());
+        self.advance(self.poll_cycles);
+        let rt = core::mem::take(&mut self.rt);
+        let resume = rt.resume || self.auto_resume;
+        Realtime { limit: self.limit_hit, home_tripped: self.home_tripped, probe_tripped: self.probe_tripped, resume, ..rt }
+    }
+
+    fn switches(&self) -> Switches {
+        let mut home = 0;
+        for a in 0..3 {
+            if self.home_switch(a) {
+                home |= 1 << a;
+            }
+        }
+        Switches { home, carousel_home: self.carousel_switch(), tool_setter: self.setter_switch() }
+    }
+
+    fn millis(&self) -> u32 {
+        self.ms()
+    }
+}
+
+impl Outputs for FakeBoard {
     fn drivers(&mut self, on: bool) {
         if self.drivers != on {
             self.drivers = on;
@@ -688,21 +736,9 @@ impl Io for FakeBoard {
             self.output(Output::Coolant(on));
         }
     }
+}
 
-    fn switches(&self) -> Switches {
-        let mut home = 0;
-        for a in 0..3 {
-            if self.home_switch(a) {
-                home |= 1 << a;
-            }
-        }
-        Switches { home, carousel_home: self.carousel_switch(), tool_setter: self.setter_switch() }
-    }
-
-    fn millis(&self) -> u32 {
-        self.ms()
-    }
-
+impl Storage for FakeBoard {
     fn eeprom_read(&mut self, addr: u16, buf: &mut [u8]) {
         let a = addr as usize;
         buf.copy_from_slice(&self.eeprom[a..a + buf.len()]);
@@ -716,11 +752,9 @@ impl Io for FakeBoard {
         }
         self.eeprom[a..a + data.len()].copy_from_slice(data);
     }
+}
 
-    fn free_ram(&self) -> u16 {
-        1000
-    }
-
+impl Host for FakeBoard {
     fn rx_pending(&self) -> usize {
         0
     }

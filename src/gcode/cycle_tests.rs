@@ -7,11 +7,12 @@
 //! The fake board and the helpers are `interp_tests.rs`'s.
 
 use super::cycles::{Kind, Retract};
-use super::interp::tests::{machine, refused, run, FakeIo};
+use super::interp::tests::{machine, refused, run};
 use super::Motion;
+use crate::fake_board::FakeBoard;
 
 /// The block end points since the last call, as user-frame mm (X, Y, Z up).
-fn take(io: &mut FakeIo) -> Vec<[f32; 3]> {
+fn take(io: &mut FakeBoard) -> Vec<[f32; 3]> {
     io.path_ms.clear();
     io.path.drain(..).map(|p| [p[0] as f32 / 100.0, p[1] as f32 / 100.0, -(p[2] as f32) / 100.0]).collect()
 }
@@ -113,11 +114,16 @@ fn g20_converts_every_word() {
 fn g82_dwells_p_seconds_at_the_bottom() {
     let (mut m, mut io) = machine();
     run(&mut m, &mut io, "G0 X10 Y10 Z-5");
-    io.path.clear();
-    io.path_ms.clear();
+    let from = io.steps.len();
     run(&mut m, &mut io, "G82 X20 Z-15 R-8 P0.5 F300");
-    let bottom = io.path.iter().position(|q| q[2] == 1500).unwrap();
-    let waited = io.path_ms[bottom + 1] - io.path_ms[bottom];
+    // From the step that reaches the bottom (Z 15 mm down) to the first
+    // step after it: the dwell, as the motors saw it.
+    let bottom = io.phys[2] - io.pos[2] as i64 + 1500;
+    let steps = &io.steps[from..];
+    let arrive = steps.iter().position(|s| s.axes & 4 != 0 && s.phys[2] == bottom).unwrap();
+    let leave = &steps[arrive + 1];
+    let waited = (leave.cycle - steps[arrive].cycle) / (crate::F_CPU_HZ as u64 / 1000);
+    assert!(leave.phys[2] < bottom, "the first step after the bottom goes up");
     assert!((500..520).contains(&waited), "{waited} ms");
 }
 

@@ -15,7 +15,7 @@
 //! off, slow seek, and position 0 is the step where the switch closed on the
 //! slow approach. The carousel stays there (0°).
 
-use super::{Alarm, CmdResult, Io, Machine, State};
+use super::{Alarm, CmdResult, Inputs, Io, Machine, State};
 use crate::axis;
 use crate::fixed::Micros;
 use crate::gcode::interp::Error;
@@ -59,6 +59,7 @@ pub fn enable(m: &mut Machine, io: &mut impl Io, on: bool) -> CmdResult {
 
 /// G205 `[S1] [E1]`: home the carousel; `back`: turn back to where it was;
 /// `only_if_unhomed`: nothing when it is homed.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn home_command(m: &mut Machine, io: &mut impl Io, back: bool, only_if_unhomed: bool) -> CmdResult {
     if only_if_unhomed && m.homed & HOMED_BIT != 0 {
@@ -75,7 +76,7 @@ pub fn home_command(m: &mut Machine, io: &mut impl Io, back: bool, only_if_unhom
 /// G203: `Motor0 Pos:<pitches> Endstop Hit:<0|1>`. The position is the
 /// commanded one (where G201 put it), as Repetier reports it; the switch is
 /// read now.
-pub fn report(m: &Machine, io: &mut impl Io) {
+pub fn report(m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     let pos = Micros::from_mm(m.interp.pos_mm[axis::E]);
     let hit = io.switches().carousel_home as u8;
     uwriteln!(io, "{}{}{}{}", F!("Motor0 Pos:"), pos, F!(" Endstop Hit:"), hit).ok();
@@ -93,6 +94,7 @@ pub fn turn_to(m: &mut Machine, io: &mut impl Io, position: f32) -> CmdResult {
 
 /// Home the carousel. Raises the alarm `carousel home switch not found`
 /// when the switch does not close within a revolution + 25 %.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn home(m: &mut Machine, io: &mut impl Io) -> CmdResult {
     m.wait_idle(io)?;

@@ -1,7 +1,7 @@
 //! The reports a line can ask for (M114, M119, M503): the controller
 //! prints them, from the stepper's counters, the switches and the settings.
 
-use super::{Io, Machine};
+use super::{Inputs, Machine, Stepper};
 use crate::fixed::Micros;
 use crate::flash::FStr;
 use crate::frame;
@@ -9,8 +9,9 @@ use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
 
 /// M114: work position (user frame) and the step counters.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
-pub fn position(m: &Machine, io: &mut impl Io) {
+pub fn position(m: &Machine, io: &mut (impl Stepper + ufmt::uWrite)) {
     let internal = io.stepper().position;
     let w = m.interp.work_user(m.steps_to_mm(internal));
     // Count: the step counters in the user's sense (Z counts up), so that
@@ -33,8 +34,9 @@ pub fn position(m: &Machine, io: &mut impl Io) {
 }
 
 /// M119: the switches.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
-pub fn switches(_m: &Machine, io: &mut impl Io) {
+pub fn switches(_m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     let s = io.switches();
     uwriteln!(io, "{}", F!("Reporting endstop status")).ok();
     let lines = [
@@ -50,8 +52,9 @@ pub fn switches(_m: &Machine, io: &mut impl Io) {
 }
 
 /// M503: the settings as the codes that set them.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
-pub fn settings(m: &Machine, io: &mut impl Io) {
+pub fn settings(m: &Machine, io: &mut impl ufmt::uWrite) {
     let s = &m.settings;
     let line = |io: &mut dyn DynOut, code: FStr, v: &[f32; N_AXES], scale: f32| {
         io.out(code);
@@ -125,8 +128,9 @@ pub fn settings(m: &Machine, io: &mut impl Io) {
 /// M31, as Marlin answers it: `echo:Print time: 1h 2m 3s` (leading zero
 /// units left out), the time since the running SD job started; `0s` when
 /// no job runs (a streamed job has no start this firmware knows of).
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
-pub fn print_time(m: &Machine, io: &mut impl Io) {
+pub fn print_time(m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     let s = if m.sd_job { (io.millis().wrapping_sub(m.job_start_ms) / 1000) as i32 } else { 0 };
     let parts = [(s / 86_400, F!("d ")), (s / 3600 % 24, F!("h ")), (s / 60 % 60, F!("m ")), (s % 60, F!("s"))];
     let mut d = Dyn(io);
@@ -153,9 +157,9 @@ trait DynOut {
     fn int(&mut self, v: i32);
 }
 
-struct Dyn<'a, W: Io>(&'a mut W);
+struct Dyn<'a, W: ufmt::uWrite>(&'a mut W);
 
-impl<W: Io> DynOut for Dyn<'_, W> {
+impl<W: ufmt::uWrite> DynOut for Dyn<'_, W> {
     fn out(&mut self, s: FStr) {
         s.write_to(self.0).ok();
     }

@@ -18,6 +18,7 @@ use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
 
 /// G37 [D1] [B<tol>] / G37 L<len> R<radius> [X Y].
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn g37(m: &mut Machine, io: &mut impl Io, mode: Mode, x: Option<f32>, y: Option<f32>) -> Result<(), Error> {
     m.wait_idle(io)?;
@@ -93,6 +94,7 @@ fn run_actions(m: &mut Machine, io: &mut impl Io, meas: &mut Measure) -> (Option
 }
 
 /// Keep a measurement's result and report it in one line.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), Error> {
     let before = m.atc.table;
@@ -142,6 +144,7 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
 }
 
 /// Rapid to machine mm (`None` keeps the axis) and wait.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(), Error> {
     let mut t = m.interp.pos_mm;
@@ -155,6 +158,7 @@ fn rapid(m: &mut Machine, io: &mut impl Io, xyz: [Option<f32>; 3]) -> Result<(),
 }
 
 /// One seek (fast, back off, slow) on `axis`; the latched step of the slow trip.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 fn seek(m: &mut Machine, io: &mut impl Io, axis: usize, dir: i8, max_mm: f32) -> Result<i32, Error> {
     let (mut s, mut a) = Seek::start(max_mm, dir);
@@ -179,6 +183,7 @@ fn seek(m: &mut Machine, io: &mut impl Io, axis: usize, dir: i8, max_mm: f32) ->
 /// Move `axis` by `mm`. With a feed, the ISR watches the beam and stops on
 /// the step that breaks it: returns that step. Without, a plain move at the
 /// slow-seek feed.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 fn probe(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: Option<f32>) -> Result<Option<i32>, Error> {
     let watch = feed.is_some();

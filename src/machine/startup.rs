@@ -7,7 +7,7 @@
 //! and not at all while an alarm is in force (no stored move may run into
 //! an unknown position).
 
-use super::{Io, Machine};
+use super::{Io, Machine, Storage};
 use crate::gcode::interp::Error;
 use ufmt::{uwrite, uwriteln};
 
@@ -31,7 +31,7 @@ fn check(text: &[u8]) -> u8 {
 
 /// Read the text stored at `addr` (at most `max` characters) into `buf`;
 /// its length, 0 for an empty, erased or damaged slot.
-fn load(io: &mut impl Io, addr: u16, max: usize, buf: &mut [u8; SLOT]) -> usize {
+fn load(io: &mut impl Storage, addr: u16, max: usize, buf: &mut [u8; SLOT]) -> usize {
     io.eeprom_read(addr, &mut buf[..max + 2]);
     let n = buf[0] as usize;
     if n == 0 || n > max || check(&buf[1..1 + n]) != buf[1 + n] {
@@ -42,7 +42,7 @@ fn load(io: &mut impl Io, addr: u16, max: usize, buf: &mut [u8; SLOT]) -> usize 
 }
 
 /// Store `text` at `addr` (the caller checked its length).
-fn store(io: &mut impl Io, addr: u16, text: &[u8]) {
+fn store(io: &mut impl Storage, addr: u16, text: &[u8]) {
     let mut buf = [0u8; SLOT];
     let n = text.len().min(SLOT - 2);
     buf[0] = n as u8;
@@ -57,7 +57,7 @@ fn printable(text: &[u8]) -> bool {
 }
 
 /// `$N`: both startup blocks, as grbl prints them.
-pub fn list(io: &mut impl Io) {
+pub fn list(io: &mut (impl Storage + ufmt::uWrite)) {
     let mut buf = [0u8; SLOT];
     for i in 0..2u8 {
         let n = load(io, EEPROM_STARTUP_ADDR + i as u16 * SLOT as u16, STARTUP_LEN, &mut buf);
@@ -68,7 +68,7 @@ pub fn list(io: &mut impl Io) {
 
 /// `$N<i>=<line>`: check the line (it must parse, and may not be a `$`
 /// line) and store it; an empty line clears the block.
-pub fn set(io: &mut impl Io, i: u8, line: &[u8]) -> Result<(), Error> {
+pub fn set(io: &mut impl Storage, i: u8, line: &[u8]) -> Result<(), Error> {
     if i > 1 {
         return Err(Error::BadWord(F!("$N: blocks are $N0 and $N1")));
     }
@@ -84,7 +84,7 @@ pub fn set(io: &mut impl Io, i: u8, line: &[u8]) -> Result<(), Error> {
 }
 
 /// Clear both startup blocks and the info text (`$RST=*`).
-pub fn clear(io: &mut impl Io) {
+pub fn clear(io: &mut impl Storage) {
     for i in 0..2u16 {
         store(io, EEPROM_STARTUP_ADDR + i * SLOT as u16, b"");
     }
@@ -117,7 +117,7 @@ pub fn run(m: &mut Machine, io: &mut impl Io) {
 }
 
 /// `$I=<text>`: store the build-info text.
-pub fn set_info(io: &mut impl Io, text: &[u8]) -> Result<(), Error> {
+pub fn set_info(io: &mut impl Storage, text: &[u8]) -> Result<(), Error> {
     if text.len() > INFO_LEN || !printable(text) {
         return Err(Error::BadWord(F!("$I=: at most 40 printable characters")));
     }
@@ -126,7 +126,7 @@ pub fn set_info(io: &mut impl Io, text: &[u8]) -> Result<(), Error> {
 }
 
 /// `$I`: grbl's build-info lines, with the stored text.
-pub fn info(io: &mut impl Io) {
+pub fn info(io: &mut (impl Storage + ufmt::uWrite)) {
     let mut buf = [0u8; SLOT];
     let n = load(io, EEPROM_INFO_ADDR, INFO_LEN, &mut buf);
     crate::dollar::info(io, crate::protocol::ascii_str(&buf[..n]));

@@ -18,7 +18,7 @@
 //! - `M61 P<p> S1` / `S0`: pocket `p` holds its tool / is empty (the operator
 //!   loaded or took out a tool by hand).
 
-use super::{carousel, Io, Machine, State};
+use super::{carousel, Io, Machine, State, Storage};
 use crate::atc::change::{Action, Change, Event, Request};
 use crate::atc::tools::{
     pocket_bit, Journal, ToolState, ToolTable, EEPROM_JOURNAL_ADDR, EEPROM_NUMBERS_ADDR, EEPROM_SETTER_ADDR, EEPROM_STATE_ADDR,
@@ -36,8 +36,9 @@ const _: () = assert!(EEPROM_SETTER_ADDR as usize + Setter::IMAGE_LEN <= EEPROM_
 
 /// Load the tool records and the tool setter's calibration (defaults when
 /// blank) at boot, and say what the operator must know.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
-pub fn boot(m: &mut Machine, io: &mut impl Io) {
+pub fn boot(m: &mut Machine, io: &mut (impl Storage + ufmt::uWrite)) {
     let mut st = [0u8; ToolState::IMAGE_LEN];
     io.eeprom_read(EEPROM_STATE_ADDR, &mut st);
     match ToolState::from_bytes(&st) {
@@ -67,7 +68,7 @@ pub fn boot(m: &mut Machine, io: &mut impl Io) {
 }
 
 /// The interrupted-change line, if a change is interrupted.
-pub fn report_interrupted(m: &Machine, io: &mut impl Io) {
+pub fn report_interrupted(m: &Machine, io: &mut impl ufmt::uWrite) {
     if let Some(j) = m.atc.interrupted {
         let (from, to) = (m.atc.table.number_of(j.from), m.atc.table.number_of(j.to));
         uwrite!(io, "{}{}->T{}", F!("echo:tool change T"), from, to).ok();
@@ -84,6 +85,7 @@ pub fn apply_offset(m: &mut Machine) {
 }
 
 /// `T<n>`, `M6 T<n>` or `M6` (the last T word): change to tool `to`.
+// flash: one copy (the runners' attributes removed: +1034 B flash)
 #[inline(never)]
 pub fn select(m: &mut Machine, io: &mut impl Io, to: Option<u16>) -> Result<(), Error> {
     let to = match to {
@@ -178,13 +180,13 @@ fn perform(m: &mut Machine, io: &mut impl Io, a: Action) -> Result<(), Error> {
 }
 
 /// Keep `s` as where the tools are, in RAM and EEPROM.
-fn store_state(m: &mut Machine, io: &mut impl Io, s: ToolState) {
+fn store_state(m: &mut Machine, io: &mut impl Storage, s: ToolState) {
     m.atc.tools = s;
     io.eeprom_write(EEPROM_STATE_ADDR, &s.to_bytes());
 }
 
 /// Mark "no change in progress" (only the marker and checksum change).
-fn clear_journal(io: &mut impl Io) {
+fn clear_journal(io: &mut impl Storage) {
     let mut jb = [0u8; Journal::IMAGE_LEN];
     io.eeprom_read(EEPROM_JOURNAL_ADDR, &mut jb);
     if Journal::from_bytes(&jb).is_some() {
@@ -194,7 +196,7 @@ fn clear_journal(io: &mut impl Io) {
 
 /// Store the tool table (lengths and diameters, and the numbers' record)
 /// where it differs from `before`.
-pub fn store_table(m: &Machine, io: &mut impl Io, before: &ToolTable) {
+pub fn store_table(m: &Machine, io: &mut impl Storage, before: &ToolTable) {
     let t = &m.atc.table;
     if t.length_um != before.length_um || t.diameter_um != before.diameter_um {
         io.eeprom_write(EEPROM_TABLE_ADDR, &t.to_bytes());
@@ -205,7 +207,7 @@ pub fn store_table(m: &Machine, io: &mut impl Io, before: &ToolTable) {
 }
 
 /// M61 Q<t>: the spindle holds tool `t` (0 = empty); see the module docs.
-pub fn confirm_tool(m: &mut Machine, io: &mut impl Io, t: u8) {
+pub fn confirm_tool(m: &mut Machine, io: &mut (impl Storage + ufmt::uWrite), t: u8) {
     let s = m.atc.tools.confirmed(t, m.atc.interrupted);
     store_state(m, io, s);
     if m.atc.interrupted.take().is_some() {
@@ -216,7 +218,7 @@ pub fn confirm_tool(m: &mut Machine, io: &mut impl Io, t: u8) {
 }
 
 /// M61 P<p> S<0|1>: pocket `p` holds its tool (`full`) or is empty.
-pub fn set_pocket(m: &mut Machine, io: &mut impl Io, p: u8, full: bool) -> Result<(), Error> {
+pub fn set_pocket(m: &mut Machine, io: &mut impl Storage, p: u8, full: bool) -> Result<(), Error> {
     if full && p == m.atc.spindle() {
         return Err(Error::Atc(Fault::PocketOfSpindleTool));
     }
@@ -232,7 +234,7 @@ pub fn set_pocket(m: &mut Machine, io: &mut impl Io, p: u8, full: bool) -> Resul
 /// `Q0` takes the tool out of the table. Refused, nothing stored: a pocket
 /// that holds another tool number, a tool already in another pocket (take
 /// it out first with `Q0`), and the pocket of the tool in the spindle.
-pub fn assign(m: &mut Machine, io: &mut impl Io, tool: u8, pocket: u8) -> Result<(), Error> {
+pub fn assign(m: &mut Machine, io: &mut impl Storage, tool: u8, pocket: u8) -> Result<(), Error> {
     let before = m.atc.table;
     let now = before.pocket_of(tool);
     let holder = before.number_of(pocket);
@@ -255,7 +257,7 @@ pub fn assign(m: &mut Machine, io: &mut impl Io, tool: u8, pocket: u8) -> Result
 
 /// G10 L1 P<t> [Z<length>] [R<radius>]: set a tool table entry by hand
 /// (mm, already converted from inches). Stored in EEPROM when it changed.
-pub fn set_tool(m: &mut Machine, io: &mut impl Io, t: u8, length_mm: Option<f32>, radius_mm: Option<f32>) {
+pub fn set_tool(m: &mut Machine, io: &mut impl Storage, t: u8, length_mm: Option<f32>, radius_mm: Option<f32>) {
     let before = m.atc.table;
     let i = t as usize - 1;
     if let Some(z) = length_mm {

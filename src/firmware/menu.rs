@@ -1,0 +1,229 @@
+//! The menu's commands carried out: the realtime ones at once (from the
+//! idle hook: pause, resume, abort, jog detents added up), the rest at the
+//! top of the main loop, never nested in a wait (start a file, home, jog,
+//! the Tools lines and the edits stored through the same lines as over
+//! serial), and the file list of the Files screen.
+
+use super::Hw;
+use crate::board;
+use mill::gcode::interp;
+use mill::machine::{Inputs, Machine};
+use mill::ui::menu::{Cmd, Reply, Screen};
+use mill::ui::render::Line;
+use mill::ui::sd::{req, Card, Name, SdError};
+use ufmt::uwriteln;
+
+/// Jog feed from the menu, mm/min.
+const JOG_FEED_MM_PER_MIN: f32 = 1200.0;
+
+impl Hw {
+    /// Menu commands: realtime ones now, the rest for the main loop.
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    pub(super) fn command_now(&mut self, cmd: Cmd) {
+        match cmd {
+            Cmd::None => {}
+            Cmd::Pause => {
+                if self.job.active() {
+                    self.job.pause();
+                } else {
+                    self.requests |= req::HOLD;
+                }
+            }
+            Cmd::Resume => {
+                if self.job.phase == mill::ui::sd::Phase::Paused {
+                    self.job.resume();
+                } else {
+                    // Feed hold, or M0/M1 inside a job or a stream.
+                    self.requests |= req::RESUME;
+                }
+            }
+            Cmd::Abort => {
+                if self.job.active() {
+                    self.job.abort();
+                } else {
+                    self.requests |= req::ABORT;
+                }
+            }
+            Cmd::Jog { axis, delta_um } => {
+                // Detents add up while a jog is still being queued.
+                self.pending = match self.pending {
+                    Cmd::Jog { axis: a, delta_um: d } if a == axis => Cmd::Jog { axis, delta_um: d + delta_um },
+                    _ => cmd,
+                };
+            }
+            other => self.pending = other,
+        }
+    }
+
+    /// Read the file names for the Files screen (count, and the visible ones).
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    pub(super) fn refresh_names(&mut self) {
+        let (first, _) = self.ui.visible_files();
+        let mut count: u8 = 0;
+        let names = &mut self.names;
+        let r = self.sd.mount().and_then(|_| {
+            self.sd.list(&mut |n, _| {
+                if count >= first && ((count - first) as usize) < names.len() {
+                    names[(count - first) as usize] = *n;
+                }
+                count = count.saturating_add(1);
+            })
+        });
+        self.files = if r.is_ok() { count } else { 0 };
+        self.names_first = first;
+        self.names_valid = true;
+    }
+
+    /// The name of file `i` in directory order.
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    pub(super) fn file_name(&mut self, i: u8) -> Option<Name> {
+        let mut k: u8 = 0;
+        let mut found = None;
+        self.sd
+            .list(&mut |n, _| {
+                if k == i {
+                    found = Some(*n);
+                }
+                k = k.saturating_add(1);
+            })
+            .ok()?;
+        found
+    }
+}
+
+/// The menu's commands that run at the top level.
+// stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+#[inline(never)]
+pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
+    if !board::sd_detected() && hw.sd.vol.is_some() && !hw.job.active() {
+        // Pulled while idle: forget it, so the next card is mounted afresh.
+        hw.sd.unmount();
+        hw.names_valid = false;
+    }
+    if matches!(hw.ui.screen, Screen::Files) && (!hw.names_valid || hw.ui.visible_files().0 != hw.names_first) {
+        hw.refresh_names();
+    }
+    let cmd = core::mem::replace(&mut hw.pending, Cmd::None);
+    let r = match cmd {
+        Cmd::ListFiles => {
+            hw.names_valid = false;
+            Ok(())
+        }
+        Cmd::RunFile(i) => match hw.file_name(i) {
+            Some(name) => match hw.job.select(&mut hw.sd, &name) {
+                Ok(()) => {
+                    m.job_start_ms = hw.millis();
+                    hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr()))
+                }
+                Err(e) => Err(interp::Error::Sd(e.text().as_fstr())),
+            },
+            None => Err(interp::Error::Sd(SdError::NotFound.text().as_fstr())),
+        },
+        Cmd::Override(pct) => {
+            m.set_feed_override(pct);
+            Ok(())
+        }
+        Cmd::OptionalStop(on) => {
+            // The same setting as `$152`, stored like it.
+            m.settings.optional_stop = on;
+            m.save_settings(hw);
+            Ok(())
+        }
+        Cmd::Jog { axis, delta_um } => m.jog(hw, axis as usize, delta_um as f32 / 1000.0, JOG_FEED_MM_PER_MIN),
+        Cmd::Home(mask) => mill::machine::home(m, hw, mask),
+        Cmd::Unlock => {
+            if m.alarm.is_some() {
+                m.clear_alarm(hw);
+            }
+            Ok(())
+        }
+        Cmd::Teach(p) => m.teach_station(hw, p),
+        Cmd::Store(e, um) => {
+            let r = store_edit(m, hw, e, um);
+            hw.ui.reply = match r {
+                Ok(()) => Reply::Ok,
+                Err(e) => Reply::Err(e.message()),
+            };
+            r
+        }
+        Cmd::Tool(op) => {
+            if matches!(op, mill::ui::menu::ToolOp::Confirm(_)) && m.alarm.is_some() {
+                // Confirming the spindle is a way out of the alarm.
+                m.clear_alarm(hw);
+            }
+            // The same line as over serial (T<n>, G37 [D1], M61 Q<t>), so
+            // the same checks and errors; the reply screen shows the outcome.
+            // The menu picks pockets; the line names the pocket's tool
+            // number, and a pocket without one is refused.
+            use mill::ui::menu::ToolOp;
+            let (op, pocket) = match op {
+                ToolOp::Change(p) => (ToolOp::Change(m.atc.table.number_of(p)), p),
+                ToolOp::Confirm(p) => (ToolOp::Confirm(m.atc.table.number_of(p)), p),
+                other => (other, 0),
+            };
+            let unnumbered = pocket != 0 && matches!(op, ToolOp::Change(0) | ToolOp::Confirm(0));
+            let mut l = Line::blank();
+            let n = op.gcode(&mut l);
+            let r = if unnumbered {
+                Err(interp::Error::Atc(mill::atc::Fault::NoNumber))
+            } else if op == ToolOp::ProbeZ {
+                // Down at most PROBE_Z_MM on the probe input (a miss is the
+                // probe-fail alarm, as G38.2), then the zero line.
+                m.probe_z_down(hw, mill::ui::menu::PROBE_Z_MM, mill::ui::menu::PROBE_Z_FEED)
+                    .and_then(|()| m.run_menu_line(&l.chars[..n], hw))
+            } else {
+                m.run_menu_line(&l.chars[..n], hw)
+            };
+            hw.ui.reply = match r {
+                Ok(()) => Reply::Ok,
+                Err(e) => Reply::Err(match (e, m.alarm) {
+                    (interp::Error::Alarm, Some(a)) => a.message(),
+                    _ => e.message(),
+                }),
+            };
+            r
+        }
+        _ => Ok(()),
+    };
+    if let Err(e) = r {
+        uwriteln!(hw, "{}", mill::F!("echo:menu:")).ok();
+        m.report_error(hw, e);
+    }
+}
+
+/// The menu's edit stored through the serial lines: `$n=<value>`, or for
+/// a pocket's tool number `G10 L1 P<old> Q0` then `G10 L1 P<new> Q<p>`
+/// (the old number put back if the new one is refused).
+// stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+#[inline(never)]
+fn store_edit(m: &mut Machine, hw: &mut Hw, e: mill::ui::menu::Edit, um: i32) -> mill::machine::CmdResult {
+    use mill::ui::menu::Edit;
+    let mut l = Line::blank();
+    let Edit::Pocket(p) = e else {
+        let n = e.gcode(um, None, &mut l);
+        return m.run_menu_line(&l.chars[..n], hw);
+    };
+    let (old, new) = (m.atc.table.number_of(p), (um / 1000) as u8);
+    if old == new {
+        return Ok(());
+    }
+    if old != 0 {
+        let n = e.gcode(um, Some(old), &mut l);
+        m.run_menu_line(&l.chars[..n], hw)?;
+    }
+    if new == 0 {
+        return Ok(());
+    }
+    let mut l = Line::blank();
+    let n = e.gcode(um, None, &mut l);
+    let r = m.run_menu_line(&l.chars[..n], hw);
+    if r.is_err() && old != 0 {
+        let mut l = Line::blank();
+        let n = e.gcode(old as i32 * 1000, None, &mut l);
+        m.run_menu_line(&l.chars[..n], hw).ok();
+    }
+    r
+}

@@ -1,0 +1,174 @@
+//! The SD card behind `mill::ui::sd::Card`: `embedded-sdmmc`'s
+//! `VolumeManager` with one volume, one directory and one file open at
+//! most (its 512-byte block cache is the biggest RAM item of the
+//! firmware), on the SPI bus with a watchdog-feeding retry delay and a
+//! fixed file date.
+
+use crate::board::spi::{BusyDelay, ClockDiv, SdDevice};
+use crate::board::{self, wdt};
+use core::ops::ControlFlow;
+use embedded_sdmmc::{Mode, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
+use mill::ui::sd::{Card, Name, SdError};
+
+/// Files get this date (there is no real-time clock).
+pub(super) struct FixedClock;
+
+impl TimeSource for FixedClock {
+    fn get_timestamp(&self) -> Timestamp {
+        Timestamp { year_since_1970: 56, zero_indexed_month: 0, zero_indexed_day: 0, hours: 0, minutes: 0, seconds: 0 }
+    }
+}
+
+/// The SD driver's retry delay: a busy wait that also feeds the watchdog,
+/// because a card that never answers keeps `embedded-sdmmc` retrying for
+/// seconds (10 000 polls per command, 50 CMD0 attempts).
+#[derive(Clone, Copy)]
+pub(super) struct SdDelay;
+
+impl embedded_hal::delay::DelayNs for SdDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        wdt::feed();
+        BusyDelay.delay_ns(ns);
+    }
+}
+
+pub(super) type SdDev = SdCard<SdDevice, SdDelay>;
+/// One volume, one directory, one file open at a time.
+type Volumes = VolumeManager<SdDev, FixedClock, 1, 1, 1>;
+
+/// The SD card behind `mill::ui::sd::Card`.
+pub(super) struct SdFiles {
+    pub(super) vm: Volumes,
+    pub(super) vol: Option<RawVolume>,
+    pub(super) file: Option<RawFile>,
+}
+
+fn map_err<E: core::fmt::Debug + core::error::Error>(e: embedded_sdmmc::Error<E>) -> SdError {
+    use embedded_sdmmc::Error as E2;
+    match e {
+        E2::DeviceError(_) => SdError::NoCard,
+        E2::FormatError(_) | E2::NoSuchVolume => SdError::NoFilesystem,
+        E2::NotFound => SdError::NotFound,
+        E2::FilenameError(_) => SdError::BadName,
+        _ => SdError::ReadFailed,
+    }
+}
+
+impl SdFiles {
+    fn set_clock(&mut self, div: ClockDiv) {
+        self.vm.device(|d| d.spi(|s| s.bus.set_clock(div)));
+    }
+
+    fn close_file(&mut self) -> Result<(), SdError> {
+        match self.file.take() {
+            Some(f) => self.vm.close_file(f).map_err(|_| SdError::WriteFailed),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Card for SdFiles {
+    fn detected(&self) -> bool {
+        board::sd_detected()
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn mount(&mut self) -> Result<(), SdError> {
+        if !board::sd_detected() {
+            self.unmount();
+            return Err(SdError::NoCard);
+        }
+        if self.vol.is_some() {
+            return Ok(());
+        }
+        // A fresh card: slow clock, 80 idle clocks, then let the driver
+        // initialise it on the first block read (the MBR).
+        self.set_clock(ClockDiv::SD_INIT);
+        self.vm.device(|d| {
+            d.mark_card_uninit();
+            d.spi(|s| s.wake_card().ok());
+        });
+        let v = self.vm.open_raw_volume(VolumeIdx(0)).map_err(map_err)?;
+        self.vol = Some(v);
+        self.set_clock(ClockDiv::FAST);
+        Ok(())
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn unmount(&mut self) {
+        // Handles are dropped whatever the card says (it may be gone).
+        if let Some(f) = self.file.take() {
+            let _ = self.vm.close_file(f);
+        }
+        if let Some(v) = self.vol.take() {
+            let _ = self.vm.close_volume(v);
+        }
+        self.vm.device(|d| d.mark_card_uninit());
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError> {
+        let vol = self.vol.ok_or(SdError::NoCard)?;
+        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
+        let r = self.vm.iterate_dir(dir, |e| {
+            if !e.attributes.is_directory() && !e.attributes.is_volume() && !e.attributes.is_hidden() {
+                f(&Name::from_parts(e.name.base_name(), e.name.extension()), e.size);
+            }
+            ControlFlow::Continue(())
+        });
+        let _ = self.vm.close_dir(dir);
+        r.map_err(map_err)
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError> {
+        self.close_file()?;
+        let vol = self.vol.ok_or(SdError::NoCard)?;
+        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
+        let mode = if write { Mode::ReadWriteCreateOrTruncate } else { Mode::ReadOnly };
+        // The name goes in as a ShortFileName: passed as a `&str`, the AVR
+        // build of open_file_in_dir did not find files that
+        // find_directory_entry found (measured in simavr; not chased further).
+        let r = embedded_sdmmc::ShortFileName::create_from_str(name.as_str())
+            .map_err(embedded_sdmmc::Error::FilenameError)
+            .and_then(|sfn| self.vm.open_file_in_dir(dir, sfn, mode));
+        let _ = self.vm.close_dir(dir);
+        let f = r.map_err(map_err)?;
+        self.file = Some(f);
+        self.vm.file_length(f).map_err(map_err)
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError> {
+        let f = self.file.ok_or(SdError::NotFound)?;
+        if self.vm.file_eof(f).map_err(|_| SdError::ReadFailed)? {
+            return Ok(0);
+        }
+        self.vm.read(f, buf).map_err(|_| SdError::ReadFailed)
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn seek(&mut self, pos: u32) -> Result<(), SdError> {
+        let f = self.file.ok_or(SdError::NotFound)?;
+        self.vm.file_seek_from_start(f, pos).map_err(|_| SdError::ReadFailed)
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn write(&mut self, data: &[u8]) -> Result<(), SdError> {
+        let f = self.file.ok_or(SdError::NotFound)?;
+        self.vm.write(f, data).map_err(|_| SdError::WriteFailed)
+    }
+
+    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
+    #[inline(never)]
+    fn close(&mut self) -> Result<(), SdError> {
+        self.close_file()
+    }
+}

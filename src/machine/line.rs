@@ -1,0 +1,316 @@
+//! Line handling: bytes into lines (`protocol::LineAssembler`), the
+//! resend protocol (`protocol::LineChecker`), the one reply a serial line
+//! gets (`ok`, `Error:…`, or grbl's `error:<n>`), which host is talking, and
+//! running a line from any source (serial, SD job, menu) through the parser
+//! and the interpreter, one [`Command`] at a time into
+//! [`Machine::dispatch`](super::Machine).
+
+use super::{Alarm, CmdResult, Io, LineSource, Machine, SdJobFlags, State};
+use crate::gcode::interp::{self, Command};
+use crate::protocol::Assembled;
+use ufmt::{uwrite, uwriteln};
+
+impl Machine {
+    /// Feed received bytes as long as `bytes` gives them; runs complete
+    /// lines as they end. `scratch` holds the line while it runs (the
+    /// firmware passes the SD job's line buffer: the two are never in use
+    /// at once, and a copy on the stack cost 256 bytes of stack high-water).
+    ///
+    /// The per-byte path is only the assembler, in one loop (a call per
+    /// byte cost ~20 cycles on the AVR); the end of a line goes through
+    /// [`Machine::line_end`].
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub fn push_bytes(&mut self, bytes: impl Iterator<Item = u8>, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
+        for b in bytes {
+            if let Some(done) = self.asm.push(b) {
+                self.line_end(done, io, scratch);
+            }
+        }
+    }
+
+    /// A line ended in the assembler: run it, or report why it was dropped.
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub(super) fn line_end(&mut self, done: Assembled, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
+        match done {
+            Assembled::Line => {
+                // The line is copied out of the assembler (running it needs
+                // `&mut self`).
+                let raw = self.asm.line();
+                let n = raw.len().min(scratch.len());
+                let line = match (scratch.get_mut(..n), raw.get(..n)) {
+                    (Some(d), Some(r)) => {
+                        d.copy_from_slice(r);
+                        &*d
+                    }
+                    _ => &[][..],
+                };
+                self.run_raw_line(line, io);
+            }
+            other => {
+                let msg = match other {
+                    Assembled::TooLong => F!("line too long (max 256 characters), ignored"),
+                    Assembled::Overrun => F!("serial receive overrun, line dropped before its checksum was checked"),
+                    _ => F!("binary data in line, ignored"),
+                };
+                // Numbered if it began with N; after an overrun (its start may
+                // be lost) as the line before it was.
+                self.numbered |= self.asm.dropped_numbered();
+                if self.grbl_replies && !self.numbered {
+                    // grbl: error 11 (line overflow), or 1 for the rest.
+                    let code = if other == Assembled::TooLong { 11u8 } else { 1 };
+                    uwriteln!(io, "{}{}{}{}", F!("[MSG:"), msg, F!("]\nerror:"), code).ok();
+                    return;
+                }
+                self.reject_line(io, msg);
+                uwriteln!(io, "ok").ok();
+            }
+        }
+    }
+
+    /// A line failed a protocol check (checksum, too long, overrun, ...).
+    /// A numbered line is asked for again (`Resend:`), until it has failed
+    /// `protocol::MAX_TRIES` times in a row: then it is given up with an
+    /// error and the line number moves past it (`LineChecker::failed`), so
+    /// that no input keeps a host resending the same line forever.
+    pub(super) fn reject_line(&mut self, io: &mut impl Io, msg: crate::flash::FStr) {
+        if !self.numbered {
+            uwriteln!(io, "Error:{}", msg).ok();
+            return;
+        }
+        match self.chk.failed() {
+            crate::protocol::Retry::GiveUp(n) => {
+                // No checksum or line-number words in this text: OctoPrint
+                // must not take it for a resend request (it stops the job).
+                uwriteln!(io, "Error:{}{}{}", F!("gave up on line "), n, F!(" after 3 failed tries; it is NOT run")).ok();
+            }
+            crate::protocol::Retry::Resend(n) => {
+                uwriteln!(io, "{}{}{}{}", F!("Error:"), msg, F!(", Last Line: "), self.chk.last_line()).ok();
+                uwriteln!(io, "{}{}", F!("Resend:"), n).ok();
+            }
+        }
+    }
+
+    /// Check N/* and run one line; always ends with exactly one `ok`.
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub(super) fn run_raw_line(&mut self, raw: &[u8], io: &mut impl Io) {
+        // Numbered for the resend protocol: N and a checksum (an N alone is a
+        // file's block number, which the protocol does not track).
+        self.numbered = matches!(raw.first(), Some(b'N' | b'n')) && raw.contains(&b'*');
+        match self.chk.check(raw) {
+            Err(crate::protocol::ProtoError::LineNumber) => {
+                // A line sent after one that failed (the host had several in
+                // flight): not a new try of the failed line.
+                let e = crate::protocol::ProtoError::LineNumber;
+                uwriteln!(io, "{}{}{}{}", F!("Error:"), e.message(), F!(", Last Line: "), self.chk.last_line()).ok();
+                uwriteln!(io, "{}{}", F!("Resend:"), self.chk.resend_line()).ok();
+            }
+            Err(e) => {
+                self.numbered = true;
+                self.reject_line(io, e.message());
+            }
+            Ok(cmd) => {
+                self.note_host(cmd);
+                self.source = LineSource::Serial;
+                if self.numbered {
+                    self.planner.line_tag = self.chk.last_line() as u16;
+                }
+                self.last_busy_ms = io.millis();
+                self.line_aborts = self.aborts;
+                let sd = crate::hostcodes::sd_code(cmd);
+                let was_running = self.sd_job;
+                let r = match sd {
+                    // M28 is writing a file: every line but M29 goes there.
+                    Some((29, _)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, 29, &[]),
+                    _ if io.sd_capture(cmd) => Ok(()),
+                    Some((code, arg)) => io.sd_command(SdJobFlags { sd_job: &mut self.sd_job, aborts: self.aborts }, code, arg),
+                    None => self.execute(cmd, io),
+                };
+                let source = core::mem::replace(&mut self.source, LineSource::None);
+                if self.sd_job && !was_running {
+                    self.job_start_ms = io.millis();
+                }
+                if source == LineSource::SerialReset {
+                    // A soft reset ended the line: grbl prints nothing more
+                    // for it (the banner already went out).
+                    return;
+                }
+                if let Err(e) = r {
+                    if self.grbl_replies && matches!(e, interp::Error::ProbeFailed) {
+                        // grbl: a probe that touched nothing is its alarm
+                        // (`ALARM:5`, already out); the line itself is
+                        // acknowledged.
+                        uwriteln!(io, "ok").ok();
+                        return;
+                    }
+                    if self.grbl_replies {
+                        // grbl: the error instead of the `ok`, its text first.
+                        uwrite!(io, "{}", F!("[MSG:")).ok();
+                        self.write_error(io, e);
+                        uwriteln!(io, "{}{}", F!("]\nerror:"), e.grbl_code()).ok();
+                        return;
+                    }
+                    uwrite!(io, "Error:").ok();
+                    self.write_error(io, e);
+                    uwriteln!(io, "").ok();
+                }
+            }
+        }
+        uwriteln!(io, "ok").ok();
+    }
+
+    /// Which host is talking, from what it sends (see
+    /// [`Machine::grbl_replies`]): a first-byte test for the usual line.
+    // speed: a first-byte test, inline in run_raw_line (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(always)]
+    pub(super) fn note_host(&mut self, cmd: &[u8]) {
+        match cmd.first() {
+            Some(b'$') => {
+                if matches!(cmd.get(1), Some(b'$' | b'I' | b'i' | b'G' | b'g' | b'#')) {
+                    self.grbl_replies = true;
+                }
+            }
+            Some(b'M' | b'm') if self.grbl_replies => {
+                if matches!(cmd.get(1..4), Some(b"110" | b"115")) {
+                    self.grbl_replies = false;
+                }
+            }
+            _ => {}
+        }
+        if self.numbered {
+            self.grbl_replies = false;
+        }
+    }
+
+    /// Print `Error:<what>` for a failed line.
+    pub fn report_error(&self, io: &mut impl ufmt::uWrite, e: interp::Error) {
+        uwrite!(io, "Error:").ok();
+        self.write_error(io, e);
+        uwriteln!(io, "").ok();
+    }
+
+    /// The text of an error, without a line end.
+    pub(super) fn write_error(&self, io: &mut impl ufmt::uWrite, e: interp::Error) {
+        match e {
+            interp::Error::Alarm => {
+                let why = self.alarm.map_or(F!("unknown"), |a| a.message());
+                uwrite!(io, "alarm {}{}", why, F!("; home or M999")).ok();
+            }
+            interp::Error::Parse(p) => {
+                uwrite!(io, "{}{}{}", p.kind.message(), F!(" at col "), p.col).ok();
+            }
+            interp::Error::Sd(t) => {
+                // SD card errors print their own text.
+                uwrite!(io, "{}", t).ok();
+            }
+            interp::Error::StationOutside { setting, axis } => {
+                let name = b"XYZ"[axis as usize] as char;
+                uwrite!(io, "${}{}{}", setting, F!(" (tool change station) outside the "), name).ok();
+                uwrite!(io, "{}{}{}", F!(" travel 0..$13"), axis, F!(", nothing changed")).ok();
+            }
+            interp::Error::UnusedWord(w) => {
+                uwrite!(io, "{}{}", w.letter() as char, F!(" word with no code that uses it")).ok();
+            }
+            interp::Error::NoPocket(t) => {
+                uwrite!(io, "{}{}{}{}{}", F!("tool T"), t, F!(" not in the tool table: G10 L1 P"), t, F!(" Q<pocket> assigns it")).ok();
+            }
+            other => {
+                uwrite!(io, "{}", other.message()).ok();
+            }
+        }
+    }
+
+    /// Run one line of an SD job (the same path as a serial line, without
+    /// the `ok`; the job reports errors with the line number).
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub fn run_job_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        self.line_aborts = self.aborts;
+        if crate::hostcodes::sd_code(text).is_some() {
+            return Err(interp::Error::BadWord(F!("SD commands are not allowed inside an SD job")));
+        }
+        self.source = LineSource::Job;
+        let r = self.execute(text, io);
+        self.source = LineSource::None;
+        r
+    }
+
+    /// Run one line for the menu (Tools: `T<n>`, `G37`, `M61 Q<t>`): the
+    /// same path as a serial line, without the `ok`; the caller reports errors.
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub fn run_menu_line(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        self.line_aborts = self.aborts;
+        self.source = LineSource::Menu;
+        let r = self.execute(text, io);
+        self.source = LineSource::None;
+        r
+    }
+
+    /// True while the line being run comes from the SD job.
+    pub fn in_job_line(&self) -> bool {
+        self.source == LineSource::Job
+    }
+
+    /// A serial line is running (its host waits for the `ok`).
+    pub(super) fn in_serial_line(&self) -> bool {
+        matches!(self.source, LineSource::Serial | LineSource::SerialReset)
+    }
+
+    /// Parse and run one command line (without N and checksum).
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub fn execute(&mut self, text: &[u8], io: &mut impl Io) -> CmdResult {
+        if text.first() == Some(&b'$') {
+            return self.dollar(text, io);
+        }
+        if let Some((code, arg)) = crate::hostcodes::code(text) {
+            return crate::hostcodes::run(&mut self.host, io, code, arg);
+        }
+        let mut line = crate::gcode::Line::default();
+        crate::gcode::parse_into(text, &mut line).map_err(interp::Error::Parse)?;
+        // A serial line's block number (`N10 G1 …`, grbl senders): its moves
+        // carry it for `?`'s `Ln:` (a Marlin host's N is the checker's, set
+        // in `run_raw_line`; an SD job tags its own lines).
+        if self.in_serial_line() && !self.numbered {
+            self.planner.line_tag = crate::protocol::block_number(text);
+        }
+        self.run_line(&line, io)
+    }
+
+    /// Run a parsed line: ask the interpreter for its commands, one at a
+    /// time, and carry each out ([`Machine::dispatch`]) before asking for
+    /// the next. The first error ends the line.
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    #[inline(never)]
+    pub(super) fn run_line(&mut self, l: &crate::gcode::Line, io: &mut impl Io) -> CmdResult {
+        self.interp.begin_line();
+        // `line_done` spares the last call (a streamed G1 is one move).
+        while !self.interp.line_done() {
+            let cx = interp::Ctx {
+                settings: &self.settings,
+                atc: &self.atc,
+                alarm: self.alarm.is_some(),
+                estop: self.alarm == Some(Alarm::EmergencyStop),
+                status_only: self.sd_job && self.source != LineSource::Job,
+            };
+            // Matched by reference: the command is not copied again.
+            let r = self.interp.next(&cx, l);
+            match &r {
+                Ok(Some(Command::Move { .. } | Command::CycleMove { .. })) if self.state == State::Check => {
+                    self.interp.target_reached();
+                }
+                Ok(Some(Command::Move { feed_mm_per_min, rapid })) => self.move_interp(io, *feed_mm_per_min, *rapid)?,
+                // `$C`: only reports run; spindle, tool, probe, dwell,
+                // homing and EEPROM writes are checked and skipped.
+                Ok(Some(cmd)) if self.state == State::Check && !matches!(cmd, Command::Report(_)) => {}
+                Ok(Some(cmd)) => self.dispatch(cmd, io)?,
+                Ok(None) => return Ok(()),
+                Err(e) => return Err(*e),
+            }
+        }
+        Ok(())
+    }
+}
