@@ -259,12 +259,13 @@ fn the_sd_file_list_scrolls_and_a_job_run_from_the_menu_matches_the_serial_strea
     assert_eq!(screen(&vm)[2], "[ Run from SD]");
     press(&mut vm);
     let s = screen(&vm);
-    assert_eq!(s[0..4], ["[ Files]", "[ < Back]", " PART0.NC", " PART1.NC"], "{s:?}");
+    // Sorted by name, whatever the order on the card.
+    assert_eq!(s[0..5], ["[ Files]", "[ < Back]", " JOB.GCO", " PART0.NC", " PART1.NC"], "{s:?}");
     golden(&vm, "sd_file_list");
     // Scroll past the bottom of the screen and back up to JOB.GCO.
     turn(&mut vm, 8);
     assert_eq!(screen(&vm)[7], "[ PART6.NC]", "{:?}", screen(&vm));
-    turn(&mut vm, -3);
+    turn(&mut vm, -7);
     assert!(screen(&vm).contains(&"[ JOB.GCO]".to_string()), "{:?}", screen(&vm));
     press(&mut vm);
     assert_eq!(screen(&vm)[0..3], ["[ Run JOB.GCO?]", "[ No]", " Yes"]);
@@ -306,6 +307,43 @@ fn a_running_job_shows_its_values_and_the_button_resumes_it_from_m0() {
 
 // ------------------------------------------------- job control and faults
 
+/// The job row's percentage, from the status screen.
+fn job_pct(vm: &mut Vm) -> u32 {
+    settle(vm);
+    let s = screen(vm);
+    s[6].rsplit(' ').next().and_then(|p| p.strip_suffix('%')).and_then(|p| p.trim().parse().ok()).unwrap_or_else(|| panic!("{s:?}"))
+}
+
+#[test]
+fn job_progress_follows_the_cut_not_the_lines_read_ahead() {
+    // 40 moves of 18 mm at 20 mm/s: the planner reads 16 of them ahead at once.
+    let job = long_job(40);
+    let mut vm = boot_with_card(&[("LONG.NC", job.as_bytes())]);
+    ok(&mut vm, "M23 LONG.NC");
+    ok(&mut vm, "M24");
+    vm.run_for(3.0).unwrap();
+    let read: Vec<u32> = ok(&mut vm, "M27")[0].trim_start_matches("SD printing byte ").split('/').map(|n| n.parse().unwrap()).collect();
+    let read_pct = 100 * read[0] / read[1];
+    let shown = job_pct(&mut vm);
+    // The X moves done so far: each line is one 18 mm move.
+    let x_travel: i64 = vm.recorder().trace().iter().filter(|t| t.axis == Axis::X).count() as i64;
+    let cut_pct = (100 * x_travel / (40 * 1800)) as u32;
+    println!("after 3 s: {read_pct} % of the bytes read, {cut_pct} % of the travel cut, {shown} % shown");
+    assert!(read_pct >= 40, "the planner read ahead: {read_pct} %");
+    assert!(shown + 5 >= cut_pct && shown <= cut_pct + 8, "shown {shown} % against {cut_pct} % cut");
+    // The time so far (3 s and a bit since M24) and the time left.
+    let t = screen(&vm)[7].clone();
+    let (so_far, left) = t.strip_prefix("Time 0:0").and_then(|r| r.split_once(" Left ")).unwrap_or_else(|| panic!("{t:?}"));
+    let secs = |m_ss: &str| -> u32 {
+        let (m, s) = m_ss.split_once(':').unwrap();
+        m.parse::<u32>().unwrap() * 60 + s.parse::<u32>().unwrap()
+    };
+    let so_far: u32 = so_far.parse().unwrap();
+    assert!((3..=4).contains(&so_far), "{t:?}");
+    assert_eq!(secs(left), so_far * (1000 - shown * 10) / (shown * 10), "{t:?}");
+    wait_for(&mut vm, |l| l == "Done printing file", 60.0);
+}
+
 /// `head`, then `lines` moves on X at F1200 (20 mm/s) alternating between
 /// `xs[0]` and `xs[1]`, then `tail`.
 fn back_and_forth(head: &str, xs: [u32; 2], lines: usize, tail: &str) -> String {
@@ -319,6 +357,71 @@ fn back_and_forth(head: &str, xs: [u32; 2], lines: usize, tail: &str) -> String 
 /// A long back-and-forth job on X at F1200 (1200 mm/min = 20 mm/s), spindle on.
 fn long_job(lines: usize) -> String {
     back_and_forth("G21 G90\nM3 S8000\n", [20, 2], lines, "M5\nM2\n")
+}
+
+/// A job in a folder, with a long name: 2 mm in X and Y at F600.
+const FOLDER_JOB: &str = "G21 G90\nG1 X2 Y2 F600\nM2\n";
+
+#[test]
+fn folders_and_long_names_are_listed_sorted_and_a_job_in_a_folder_runs_from_the_menu() {
+    for kind in [FatKind::Fat16, FatKind::Fat32] {
+        let files: [(&str, &[u8]); 6] = [
+            ("zeta.nc", b"G0 X1\n"),
+            ("JOBS/POCKET_ROUGH.GCODE", FOLDER_JOB.as_bytes()),
+            ("JOBS/deep/inner.nc", b"G0 X3\n"),
+            ("Archive/old.nc", b"G0 X4\n"),
+            ("alpha.nc", b"G0 X5\n"),
+            ("bracket_v2_final_final.nc", b"G0 X6\n"),
+        ];
+        let mut vm = boot_unlocked();
+        vm.insert_sd(card(&files, kind));
+        let mut hands = Hands::default();
+        hands.press(&mut vm);
+        hands.turn(&mut vm, 1);
+        hands.press(&mut vm);
+        // Folders first, then files, each by name without case; long names
+        // as they are, cut with `~` past 18 characters.
+        let s = screen(&vm);
+        assert_eq!(s[1..7], ["[ < Back]", " Archive/", " JOBS/", " alpha.nc", " bracket_v2_final_~", " zeta.nc"], "{kind:?} {s:?}");
+        if kind == FatKind::Fat16 {
+            golden(&vm, "sd_folders");
+        }
+        hands.turn(&mut vm, 2);
+        hands.press(&mut vm);
+        let s = screen(&vm);
+        assert_eq!(s[1..4], ["[ < Back]", " deep/", " POCKET_ROUGH.GCODE"], "{kind:?} {s:?}");
+        if kind == FatKind::Fat16 {
+            golden(&vm, "sd_folder_inside");
+        }
+        // Two levels down and back up: "< Back" goes up one folder.
+        turn(&mut vm, 1);
+        press(&mut vm);
+        assert_eq!(screen(&vm)[1..3], ["[ < Back]", " inner.nc"], "{kind:?}");
+        press(&mut vm);
+        assert_eq!(screen(&vm)[1..4], ["[ < Back]", " deep/", " POCKET_ROUGH.GCODE"], "{kind:?}");
+        // Run the long-named job.
+        let start = steps(&vm);
+        hands.turn(&mut vm, 2);
+        hands.press(&mut vm);
+        // The title has room for 15 characters of the name.
+        assert_eq!(screen(&vm)[0], "[ Run POCKET_ROUGH.G~?]", "{kind:?}");
+        hands.turn(&mut vm, 1);
+        hands.press(&mut vm);
+        wait_for(&mut vm, |l| l == "Done printing file", 30.0);
+        let moved: Vec<i64> = steps(&vm).iter().zip(start.iter()).map(|(a, b)| a - b).collect();
+        assert_eq!(moved[..2], [200, 200], "{kind:?}: X and Y moved 2 mm (100 steps/mm)");
+        println!("{kind:?}: start a file in a folder: {} encoder actions", hands.actions());
+        // Serial M20 still lists the root's files by their 8.3 names; M33
+        // gives a long name.
+        settle(&mut vm);
+        vm.take_lines();
+        let r = ok(&mut vm, "M20");
+        assert_eq!(r[0], "Begin file list", "{r:?}");
+        assert_eq!(r.len(), 6, "three root files: {r:?}");
+        assert!(r.iter().any(|l| l == "ALPHA.NC 6"), "{r:?}");
+        assert_eq!(ok(&mut vm, "M33 ALPHA.NC")[0], "/alpha.nc");
+        assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+    }
 }
 
 #[test]
@@ -558,6 +661,10 @@ fn bad_gcode_on_line_40_stops_the_job_there_and_shows_the_line() {
     assert_eq!(steps(&vm)[0], start[0] + 300);
     settle(&mut vm);
     assert_eq!(screen(&vm)[6], "Stopped: line 40");
+    // And why: the refusal's message, as far as the line goes.
+    let why = &screen(&vm)[7];
+    assert!(!why.is_empty() && err.contains(why.as_str()), "{why:?} is not the start of {err:?}");
+    golden(&vm, "job_stopped_with_reason");
 }
 
 // ------------------------------------------- throughput, encoder, refresh
@@ -641,9 +748,9 @@ fn a_hundred_detents_at_ten_per_second_during_a_job_move_the_list_exactly_100() 
     // 100 detents, one every 100 ms, while the job runs.
     turn(&mut vm, 100);
     assert_ne!(steps(&vm), moving, "the job kept running");
-    // Entry 100 is file 99 in directory order: JOB.NC, F000 ... so F098.
+    // Entry 100 is file 99 in sorted order: F000 ... F119, JOB.NC, so F099.
     let s = screen(&vm);
-    assert_eq!(s[7], "[ F098.NC]", "{s:?}");
+    assert_eq!(s[7], "[ F099.NC]", "{s:?}");
     turn(&mut vm, -100);
     assert_eq!(screen(&vm)[1], "[ < Back]");
     assert!(vm.violations().is_empty());

@@ -32,7 +32,8 @@ impl SdImage {
         SdImage { kind, files: Vec::new(), label: *b"MILL       " }
     }
 
-    /// Add a file in the root directory (8.3 name).
+    /// Add a file: a long or 8.3 name, in folders when the path has `/`
+    /// (`JOBS/POCKET_ROUGH.GCODE`; the folders are made as needed).
     pub fn file(mut self, name: &str, contents: &[u8]) -> SdImage {
         self.files.push((name.to_string(), contents.to_vec()));
         self
@@ -61,9 +62,17 @@ impl SdImage {
             let opts = fatfs::FormatVolumeOptions::new().fat_type(fat_type).bytes_per_cluster(512).volume_label(self.label);
             fatfs::format_volume(Cursor::new(&mut part[..]), opts).expect("format FAT volume");
             let fs = fatfs::FileSystem::new(Cursor::new(&mut part[..]), fatfs::FsOptions::new()).expect("mount");
-            let root = fs.root_dir();
-            for (name, data) in &self.files {
-                let mut f = root.create_file(name).expect("create file");
+            for (path, data) in &self.files {
+                let mut dir = fs.root_dir();
+                let mut parts: Vec<&str> = path.split('/').collect();
+                let name = parts.pop().expect("a file name");
+                for p in parts {
+                    dir = match dir.open_dir(p) {
+                        Ok(d) => d,
+                        Err(_) => dir.create_dir(p).expect("create folder"),
+                    };
+                }
+                let mut f = dir.create_file(name).expect("create file");
                 f.write_all(data).expect("write file");
             }
         }

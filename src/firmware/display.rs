@@ -10,7 +10,6 @@ use crate::board::twi::Twi;
 use mill::machine::Machine;
 use mill::ui::menu::Screen;
 use mill::ui::render::{Line, ROWS, SLICE, WIDTH};
-use mill::ui::sd::Name;
 
 /// Display frames start at most this often (5 Hz; docs/SPEC.md §9 asks ≥ 4 Hz).
 const FRAME_MS: u32 = 200;
@@ -80,10 +79,16 @@ impl Hw {
         v.wcs = m.interp.wcs;
         v.rpm = rpm.clamp(0.0, 65535.0) as u16;
         v.job = self.job.phase;
-        v.job_pct = self.job.percent();
+        v.job_pct = (self.job.permille_cut(m) / 10) as u8;
+        if self.job.active() {
+            v.job_s = (board::millis().wrapping_sub(m.job_start_ms) / 1000).min(u16::MAX as u32) as u16;
+        }
+        v.job_why = self.job.why;
         v.job_name = self.job.name;
         v.card_in = board::sd_detected();
-        v.files = self.files;
+        v.files = self.files.count;
+        v.in_folder = self.sd.depth > 0;
+        v.folder_rows = if self.files.first == self.ui.visible_files().0 { self.files.dirs() } else { 0 };
         v.interrupted = m.atc.interrupted;
         v.alarm = m.alarm;
         v.limit_axes = m.limit_axes;
@@ -125,17 +130,7 @@ impl Hw {
         }
         let page = self.display.page;
         if self.display.slice == 0 {
-            let names = &self.names;
-            let first = self.names_first;
-            let valid = self.names_valid;
-            let file = |i: u8| -> Option<Name> {
-                if valid && i >= first && ((i - first) as usize) < names.len() {
-                    Some(names[(i - first) as usize])
-                } else {
-                    None
-                }
-            };
-            let line = self.ui.line(page as usize, &self.view, m, &file);
+            let line = self.ui.line(page as usize, &self.view, m, &self.files);
             let h = line.hash();
             let d = &mut self.display;
             if d.valid & (1 << page) != 0 && d.shown[page as usize] == h {

@@ -152,7 +152,7 @@ impl Host for Hw {
     }
 
     fn sd_command(&mut self, flags: mill::machine::SdJobFlags<'_>, code: u16, arg: &[u8]) -> mill::machine::CmdResult {
-        self.names_valid = false;
+        self.files.valid = false;
         sdjob::command_with(&mut self.job, &mut self.sd, flags, &mut SerialOut, code, arg).map_err(|t| interp::Error::Sd(t.as_fstr()))
     }
 

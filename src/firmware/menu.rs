@@ -10,7 +10,7 @@ use mill::gcode::interp;
 use mill::machine::{Inputs, Machine};
 use mill::ui::menu::{Cmd, Reply, Screen};
 use mill::ui::render::Line;
-use mill::ui::sd::{req, Card, Name, SdError};
+use mill::ui::sd::{req, Card, Folder, SdError};
 use ufmt::uwriteln;
 
 /// Jog feed from the menu, mm/min.
@@ -55,42 +55,41 @@ impl Hw {
             other => self.pending = other,
         }
     }
+}
 
-    /// Read the file names for the Files screen (count, and the visible ones).
-    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
-    #[inline(never)]
-    pub(super) fn refresh_names(&mut self) {
-        let (first, _) = self.ui.visible_files();
-        let mut count: u8 = 0;
-        let names = &mut self.names;
-        let r = self.sd.mount().and_then(|_| {
-            self.sd.list(&mut |n, _| {
-                if count >= first && ((count - first) as usize) < names.len() {
-                    names[(count - first) as usize] = *n;
+/// The Files screen's commands (a frame of their own: `ui_turn` is on the
+/// deepest stack path, the alarm menu's jog).
+#[inline(never)]
+fn files_cmd(m: &mut Machine, hw: &mut Hw, cmd: Cmd) -> mill::machine::CmdResult {
+    let sd_err = |e: SdError| interp::Error::Sd(e.text().as_fstr());
+    match cmd {
+        Cmd::ListFiles => {
+            hw.files.valid = false;
+            Ok(())
+        }
+        Cmd::OpenFolder(i) => {
+            let r = match hw.files.entry(&mut hw.sd, i) {
+                Some((name, true)) => hw.sd.enter(&name).map_err(sd_err),
+                _ => Err(sd_err(SdError::NotFound)),
+            };
+            hw.files.valid = false;
+            r
+        }
+        Cmd::FolderUp => {
+            hw.files.valid = false;
+            hw.sd.leave().map_err(sd_err)
+        }
+        Cmd::RunFile(i) => match hw.files.entry(&mut hw.sd, i) {
+            Some((name, false)) => match hw.job.select(&mut hw.sd, Folder::Current, &name) {
+                Ok(()) => {
+                    m.job_start_ms = hw.millis();
+                    hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr()))
                 }
-                count = count.saturating_add(1);
-            })
-        });
-        self.files = if r.is_ok() { count } else { 0 };
-        self.names_first = first;
-        self.names_valid = true;
-    }
-
-    /// The name of file `i` in directory order.
-    // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
-    #[inline(never)]
-    pub(super) fn file_name(&mut self, i: u8) -> Option<Name> {
-        let mut k: u8 = 0;
-        let mut found = None;
-        self.sd
-            .list(&mut |n, _| {
-                if k == i {
-                    found = Some(*n);
-                }
-                k = k.saturating_add(1);
-            })
-            .ok()?;
-        found
+                Err(e) => Err(sd_err(e)),
+            },
+            _ => Err(sd_err(SdError::NotFound)),
+        },
+        _ => Ok(()),
     }
 }
 
@@ -101,27 +100,14 @@ pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
     if !board::sd_detected() && hw.sd.vol.is_some() && !hw.job.active() {
         // Pulled while idle: forget it, so the next card is mounted afresh.
         hw.sd.unmount();
-        hw.names_valid = false;
+        hw.files.valid = false;
     }
-    if matches!(hw.ui.screen, Screen::Files) && (!hw.names_valid || hw.ui.visible_files().0 != hw.names_first) {
-        hw.refresh_names();
+    if matches!(hw.ui.screen, Screen::Files) && (!hw.files.valid || hw.ui.visible_files().0 != hw.files.first) {
+        hw.files.refresh(&mut hw.sd, hw.ui.visible_files().0);
     }
     let cmd = core::mem::replace(&mut hw.pending, Cmd::None);
     let r = match cmd {
-        Cmd::ListFiles => {
-            hw.names_valid = false;
-            Ok(())
-        }
-        Cmd::RunFile(i) => match hw.file_name(i) {
-            Some(name) => match hw.job.select(&mut hw.sd, &name) {
-                Ok(()) => {
-                    m.job_start_ms = hw.millis();
-                    hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr()))
-                }
-                Err(e) => Err(interp::Error::Sd(e.text().as_fstr())),
-            },
-            None => Err(interp::Error::Sd(SdError::NotFound.text().as_fstr())),
-        },
+        Cmd::ListFiles | Cmd::OpenFolder(_) | Cmd::FolderUp | Cmd::RunFile(_) => files_cmd(m, hw, cmd),
         Cmd::Override(pct) => {
             m.set_feed_override(pct);
             Ok(())

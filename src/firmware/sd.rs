@@ -7,8 +7,8 @@
 use crate::board::spi::{BusyDelay, ClockDiv, SdDevice};
 use crate::board::{self, wdt};
 use core::ops::ControlFlow;
-use embedded_sdmmc::{Mode, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
-use mill::ui::sd::{Card, Name, SdError};
+use embedded_sdmmc::{LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
+use mill::ui::sd::{Card, Entry, Folder, Name, SdError};
 
 /// Files get this date (there is no real-time clock).
 pub(super) struct FixedClock;
@@ -41,6 +41,11 @@ pub(super) struct SdFiles {
     pub(super) vm: Volumes,
     pub(super) vol: Option<RawVolume>,
     pub(super) file: Option<RawFile>,
+    /// The menu's current folder: its first cluster (0: the root), and how
+    /// deep it is. No directory handle stays open: each use opens the root
+    /// and points it there (`set_dir_cluster`).
+    pub(super) cwd: u32,
+    pub(super) depth: u8,
 }
 
 fn map_err<E: core::fmt::Debug + core::error::Error>(e: embedded_sdmmc::Error<E>) -> SdError {
@@ -57,6 +62,29 @@ fn map_err<E: core::fmt::Debug + core::error::Error>(e: embedded_sdmmc::Error<E>
 impl SdFiles {
     fn set_clock(&mut self, div: ClockDiv) {
         self.vm.device(|d| d.spi(|s| s.bus.set_clock(div)));
+    }
+
+    /// Open folder `at` (the one directory handle): the root, pointed at
+    /// the current folder when that is asked for.
+    fn open_folder(&mut self, at: Folder) -> Result<RawDirectory, SdError> {
+        let vol = self.vol.ok_or(SdError::NoCard)?;
+        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
+        if at == Folder::Current && self.cwd != 0 {
+            if let Err(e) = self.vm.set_dir_cluster(dir, self.cwd) {
+                let _ = self.vm.close_dir(dir);
+                return Err(map_err(e));
+            }
+        }
+        Ok(dir)
+    }
+
+    /// Move the current folder to its entry `name` (a folder, or `..`).
+    fn change_folder(&mut self, name: embedded_sdmmc::ShortFileName) -> Result<(), SdError> {
+        let dir = self.open_folder(Folder::Current)?;
+        let r = self.vm.enter_dir_in_place(dir, name);
+        let _ = self.vm.close_dir(dir);
+        self.cwd = r.map_err(map_err)?;
+        Ok(())
     }
 
     fn close_file(&mut self) -> Result<(), SdError> {
@@ -105,17 +133,24 @@ impl Card for SdFiles {
         if let Some(v) = self.vol.take() {
             let _ = self.vm.close_volume(v);
         }
+        self.cwd = 0;
+        self.depth = 0;
         self.vm.device(|d| d.mark_card_uninit());
     }
 
     // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
-    fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError> {
-        let vol = self.vol.ok_or(SdError::NoCard)?;
-        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
-        let r = self.vm.iterate_dir(dir, |e| {
-            if !e.attributes.is_directory() && !e.attributes.is_volume() && !e.attributes.is_hidden() {
-                f(&Name::from_parts(e.name.base_name(), e.name.extension()), e.size);
+    fn list(&mut self, at: Folder, f: &mut dyn FnMut(&Entry<'_>)) -> Result<(), SdError> {
+        let dir = self.open_folder(at)?;
+        // Long names up to 64 bytes of UTF-8; a longer one lists as its 8.3 name.
+        let mut lfn = [0u8; 64];
+        let mut lfn = LfnBuffer::new(&mut lfn);
+        let r = self.vm.iterate_dir_lfn(dir, &mut lfn, |e, long| {
+            let dot = e.name.base_name() == b"." || e.name.base_name() == b"..";
+            if !dot && !e.attributes.is_volume() && !e.attributes.is_hidden() {
+                let name = Name::from_parts(e.name.base_name(), e.name.extension());
+                let long = long.unwrap_or("");
+                f(&Entry { name, long, dir: e.attributes.is_directory(), size: e.size });
             }
             ControlFlow::Continue(())
         });
@@ -125,10 +160,9 @@ impl Card for SdFiles {
 
     // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
     #[inline(never)]
-    fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError> {
+    fn open(&mut self, at: Folder, name: &Name, write: bool) -> Result<u32, SdError> {
         self.close_file()?;
-        let vol = self.vol.ok_or(SdError::NoCard)?;
-        let dir = self.vm.open_root_dir(vol).map_err(map_err)?;
+        let dir = self.open_folder(at)?;
         let mode = if write { Mode::ReadWriteCreateOrTruncate } else { Mode::ReadOnly };
         // The name goes in as a ShortFileName: passed as a `&str`, the AVR
         // build of open_file_in_dir did not find files that
@@ -140,6 +174,28 @@ impl Card for SdFiles {
         let f = r.map_err(map_err)?;
         self.file = Some(f);
         self.vm.file_length(f).map_err(map_err)
+    }
+
+    #[inline(never)]
+    fn enter(&mut self, name: &Name) -> Result<(), SdError> {
+        let sfn = embedded_sdmmc::ShortFileName::create_from_str(name.as_str()).map_err(|_| SdError::BadName)?;
+        self.change_folder(sfn)?;
+        self.depth = self.depth.saturating_add(1);
+        Ok(())
+    }
+
+    #[inline(never)]
+    fn leave(&mut self) -> Result<(), SdError> {
+        if self.depth == 0 {
+            return Ok(());
+        }
+        self.change_folder(embedded_sdmmc::ShortFileName::parent_dir())?;
+        self.depth -= 1;
+        Ok(())
+    }
+
+    fn depth(&self) -> u8 {
+        self.depth
     }
 
     // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)

@@ -16,9 +16,13 @@
 //!   (no 1 KiB frame buffer: one 32-byte slice at a time);
 //! - [`menu`]: the menu tree as data and its state machine;
 //! - [`encoder`]: quadrature decoding and button debouncing;
-//! - [`sd`]: SD jobs and M20–M29.
+//! - [`card`]: the SD card as a trait: names, entries, folders, errors;
+//! - [`sd`]: SD jobs and M20–M29;
+//! - [`files`]: the Files screen's sorted list of folders and files.
 
+pub mod card;
 pub mod encoder;
+pub mod files;
 pub mod flash;
 pub mod font;
 pub mod menu;

@@ -27,145 +27,7 @@ use crate::protocol::{folded_len, Keep, LineCut, BOM, MAX_LINE_LEN};
 use crate::ui::text::Text;
 use ufmt::{uWrite, uwriteln};
 
-/// An 8.3 file name, upper case, as `NAME.EXT` (at most 12 bytes).
-#[derive(Clone, Copy, PartialEq, Eq, Default, Debug)]
-pub struct Name {
-    bytes: [u8; 12],
-    len: u8,
-}
-
-impl Name {
-    /// The empty name.
-    pub const EMPTY: Name = Name { bytes: [0; 12], len: 0 };
-
-    /// Parse a user-given 8.3 name (case-insensitive; leading `/` allowed).
-    pub fn parse(s: &[u8]) -> Option<Name> {
-        let s = s.strip_prefix(b"/").unwrap_or(s);
-        let (base, ext) = match s.iter().position(|&b| b == b'.') {
-            Some(i) => (&s[..i], &s[i + 1..]),
-            None => (s, &s[s.len()..]),
-        };
-        let ok = |p: &[u8], max: usize| p.len() <= max && p.iter().all(|&b| b.is_ascii_alphanumeric() || b"_-~!#$%&'()@^{}".contains(&b));
-        if base.is_empty() || !ok(base, 8) || !ok(ext, 3) {
-            return None;
-        }
-        let mut n = Name::default();
-        for &b in base {
-            n.push(b.to_ascii_uppercase());
-        }
-        if !ext.is_empty() {
-            n.push(b'.');
-            for &b in ext {
-                n.push(b.to_ascii_uppercase());
-            }
-        }
-        Some(n)
-    }
-
-    /// From a directory entry's base name and extension (space padded or not).
-    pub fn from_parts(base: &[u8], ext: &[u8]) -> Name {
-        let mut n = Name::default();
-        for &b in base.iter().take(8).filter(|&&b| b != b' ') {
-            n.push(b);
-        }
-        let ext = ext.iter().take(3).filter(|&&b| b != b' ');
-        let mut first = true;
-        for &b in ext {
-            if first {
-                n.push(b'.');
-                first = false;
-            }
-            n.push(b);
-        }
-        n
-    }
-
-    fn push(&mut self, b: u8) {
-        // Only printable ASCII is kept, so `as_str` needs no UTF-8 check.
-        let b = if (0x21..0x7F).contains(&b) { b } else { b'?' };
-        if (self.len as usize) < self.bytes.len() {
-            self.bytes[self.len as usize] = b;
-            self.len += 1;
-        }
-    }
-
-    /// The name as bytes.
-    pub fn as_bytes(&self) -> &[u8] {
-        &self.bytes[..self.len as usize]
-    }
-
-    /// The name as text (always ASCII).
-    pub fn as_str(&self) -> &str {
-        // SAFETY: `push` stores printable ASCII only. (`from_utf8` would put
-        // core's 256-byte UTF-8 width table in RAM on the AVR.)
-        unsafe { core::str::from_utf8_unchecked(self.as_bytes()) }
-    }
-
-    /// True for the empty name.
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-}
-
-impl ufmt::uDisplay for Name {
-    fn fmt<W: uWrite + ?Sized>(&self, f: &mut ufmt::Formatter<'_, W>) -> Result<(), W::Error> {
-        f.write_str(self.as_str())
-    }
-}
-
-/// What can go wrong with the card. Small and `Copy`.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub enum SdError {
-    /// No card in the socket, or it does not answer.
-    NoCard,
-    /// No FAT16/FAT32 volume on the card.
-    NoFilesystem,
-    /// No such file.
-    NotFound,
-    /// Reading failed (card error or a broken FAT chain).
-    ReadFailed,
-    /// Writing failed (card error, full, or read-only).
-    WriteFailed,
-    /// Not an 8.3 file name.
-    BadName,
-}
-
-impl SdError {
-    /// Text for `Error:` lines and the display.
-    pub fn text(self) -> Text {
-        match self {
-            SdError::NoCard => Text::ErrNoCard,
-            SdError::NoFilesystem => Text::ErrNoFs,
-            SdError::NotFound => Text::ErrNotFound,
-            SdError::ReadFailed => Text::ErrRead,
-            SdError::WriteFailed => Text::ErrWrite,
-            SdError::BadName => Text::ErrBadName,
-        }
-    }
-}
-
-/// The card as the job sees it. One file is open at a time.
-pub trait Card {
-    /// The detect switch says a card is in.
-    fn detected(&self) -> bool;
-    /// Initialise the card and open its first FAT volume (no-op when done).
-    fn mount(&mut self) -> Result<(), SdError>;
-    /// Forget the card (it was pulled, or M22): handles are dropped.
-    fn unmount(&mut self);
-    /// Call `f(name, size)` for every file of the root directory, in directory order.
-    fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError>;
-    /// Open a file for reading (returns its size) or, with `write`, create or
-    /// truncate it for writing (returns 0). Closes any other open file.
-    fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError>;
-    /// Read from the open file; 0 at the end.
-    fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError>;
-    /// Move the read position of the open file.
-    fn seek(&mut self, pos: u32) -> Result<(), SdError>;
-    /// Append to the open file.
-    fn write(&mut self, data: &[u8]) -> Result<(), SdError>;
-    /// Close the open file (flushing writes).
-    fn close(&mut self) -> Result<(), SdError>;
-}
+pub use super::card::{Card, Entry, Folder, Name, SdError};
 
 /// Requests to the machine, as realtime bits (see the module docs).
 pub mod req {
@@ -245,6 +107,8 @@ pub struct SdJob {
     pub pos: u32,
     /// Line number of the last line handed out (1-based).
     pub line: u32,
+    /// Why the job stopped on a bad line: the refusal's message.
+    pub why: Option<crate::flash::FStr>,
     chunk: [u8; CHUNK],
     head: u8,
     fill: u8,
@@ -265,10 +129,11 @@ impl SdJob {
     pub const fn new() -> SdJob {
         SdJob {
             phase: Phase::Idle,
-            name: Name { bytes: [0; 12], len: 0 },
+            name: Name::EMPTY,
             size: 0,
             pos: 0,
             line: 0,
+            why: None,
             chunk: [0; CHUNK],
             head: 0,
             fill: 0,
@@ -283,19 +148,31 @@ impl SdJob {
         matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_))
     }
 
-    /// Progress in percent of the file's bytes.
+    /// Progress in percent of the file's bytes read.
     pub fn percent(&self) -> u8 {
-        if self.size == 0 {
-            return 0;
+        scaled(self.pos.min(self.size), self.size, 100) as u8
+    }
+
+    /// Progress by the cut: the share of the file up to the line whose move
+    /// is executing (not the lines read ahead into the planner), estimated
+    /// from the bytes read as `pos × cut line / lines read`, so lines of any
+    /// length count in proportion. Per mille.
+    pub fn permille_cut(&self, m: &Machine) -> u16 {
+        let read = scaled(self.pos.min(self.size), self.size, 1000);
+        if !self.active() || self.line == 0 {
+            return read as u16;
         }
-        // u32 only (a u64 division costs 2.8 KB of flash on the AVR):
-        // scale both down until pos * 100 cannot overflow.
-        let (mut p, mut s) = (self.pos.min(self.size), self.size);
-        while s > u32::MAX / 100 {
-            p >>= 8;
-            s >>= 8;
+        scaled(self.cut_line(m), self.line, read) as u16
+    }
+
+    /// The line whose move is executing: the planner's current block's tag is
+    /// the low 16 bits of a line read at most a planner's worth of blocks
+    /// ago; with nothing planned, the last line read.
+    pub fn cut_line(&self, m: &Machine) -> u32 {
+        match m.planner.current_block() {
+            Some(b) => self.line.wrapping_sub((self.line as u16).wrapping_sub(b.line) as u32),
+            None => self.line,
         }
-        (p * 100 / s.max(1)) as u8
     }
 
     /// Take the pending [`req`] bits.
@@ -308,15 +185,16 @@ impl SdJob {
         self.requests |= bits;
     }
 
-    /// Select `name` for a job (M23, or the menu).
+    /// Select the file `name` of folder `at` for a job (M23: the root; the
+    /// menu: the folder its list shows).
     #[inline(never)]
-    pub fn select(&mut self, card: &mut impl Card, name: &Name) -> Result<(), SdError> {
+    pub fn select(&mut self, card: &mut impl Card, at: Folder, name: &Name) -> Result<(), SdError> {
         if self.active() || self.phase == Phase::Writing {
             card.close().ok();
         }
         self.phase = Phase::Idle;
         card.mount()?;
-        let size = card.open(name, false)?;
+        let size = card.open(at, name, false)?;
         self.name = *name;
         self.size = size;
         self.rewind();
@@ -325,6 +203,7 @@ impl SdJob {
     }
 
     fn rewind(&mut self) {
+        self.why = None;
         self.pos = 0;
         self.line = 0;
         self.head = 0;
@@ -471,12 +350,7 @@ impl SdJob {
         if detected || !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) {
             return false;
         }
-        // The executing block's line: its tag is the low 16 bits of a line
-        // read at most a planner's worth of blocks ago.
-        let stopped = match m.planner.current_block() {
-            Some(b) => self.line.wrapping_sub((self.line as u16).wrapping_sub(b.line) as u32),
-            None => self.line,
-        };
+        let stopped = self.cut_line(m);
         self.request(req::ABORT | req::KEEP_SPINDLE);
         self.phase = Phase::Aborting(Outcome::CardRemoved(stopped));
         uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgCardRemovedAt, stopped).ok();
@@ -492,6 +366,7 @@ impl SdJob {
                     return; // the abort path ends the job
                 }
                 m.report_error(out, e);
+                self.why = Some(e.message());
                 uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgStoppedAtLine, self.line).ok();
                 self.phase = Phase::Draining(Outcome::BadLine(self.line));
             }
@@ -593,6 +468,21 @@ impl SdJob {
     }
 }
 
+/// `part × of / whole`, in u32 only (a u64 division costs 2.8 KB of flash on
+/// the AVR): both are scaled down until the product cannot overflow; `of`
+/// is at most 1000. 0 for an empty whole.
+fn scaled(part: u32, whole: u32, of: u32) -> u32 {
+    let (mut p, mut w) = (part.min(whole), whole);
+    while w > u32::MAX / 1024 {
+        p >>= 8;
+        w >>= 8;
+    }
+    if w == 0 {
+        return 0;
+    }
+    p * of / w
+}
+
 /// Run one SD command (M20–M29, M524) from the serial line. `arg` is the
 /// text after the code (file name, or `S<pos>` for M26).
 pub fn command(job: &mut SdJob, card: &mut impl Card, m: &mut Machine, out: &mut impl uWrite, code: u16, arg: &[u8]) -> Result<(), Text> {
@@ -623,8 +513,12 @@ pub fn command_with(
                 r => r.map_err(SdError::text)?,
             }
             uwriteln!(out, "{}", Text::BeginFileList).ok();
-            let r = card.list(&mut |n, size| {
-                uwriteln!(out, "{} {}", n, size).ok();
+            // The root's files, as Marlin lists them without `L`: 8.3 name
+            // and size (folders are for the menu).
+            let r = card.list(Folder::Root, &mut |e| {
+                if !e.dir {
+                    uwriteln!(out, "{} {}", e.name, e.size).ok();
+                }
             });
             uwriteln!(out, "{}", Text::EndFileList).ok();
             r.map_err(SdError::text)?;
@@ -647,15 +541,23 @@ pub fn command_with(
             }
         }
         33 => {
-            // Marlin's long name of a path: `/<name>`, `/???` when there is
-            // no such file. FAT short names only here: the name is its own.
+            // Marlin's long name of a root file: `/<long name>` (its 8.3
+            // name when it has none), `/???` when there is no such file.
             let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
             card.mount().map_err(SdError::text)?;
             let mut found = false;
-            card.list(&mut |n, _| found |= *n == name).map_err(SdError::text)?;
-            if found {
-                uwriteln!(out, "{}{}", F!("/"), name).ok();
-            } else {
+            card.list(Folder::Root, &mut |e| {
+                if e.name == name && !e.dir {
+                    found = true;
+                    if e.long.is_empty() {
+                        uwriteln!(out, "{}{}", F!("/"), name).ok();
+                    } else {
+                        uwriteln!(out, "{}{}", F!("/"), e.long).ok();
+                    }
+                }
+            })
+            .map_err(SdError::text)?;
+            if !found {
                 uwriteln!(out, "{}", F!("/???")).ok();
             }
         }
@@ -672,7 +574,7 @@ pub fn command_with(
                 return Err(Text::ErrJobRunning);
             }
             let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
-            if let Err(e) = job.select(card, &name) {
+            if let Err(e) = job.select(card, Folder::Root, &name) {
                 uwriteln!(out, "{}{}.", Text::OpenFailed, name).ok();
                 return Err(e.text());
             }
@@ -693,7 +595,7 @@ pub fn command_with(
             let name = Name::parse(arg).ok_or(Text::ErrBadName)?;
             job.phase = Phase::Idle;
             card.mount().map_err(SdError::text)?;
-            card.open(&name, true).map_err(SdError::text)?;
+            card.open(Folder::Root, &name, true).map_err(SdError::text)?;
             job.name = name;
             job.phase = Phase::Writing;
             uwriteln!(out, "{}{}", Text::WritingToFile, name).ok();
@@ -749,24 +651,49 @@ pub use crate::hostcodes::sd_code;
 pub(crate) mod tests {
     use super::*;
 
-    /// A card in RAM: files as (name, bytes).
+    /// A card in RAM: files as (folder path, 8.3 name, long name, bytes),
+    /// folders as entries with no bytes and `dir` set.
     pub struct FakeCard {
         pub present: bool,
         pub mounted: bool,
-        pub files: Vec<(Name, Vec<u8>)>,
+        pub files: Vec<FakeEntry>,
+        /// The current folder, as a path of 8.3 names joined by `/` ("" is the root).
+        pub cwd: String,
         open: Option<(usize, usize, bool)>,
         /// Reads fail from this byte offset on.
         pub fail_at: Option<usize>,
     }
 
+    /// One entry of a [`FakeCard`].
+    pub struct FakeEntry {
+        pub folder: String,
+        pub name: Name,
+        pub long: String,
+        pub dir: bool,
+        pub data: Vec<u8>,
+    }
+
     impl FakeCard {
+        /// Root files with 8.3 names.
         pub fn new(files: &[(&str, &str)]) -> FakeCard {
-            FakeCard {
-                present: true,
-                mounted: false,
-                files: files.iter().map(|(n, d)| (Name::parse(n.as_bytes()).unwrap(), d.as_bytes().to_vec())).collect(),
-                open: None,
-                fail_at: None,
+            let mut c = FakeCard { present: true, mounted: false, files: Vec::new(), cwd: String::new(), open: None, fail_at: None };
+            for (n, d) in files {
+                c.add("", n, "", false, d);
+            }
+            c
+        }
+
+        /// Add an entry in `folder` (a path of 8.3 names, "" for the root).
+        pub fn add(&mut self, folder: &str, name: &str, long: &str, dir: bool, data: &str) -> &mut FakeCard {
+            let name = Name::parse(name.as_bytes()).unwrap();
+            self.files.push(FakeEntry { folder: folder.into(), name, long: long.into(), dir, data: data.as_bytes().to_vec() });
+            self
+        }
+
+        fn folder(&self, at: Folder) -> String {
+            match at {
+                Folder::Root => String::new(),
+                Folder::Current => self.cwd.clone(),
             }
         }
     }
@@ -785,27 +712,52 @@ pub(crate) mod tests {
         fn unmount(&mut self) {
             self.mounted = false;
             self.open = None;
+            self.cwd.clear();
         }
-        fn list(&mut self, f: &mut dyn FnMut(&Name, u32)) -> Result<(), SdError> {
-            for (n, d) in &self.files {
-                f(n, d.len() as u32);
+        fn list(&mut self, at: Folder, f: &mut dyn FnMut(&Entry<'_>)) -> Result<(), SdError> {
+            let folder = self.folder(at);
+            for e in self.files.iter().filter(|e| e.folder == folder) {
+                f(&Entry { name: e.name, long: &e.long, dir: e.dir, size: e.data.len() as u32 });
             }
             Ok(())
         }
-        fn open(&mut self, name: &Name, write: bool) -> Result<u32, SdError> {
-            let i = match self.files.iter().position(|(n, _)| n == name) {
+        fn open(&mut self, at: Folder, name: &Name, write: bool) -> Result<u32, SdError> {
+            let folder = self.folder(at);
+            let i = match self.files.iter().position(|e| e.folder == folder && e.name == *name && !e.dir) {
                 Some(i) => i,
                 None if write => {
-                    self.files.push((*name, Vec::new()));
+                    self.files.push(FakeEntry { folder, name: *name, long: String::new(), dir: false, data: Vec::new() });
                     self.files.len() - 1
                 }
                 None => return Err(SdError::NotFound),
             };
             if write {
-                self.files[i].1.clear();
+                self.files[i].data.clear();
             }
             self.open = Some((i, 0, write));
-            Ok(self.files[i].1.len() as u32)
+            Ok(self.files[i].data.len() as u32)
+        }
+        fn enter(&mut self, name: &Name) -> Result<(), SdError> {
+            if !self.files.iter().any(|e| e.folder == self.cwd && e.name == *name && e.dir) {
+                return Err(SdError::NotFound);
+            }
+            if !self.cwd.is_empty() {
+                self.cwd.push('/');
+            }
+            self.cwd.push_str(name.as_str());
+            Ok(())
+        }
+        fn leave(&mut self) -> Result<(), SdError> {
+            let cut = self.cwd.rfind('/').unwrap_or(0);
+            self.cwd.truncate(cut);
+            Ok(())
+        }
+        fn depth(&self) -> u8 {
+            if self.cwd.is_empty() {
+                0
+            } else {
+                self.cwd.matches('/').count() as u8 + 1
+            }
         }
         fn read(&mut self, buf: &mut [u8]) -> Result<usize, SdError> {
             if !self.present || !self.mounted {
@@ -817,7 +769,7 @@ pub(crate) mod tests {
                     return Err(SdError::ReadFailed);
                 }
             }
-            let d = &self.files[*i].1;
+            let d = &self.files[*i].data;
             let n = buf.len().min(d.len() - *pos).min(17); // odd chunks
             buf[..n].copy_from_slice(&d[*pos..*pos + n]);
             *pos += n;
@@ -833,7 +785,7 @@ pub(crate) mod tests {
             if !w {
                 return Err(SdError::WriteFailed);
             }
-            self.files[i].1.extend_from_slice(data);
+            self.files[i].data.extend_from_slice(data);
             Ok(())
         }
         fn close(&mut self) -> Result<(), SdError> {
@@ -880,7 +832,7 @@ pub(crate) mod tests {
     fn lines_of(text: &str) -> Result<Vec<String>, Text> {
         let mut card = FakeCard::new(&[("A.G", text)]);
         let mut job = SdJob::new();
-        job.select(&mut card, &Name::parse(b"A.G").unwrap()).unwrap();
+        job.select(&mut card, Folder::Root, &Name::parse(b"A.G").unwrap()).unwrap();
         let mut v = Vec::new();
         let mut buf = [0u8; MAX_LINE_LEN];
         while let Some(n) = job.next_line(&mut card, &mut buf)? {
@@ -975,7 +927,7 @@ pub(crate) mod tests {
         assert!(capture(&mut job, &mut card, b"M2", &mut out));
         command(&mut job, &mut card, &mut m, &mut out, 29, b"").unwrap();
         assert!(!capture(&mut job, &mut card, b"G0 X0", &mut out));
-        assert_eq!(card.files[0].1, b"G1 X1 F600\nM2\n");
+        assert_eq!(card.files[0].data, b"G1 X1 F600\nM2\n");
         assert!(out.0.contains("Writing to file: NEW.GCO") && out.0.ends_with("Done saving file.\n"));
     }
 
@@ -1004,6 +956,30 @@ pub(crate) mod tests {
         assert_eq!(job.poll(&mut card, &mut m, true, &mut line, &mut out), Turn::RetractThenSpindleOff);
         assert_eq!(job.phase, Phase::Ended(Outcome::CardRemoved(70_007)));
         assert!(!job.active());
+    }
+
+    #[test]
+    fn progress_follows_the_executing_line_not_the_lines_read_ahead() {
+        let mut job = SdJob::new();
+        let mut m = Machine::new();
+        job.phase = Phase::Running;
+        job.size = 10_000;
+        job.pos = 8_000; // 80 % read
+        job.line = 400;
+        assert_eq!(job.percent(), 80);
+        // Nothing planned: the cut is at the last line read.
+        assert_eq!(job.permille_cut(&m), 800);
+        // Line 100 is executing, 300 more are read ahead: a quarter of the
+        // lines read, so a quarter of the 80 % read.
+        m.planner.line_tag = 100;
+        m.planner.push_line([100, 0, 0, 0], 600.0, false, &m.settings).unwrap();
+        assert_eq!(job.cut_line(&m), 100);
+        assert_eq!(job.permille_cut(&m), 200);
+        // Large files: no overflow (a 3 GB file half read, all of it cut).
+        let mut big = SdJob::new();
+        (big.phase, big.size, big.pos, big.line) = (Phase::Running, 3_000_000_000, 1_500_000_000, 9);
+        assert_eq!(big.permille_cut(&Machine::new()), 500);
+        assert_eq!(scaled(7, 0, 1000), 0, "an empty file");
     }
 
     #[test]

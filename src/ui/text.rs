@@ -62,6 +62,8 @@ crate::flash_texts! {
     JobCardOut = "Card out: line ",
     JobCardStop = "Card out: retract",
     JobLine = "Stopped: line ",
+    TimeLabel = "Time ",
+    LeftLabel = " Left ",
     JobReadErr = "Read error",
     JobStopping = "Stopping",
     HintMenu = "Press for menu",

@@ -110,6 +110,10 @@ pub enum Cmd {
     ListFiles,
     /// Start SD file number i (directory order).
     RunFile(u8),
+    /// Make folder number i of the list the current folder.
+    OpenFolder(u8),
+    /// Go up to the current folder's parent.
+    FolderUp,
     Pause,
     Resume,
     Abort,

@@ -14,17 +14,17 @@ use super::view::{paused, View};
 use crate::dollar;
 use crate::flash::FStr;
 use crate::machine::Machine;
+use crate::ui::files::FileList;
 use crate::ui::render::{Line, Style, COLS};
-use crate::ui::sd::Name;
 use crate::ui::text::Text;
 
 impl Ui {
-    /// Text of `row` of the current screen. `file(i)` gives the name of
-    /// file i (only the visible ones are asked for).
+    /// Text of `row` of the current screen. `files` holds the visible rows
+    /// of the Files screen.
     // flash: 56 B less out of line, and 14 B less stack on the display
     // path (its rows' frames stay out of the caller's)
     #[inline(never)]
-    pub fn line(&self, row: usize, v: &View, m: &Machine, file: &dyn Fn(u8) -> Option<Name>) -> Line {
+    pub fn line(&self, row: usize, v: &View, m: &Machine, files: &FileList) -> Line {
         let mut l = Line::blank();
         match self.screen {
             Screen::Status if self.big => big_status_line(row, v, m.atc.table.number_of(v.tool), &m.host, &mut l),
@@ -61,8 +61,15 @@ impl Ui {
                     let c = l.text(1, t);
                     match self.screen {
                         Screen::ConfirmRun(i) => {
-                            let n = file(i).unwrap_or_default();
-                            let c = l.put(c, n.as_bytes());
+                            // The `?` stays: a longer name is cut with `~`.
+                            let n = files.row(i).map_or(&[][..], |(n, _)| n);
+                            let room = COLS.saturating_sub(c + 1);
+                            let c = if n.len() > room {
+                                let c = l.put(c, &n[..room - 1]);
+                                l.put(c, b"~")
+                            } else {
+                                l.put(c, n)
+                            };
                             l.put(c, b"?");
                         }
                         Screen::AskTool(ToolOp::Change(t) | ToolOp::Confirm(t)) => {
@@ -122,8 +129,12 @@ impl Ui {
                     Screen::Files => {
                         if e == 0 {
                             l.text(1, Text::Back);
-                        } else if let Some(n) = file(e - 1) {
-                            l.put(1, n.as_bytes());
+                        } else if let Some((n, dir)) = files.row(e - 1) {
+                            // A folder ends in `/`.
+                            let c = l.put(1, n);
+                            if dir {
+                                l.put(c, b"/");
+                            }
                         }
                     }
                     Screen::Changer => {

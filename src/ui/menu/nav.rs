@@ -237,12 +237,20 @@ impl Ui {
         match self.screen {
             Screen::Menu(m) => self.act(m, m.item(sel as usize).1, v),
             Screen::Files => {
-                if sel == 0 || !v.card_in {
+                let i = sel.wrapping_sub(1);
+                let row = i.wrapping_sub(self.visible_files().0);
+                if sel == 0 && v.in_folder && v.card_in {
+                    self.go(Screen::Files);
+                    return Cmd::FolderUp;
+                } else if sel == 0 || !v.card_in {
                     self.back_to(MenuId::Main, 1);
+                } else if row < 8 && v.folder_rows & (1 << row) != 0 {
+                    self.go(Screen::Files);
+                    return Cmd::OpenFolder(i);
                 } else if v.job_active() {
                     self.go(Screen::Status);
                 } else {
-                    self.go(Screen::ConfirmRun(sel - 1));
+                    self.go(Screen::ConfirmRun(i));
                 }
                 Cmd::None
             }

@@ -88,6 +88,21 @@ pub(super) fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcode
             }
         }
         6 => job_status(v, l),
+        // A running job: its time so far and the time left, estimated from
+        // the progress by the cut.
+        7 if matches!(v.job, Phase::Running | Phase::Draining(_)) && v.state != State::Alarm && v.interrupted.is_none() => job_time(v, l),
+        // A job stopped on a bad line: why (the refusal's first words).
+        7 if matches!(v.job, Phase::Ended(Outcome::BadLine(_))) && v.job_why.is_some() && v.state != State::Alarm => {
+            if let Some(why) = v.job_why {
+                let mut w = LineWriter { l, at: 0, mid_word: false };
+                ufmt::uwrite!(w, "{}", why).ok();
+                if w.mid_word {
+                    // Cut at the last whole word.
+                    let keep = l.chars.iter().rposition(|&c| c == b' ').unwrap_or(COLS);
+                    l.chars[keep..].fill(b' ');
+                }
+            }
+        }
         7 => {
             l.text(
                 0,
@@ -155,6 +170,57 @@ fn job_status(v: &View, l: &mut Line) {
                 l.uint(c, n);
             }
         },
+    }
+}
+
+/// `Time m:ss Left m:ss` (h:mm:ss past an hour, without the `Time ` label
+/// when that does not fit); the time left is `elapsed × (1000 − ‰) / ‰` of
+/// the progress by the cut, shown from 1 % on.
+fn job_time(v: &View, l: &mut Line) {
+    let s = v.job_s as u32;
+    let pm = v.job_pct as u32 * 10;
+    let left = (pm >= 10).then(|| s * (1000 - pm.min(1000)) / pm);
+    let long = s >= 3600 || left.is_some_and(|t| t >= 3600);
+    let c = if long { 0 } else { l.text(0, Text::TimeLabel) };
+    let c = clock(l, c, s);
+    let c = l.text(c, Text::LeftLabel);
+    match left {
+        Some(t) => clock(l, c, t),
+        None => l.put(c, b"-:--"),
+    };
+}
+
+/// `m:ss`, or `h:mm:ss` from an hour on; returns the column after it.
+fn clock(l: &mut Line, at: usize, s: u32) -> usize {
+    let two = |l: &mut Line, at: usize, v: u32| l.put(at, &[b'0' + (v / 10) as u8, b'0' + (v % 10) as u8]);
+    let c = if s >= 3600 {
+        let c = l.uint(at, s / 3600);
+        let c = l.put(c, b":");
+        two(l, c, s / 60 % 60)
+    } else {
+        l.uint(at, s / 60)
+    };
+    let c = l.put(c, b":");
+    two(l, c, s % 60)
+}
+
+/// Text written into a [`Line`] from a column on (cut at its end).
+struct LineWriter<'a> {
+    l: &'a mut Line,
+    at: usize,
+    /// The cut fell inside a word.
+    mid_word: bool,
+}
+
+impl ufmt::uWrite for LineWriter<'_> {
+    type Error = core::convert::Infallible;
+    fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
+        let next = COLS.checked_sub(self.at).and_then(|i| s.as_bytes().get(i).copied());
+        self.at = self.l.put(self.at, s.as_bytes());
+        if let Some(c) = next {
+            self.mid_word = c != b' ' && self.l.chars[COLS - 1] != b' ';
+        }
+        Ok(())
     }
 }
 

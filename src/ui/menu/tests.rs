@@ -7,6 +7,7 @@ use super::*;
 use crate::atc::Journal;
 use crate::dollar;
 use crate::machine::{Alarm, Machine, State};
+use crate::ui::files::FileList;
 use crate::ui::render::{Line, ROWS};
 use crate::ui::sd::{Name, Outcome, Phase};
 use crate::ui::text::Text;
@@ -16,10 +17,10 @@ fn screen(ui: &Ui, v: &View) -> Vec<String> {
 }
 
 fn screen_of(ui: &Ui, v: &View, m: &Machine) -> Vec<String> {
-    let names = |i: u8| Name::parse(format!("FILE{i}.NC").as_bytes());
+    let files = FileList::for_test(ui.visible_files().0, v.files, |i| format!("FILE{i}.NC"));
     (0..ROWS)
         .map(|r| {
-            let l = ui.line(r, v, m, &names);
+            let l = ui.line(r, v, m, &files);
             let s = String::from_utf8(l.chars.to_vec()).unwrap();
             if l.invert {
                 format!("[{}]", s.trim_end())
@@ -78,6 +79,37 @@ fn status_screen_shows_state_position_feed_spindle_and_job() {
     assert_eq!(s[6], "PART.NC           45%");
     v.job = Phase::Ended(Outcome::BadLine(40));
     assert_eq!(screen(&Ui::new(), &v)[6], "Stopped: line 40");
+    assert_eq!(screen(&Ui::new(), &v)[7], "Press for menu");
+    // Why, when the job knows.
+    v.job_why = Some(crate::gcode::interp::Error::SoftLimit.message());
+    assert_eq!(screen(&Ui::new(), &v)[7], "target outside travel");
+    v.job_why = Some(crate::gcode::interp::Error::BadFeed.message());
+    assert_eq!(screen(&Ui::new(), &v)[7], "feed rate missing or");
+    v.job_why = Some(crate::gcode::interp::Error::ProbeAlreadyTriggered.message());
+    assert_eq!(screen(&Ui::new(), &v)[7], "probe input already", "cut at the last whole word");
+}
+
+#[test]
+fn a_running_job_shows_its_time_and_the_time_left_by_the_cut() {
+    let mut v = View::new();
+    v.state = State::Run;
+    v.job = Phase::Running;
+    let row = |v: &View| screen(&Ui::new(), v)[7].clone();
+    v.job_s = 125;
+    v.job_pct = 25;
+    assert_eq!(row(&v), "Time 2:05 Left 6:15");
+    v.job_pct = 0;
+    v.job_s = 5;
+    assert_eq!(row(&v), "Time 0:05 Left -:--");
+    v.job_s = 3700;
+    v.job_pct = 50;
+    assert_eq!(row(&v), "1:01:40 Left 1:01:40");
+    v.job_pct = 100;
+    assert_eq!(row(&v), "1:01:40 Left 0:00");
+    // Paused: the hint to resume comes first.
+    v.job = Phase::Paused;
+    v.state = State::Hold;
+    assert_eq!(row(&v), "Press to resume");
 }
 
 #[test]
@@ -115,6 +147,30 @@ fn choosing_a_file_asks_for_confirmation_then_runs_it() {
     assert_eq!(screen(&ui, &v)[0], "[ Run FILE1.NC?]");
     assert_eq!(ui.step(1, true, &v), Cmd::RunFile(1));
     assert_eq!(ui.screen, Screen::Status);
+}
+
+#[test]
+fn a_folder_opens_in_place_and_back_goes_up_then_out() {
+    let mut ui = Ui::new();
+    let mut v = View::new();
+    v.card_in = true;
+    v.files = 3;
+    v.folder_rows = 0b010; // entry 1 is a folder
+    ui.go(Screen::Files);
+    ui.step(2, false, &v);
+    assert_eq!(ui.step(0, true, &v), Cmd::OpenFolder(1));
+    assert_eq!((ui.screen, ui.sel), (Screen::Files, 0));
+    v.in_folder = true;
+    v.folder_rows = 0;
+    ui.step(1, false, &v);
+    assert_eq!(ui.step(0, true, &v), Cmd::None);
+    assert_eq!(ui.screen, Screen::ConfirmRun(0));
+    ui.go(Screen::Files);
+    assert_eq!(ui.step(0, true, &v), Cmd::FolderUp);
+    assert_eq!(ui.screen, Screen::Files);
+    v.in_folder = false;
+    assert_eq!(ui.step(0, true, &v), Cmd::None);
+    assert_eq!(ui.screen, Screen::Menu(MenuId::Main));
 }
 
 #[test]

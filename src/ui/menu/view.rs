@@ -2,6 +2,7 @@
 //! show and the state machine decides on, taken once per frame.
 
 use crate::atc::Journal;
+use crate::flash::FStr;
 use crate::machine::{Alarm, State};
 use crate::ui::sd::{Name, Phase};
 
@@ -23,10 +24,18 @@ pub struct View {
     pub rpm: u16,
     pub job: Phase,
     pub job_pct: u8,
+    /// Seconds since the job started (while it runs).
+    pub job_s: u16,
+    /// Why a job stopped on a bad line (the refusal's message).
+    pub job_why: Option<FStr>,
     pub job_name: Name,
     pub card_in: bool,
-    /// Files on the card (after the last listing).
+    /// Entries in the card's current folder (after the last listing).
     pub files: u8,
+    /// The list shows a folder below the root ("< Back" goes up).
+    pub in_folder: bool,
+    /// Bit r: file row r on screen (entry `visible_files().0 + r`) is a folder.
+    pub folder_rows: u8,
     pub free_ram: u16,
     /// A tool change that did not finish and awaits M61 (`Atc::interrupted`).
     pub interrupted: Option<Journal>,
@@ -51,9 +60,13 @@ impl View {
             rpm: 0,
             job: Phase::Idle,
             job_pct: 0,
+            job_s: 0,
+            job_why: None,
             job_name: Name::EMPTY,
             card_in: false,
             files: 0,
+            in_folder: false,
+            folder_rows: 0,
             free_ram: 0,
             interrupted: None,
             alarm: None,

@@ -436,6 +436,34 @@ where
         }
     }
 
+    /// MillFW patch: point the open directory `directory` at its entry
+    /// `name`, which must be a directory, in place: the stock `open_dir`
+    /// needs a second handle (12 bytes of RAM each). `..` of a folder in
+    /// the root (cluster 0 on the card) gives the root. Returns the new
+    /// first cluster, for [`VolumeManager::set_dir_cluster`] (0: the root).
+    pub fn enter_dir_in_place<N>(&self, directory: RawDirectory, name: N) -> Result<u32, Error<D::Error>>
+    where
+        N: ToShortFileName,
+    {
+        let entry = self.find_directory_entry(directory, name)?;
+        if !entry.attributes.is_directory() {
+            return Err(Error::OpenedFileAsDir);
+        }
+        self.set_dir_cluster(directory, entry.cluster.0)?;
+        Ok(entry.cluster.0)
+    }
+
+    /// MillFW patch: point the open directory `directory` at the folder
+    /// whose first cluster is `cluster` (as [`VolumeManager::enter_dir_in_place`]
+    /// returned it; 0 is the root).
+    pub fn set_dir_cluster(&self, directory: RawDirectory, cluster: u32) -> Result<(), Error<D::Error>> {
+        let mut data = self.data.try_borrow_mut().map_err(|_| Error::LockError)?;
+        let data = data.deref_mut();
+        let directory_idx = data.get_dir_by_id(directory)?;
+        data.open_dirs[directory_idx].cluster = if cluster == 0 { ClusterId::ROOT_DIR } else { ClusterId(cluster) };
+        Ok(())
+    }
+
     /// Call a callback function for each directory entry in a directory.
     ///
     /// Long File Names will be ignored.
