@@ -90,7 +90,12 @@ pub(super) fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcode
         6 => job_status(v, l),
         // A running job: its time so far and the time left, estimated from
         // the progress by the cut.
-        7 if matches!(v.job, Phase::Running | Phase::Draining(_)) && v.state != State::Alarm && v.interrupted.is_none() => job_time(v, l),
+        7 if matches!(v.job, Phase::Running | Phase::Draining(_))
+            && !matches!(v.state, State::Alarm | State::Hold)
+            && v.interrupted.is_none() =>
+        {
+            job_time(v, l)
+        }
         // A job stopped on a bad line: why (the refusal's first words).
         7 if matches!(v.job, Phase::Ended(Outcome::BadLine(_))) && v.job_why.is_some() && v.state != State::Alarm => {
             if let Some(why) = v.job_why {

@@ -106,9 +106,10 @@ fn a_running_job_shows_its_time_and_the_time_left_by_the_cut() {
     assert_eq!(row(&v), "1:01:40 Left 1:01:40");
     v.job_pct = 100;
     assert_eq!(row(&v), "1:01:40 Left 0:00");
-    // Paused: the hint to resume comes first.
-    v.job = Phase::Paused;
+    // Held (an M0 in the job) or paused: the hint to resume comes first.
     v.state = State::Hold;
+    assert_eq!(row(&v), "Press to resume");
+    v.job = Phase::Paused;
     assert_eq!(row(&v), "Press to resume");
 }
 
