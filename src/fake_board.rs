@@ -6,8 +6,8 @@
 //! Where it sits: it replaces `src/firmware.rs` + `src/board` under
 //! [`Machine`](crate::machine::Machine) in `cargo test`, so that homing, a
 //! tool change, G37, alarms and feed holds run on the host (see
-//! `controller_tests.rs`) with no simulator. It is the one host fake: the
-//! gcode tests (`gcode/interp_tests.rs`, `gcode/cycle_tests.rs`) run their
+//! `machine/tests.rs`) with no simulator. It is the one host fake: the
+//! gcode tests (`gcode/interp/tests.rs`, `gcode/tests.rs`) run their
 //! lines on it too and read the path of block end points it records
 //! ([`FakeBoard::path`]).
 //!

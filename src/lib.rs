@@ -57,8 +57,6 @@ pub mod stepper;
 pub mod toolsetter;
 pub mod ui;
 
-#[cfg(test)]
-mod controller_tests;
 /// A fake board (time, stepper, switches, EEPROM) for host tests of the controller.
 #[cfg(test)]
 pub mod fake_board;

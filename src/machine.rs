@@ -371,3 +371,6 @@ impl Machine {
         uwrite!(io, "{},{},{}", Micros::from_mm(v[0]), Micros::from_mm(v[1]), Micros::from_mm(v[2])).ok();
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -243,9 +243,4 @@ pub struct Ctx<'a> {
 }
 
 #[cfg(test)]
-#[path = "interp_tests.rs"]
 pub(crate) mod tests;
-
-#[cfg(test)]
-#[path = "command_tests.rs"]
-mod command_tests;

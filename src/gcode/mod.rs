@@ -12,8 +12,6 @@
 //! belongs to the interpreter.
 
 pub mod comp;
-#[cfg(test)]
-mod cycle_tests;
 pub mod cycles;
 pub mod interp;
 pub mod parse;
@@ -22,3 +20,6 @@ pub use parse::{
     parse, parse_into, Coolant, CutterComp, Distance, FeedMode, Line, Motion, NonModal, ParseError, ParseErrorKind, PathMode, Plane,
     Spindle, Stopping, ToolLength, Units, Word, Words, OTHER_M_CODES,
 };
+
+#[cfg(test)]
+mod tests;

@@ -74,7 +74,7 @@ pub(super) fn timer_for(cycles: f32) -> (u16, Prescale) {
 }
 
 #[cfg(test)]
-mod per_tick_tests {
+mod tests {
     use super::per_tick;
 
     #[test]

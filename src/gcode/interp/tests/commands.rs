@@ -1,8 +1,8 @@
 //! Host tests of the interpreter alone: lines in, [`Command`]s out, with no
-//! machine (the step API of `interp.rs`). `interp_tests.rs` runs whole
+//! machine (the step API of `interp.rs`). The parent module runs whole
 //! lines through the controller.
 
-use super::*;
+use crate::gcode::interp::*;
 use crate::atc::Atc;
 use crate::config::Settings;
 

@@ -4,7 +4,7 @@
 //! block end points in machine steps (internal frame: Z counts down from
 //! the top switch, so user Z −8 mm is step 800 at 100 steps/mm); step
 //! timing and speeds are the simavr test's business (tests/cycles.rs).
-//! The fake board and the helpers are `interp_tests.rs`'s.
+//! The fake board and the helpers are `interp::tests`'s.
 
 use super::cycles::{Kind, Retract};
 use super::interp::tests::{machine, refused, run};

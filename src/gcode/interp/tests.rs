@@ -5,7 +5,8 @@
 //! handed to the board (one per chord of an arc,
 //! [`FakeBoard::path`]), which is what these tests check; the step timing
 //! is the controller tests' and the simavr tests' business.
-//! `cycle_tests.rs` drives the same fake board.
+//! `gcode::tests` (the canned cycles) drives the same fake board; the
+//! interpreter alone, without a machine, is tested in [`commands`].
 
 use crate::fake_board::FakeBoard;
 use crate::machine::Machine;
@@ -496,3 +497,5 @@ fn the_compensation_example_runs_on_the_controller() {
     }
     assert!((m.interp.pos_mm[0] - 25.0).abs() < 1e-4 && (m.interp.pos_mm[1] - 12.0).abs() < 1e-4, "{:?}", m.interp.pos_mm);
 }
+
+mod commands;
