@@ -2,9 +2,9 @@
 //! machine (the step API of `interp.rs`). The parent module runs whole
 //! lines through the controller.
 
-use crate::gcode::interp::*;
 use crate::atc::Atc;
 use crate::config::Settings;
+use crate::gcode::interp::*;
 
 /// Every command of `text`, with the target of each move (`None` for the
 /// others), as a controller that carries each out at once would see them.
