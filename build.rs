@@ -32,10 +32,21 @@ fn main() {
 }
 
 /// Modules (v0-mangled path pieces) linked below the gap in the high-flash
-/// variant: the interpreter, the planner, the tool changer, the tool setter
-/// and the menu and screens (about 75 KB of ~145 KB).
-const HIGH_FLASH_LOW_MODULES: &[&str] =
-    &["4mill5gcode6interp", "4mill7planner", "4mill3atc", "4mill10toolsetter", "4mill2ui4menu", "4mill2ui4text", "4mill2ui6render"];
+/// variant: the interpreter, the planner, the tool changer (its logic and
+/// its runner), the tool setter (likewise), the `$` settings, and the menu
+/// and screens (about 95 KB of ~160 KB).
+const HIGH_FLASH_LOW_MODULES: &[&str] = &[
+    "4mill5gcode6interp",
+    "4mill7planner",
+    "4mill3atc",
+    "4mill10toolsetter",
+    "4mill7machine10toolchange",
+    "4mill7machine6setter",
+    "4mill6dollar",
+    "4mill2ui4menu",
+    "4mill2ui4text",
+    "4mill2ui6render",
+];
 
 /// avr-ld's own atmega2560 (avr6) script with a gap before the code: after
 /// the vectors, `.progmem` and the trampolines (all below 64 KiB, read with

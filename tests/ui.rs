@@ -305,6 +305,51 @@ fn a_running_job_shows_its_values_and_the_button_resumes_it_from_m0() {
     assert!(!vm.spindle_on());
 }
 
+/// The spindle's duty now (0..1), after the display settled.
+fn duty(vm: &mut Vm) -> f64 {
+    settle(vm);
+    vm.spindle_duty()
+}
+
+#[test]
+fn the_spindle_menu_turns_it_on_sets_its_speed_and_override_and_off() {
+    let mut vm = boot_unlocked();
+    main_menu_entry(&mut vm, 8);
+    assert_eq!(screen(&vm)[7], "[ Spindle]", "{:?}", screen(&vm));
+    press(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[0..5], ["[ Spindle]", "[ < Back]", " Spindle          off", " Speed          0 rpm", " Override        100%"], "{s:?}");
+    // Speed first: 50 detents of 100 rpm, then on.
+    turn(&mut vm, 2);
+    press(&mut vm);
+    assert_eq!(screen(&vm)[0], "[ Speed]");
+    turn(&mut vm, 50);
+    assert_eq!(screen(&vm)[2].trim(), "5000 rpm");
+    press(&mut vm);
+    assert_eq!(duty(&mut vm), 0.0, "setting the speed does not start the spindle");
+    assert_eq!(screen(&vm)[3], "[ Speed       5000 rpm]");
+    turn(&mut vm, -1);
+    press(&mut vm);
+    // M3 S5000 on the default $30=10300: 5000/10300 of full duty.
+    let on = duty(&mut vm);
+    assert!((on - 5000.0 / 10300.0).abs() < 0.01, "duty {on}");
+    assert_eq!(screen(&vm)[2], "[ Spindle           on]");
+    golden(&vm, "spindle_menu");
+    // Override 150 %: five detents of 10 %; the output follows at once.
+    turn(&mut vm, 2);
+    press(&mut vm);
+    turn(&mut vm, 5);
+    press(&mut vm);
+    let up = duty(&mut vm);
+    assert!((up - 7500.0 / 10300.0).abs() < 0.01, "duty {up}");
+    assert_eq!(ov(&mut vm, 12), "100,100,150", "Ov: reports it");
+    // Off.
+    turn(&mut vm, -2);
+    press(&mut vm);
+    assert_eq!(duty(&mut vm), 0.0);
+    assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+}
+
 // ------------------------------------------------- job control and faults
 
 /// The job row's percentage, from the status screen.

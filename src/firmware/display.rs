@@ -78,6 +78,8 @@ impl Hw {
         v.opt_stop = m.settings.optional_stop;
         v.wcs = m.interp.wcs;
         v.rpm = rpm.clamp(0.0, 65535.0) as u16;
+        v.speed = m.interp.spindle_rpm.clamp(0.0, 65535.0) as u16;
+        v.spindle_pct = m.overrides().spindle;
         v.job = self.job.phase;
         v.job_pct = (self.job.permille_cut(m) / 10) as u8;
         if self.job.active() {

@@ -57,6 +57,30 @@ impl Hw {
     }
 }
 
+/// The Spindle menu's commands, through the serial lines where there is
+/// one (`M3 S<rpm>`, `M5`, `S<rpm>`: the same checks and clamps as a
+/// host's), the override as 0x9A/0x9B set it. A frame of its own, as
+/// [`files_cmd`].
+#[inline(never)]
+fn spindle_cmd(m: &mut Machine, hw: &mut Hw, cmd: Cmd) -> mill::machine::CmdResult {
+    let (on, rpm, set) = match cmd {
+        Cmd::Spindle { on, rpm, set } => (on, rpm, set),
+        Cmd::SpindleOverride(pct) => {
+            m.set_spindle_override(hw, pct);
+            return Ok(());
+        }
+        _ => return Ok(()),
+    };
+    let mut l = Line::blank();
+    let c = match (on, set) {
+        (false, false) => l.put(0, b"M5"),
+        (false, true) => l.put(0, b"S"),
+        (true, _) => l.put(0, b"M3 S"),
+    };
+    let c = if on || set { l.uint(c, rpm as u32) } else { c };
+    m.run_menu_line(&l.chars[..c], hw)
+}
+
 /// The Files screen's commands (a frame of their own: `ui_turn` is on the
 /// deepest stack path, the alarm menu's jog).
 #[inline(never)]
@@ -127,6 +151,7 @@ pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
             Ok(())
         }
         Cmd::Teach(p) => m.teach_station(hw, p),
+        Cmd::Spindle { .. } | Cmd::SpindleOverride(_) => spindle_cmd(m, hw, cmd),
         Cmd::Store(e, um) => {
             let r = store_edit(m, hw, e, um);
             hw.ui.reply = match r {

@@ -122,6 +122,20 @@ impl Machine {
         }
     }
 
+    /// The spindle override (the menu), percent within grbl's 10–200 %: the
+    /// output follows at once when the spindle turns, as with 0x9A/0x9B.
+    pub fn set_spindle_override(&mut self, io: &mut impl Io, pct: u8) {
+        let pct = pct.clamp(crate::overrides::MIN_PCT as u8, crate::overrides::MAX_PCT as u8);
+        if pct != self.spindle_pct {
+            self.spindle_pct = pct;
+            // The next status report carries `Ov:`.
+            self.report_count = 0;
+            if self.interp.spindle_on && !self.spindle_stopped {
+                io.spindle(crate::overrides::spindle_duty(self.spindle_duty, pct));
+            }
+        }
+    }
+
     /// The feed override (M220, the menu), for the queued moves too.
     pub fn set_feed_override(&mut self, pct: u16) {
         self.planner.set_overrides(pct, self.planner.rapid_override(), &self.settings);

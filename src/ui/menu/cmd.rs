@@ -119,6 +119,15 @@ pub enum Cmd {
     Abort,
     /// Set the feed override, percent.
     Override(u16),
+    /// The spindle: on (M3 at `rpm`) or off (M5); or, with `set`, only the
+    /// speed (`S<rpm>`, and M3 S when it turns).
+    Spindle {
+        on: bool,
+        rpm: u16,
+        set: bool,
+    },
+    /// Set the spindle override, percent.
+    SpindleOverride(u8),
     /// Optional stop (M1 pauses) on or off.
     OptionalStop(bool),
     /// Move `axis` by `delta_um` micrometres.

@@ -40,6 +40,8 @@ impl Ui {
                         Screen::ConfirmRun(_) => Text::RunQ,
                         Screen::ConfirmAbort => Text::AbortQ,
                         Screen::Override => Text::FeedOverride,
+                        Screen::SpindleOverride => Text::SpindleOverride,
+                        Screen::SpindleSpeed => Text::SpindleSpeed,
                         Screen::Jogging => Text::Jog,
                         Screen::PickTool(false) => Text::ChangeTool,
                         Screen::PickTool(true) => Text::InSpindleQ,
@@ -89,10 +91,15 @@ impl Ui {
                 }
                 let e = self.top + row as u8 - 1;
                 match self.screen {
-                    Screen::Override => {
+                    Screen::Override | Screen::SpindleOverride | Screen::SpindleSpeed => {
                         if row == 2 {
-                            l.uint_right(12, self.override_pct as u32);
-                            l.text(12, Text::Pct);
+                            if self.screen == Screen::SpindleSpeed {
+                                l.uint_right(12, self.edit_um as u32);
+                                l.text(13, Text::Rpm);
+                            } else {
+                                l.uint_right(12, self.override_pct as u32);
+                                l.text(12, Text::Pct);
+                            }
                         }
                         if row == 7 {
                             l.text(0, Text::HintEdit);
@@ -228,6 +235,17 @@ impl Ui {
             }
             Act::OptStop => {
                 l.text(COLS - 3, if v.opt_stop { Text::On } else { Text::Off });
+            }
+            Act::SpindleOnOff => {
+                l.text(COLS - 3, if v.rpm != 0 { Text::On } else { Text::Off });
+            }
+            Act::SpindleSpeed => {
+                l.uint_right(COLS - 4, v.speed as u32);
+                l.text(COLS - 3, Text::Rpm);
+            }
+            Act::SpindleOverride => {
+                l.uint_right(COLS - 1, v.spindle_pct as u32);
+                l.text(COLS - 1, Text::Pct);
             }
             Act::JogStep => {
                 let um = JOG_STEPS_UM[self.jog_step as usize % 3];

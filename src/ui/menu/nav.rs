@@ -13,6 +13,9 @@ use crate::machine::{Machine, State};
 use crate::ui::render::ROWS;
 use crate::ui::text::Text;
 
+/// Spindle > Speed: rpm per detent.
+const SPEED_STEP_RPM: i32 = 100;
+
 /// Jog steps, µm.
 pub(super) const JOG_STEPS_UM: [i32; 3] = [100, 1000, 10_000];
 
@@ -142,6 +145,24 @@ impl Ui {
                 if press {
                     self.screen = Screen::Menu(MenuId::Job);
                     return Cmd::Override(self.override_pct);
+                }
+                Cmd::None
+            }
+            Screen::SpindleOverride => {
+                // grbl's coarse step and range (0x9A/0x9B).
+                let p = self.override_pct as i16 + 10 * detents as i16;
+                self.override_pct = p.clamp(10, 200) as u16;
+                if press {
+                    self.screen = Screen::Menu(MenuId::Spindle);
+                    return Cmd::SpindleOverride(self.override_pct as u8);
+                }
+                Cmd::None
+            }
+            Screen::SpindleSpeed => {
+                self.edit_um = (self.edit_um + SPEED_STEP_RPM * detents as i32).clamp(0, u16::MAX as i32);
+                if press {
+                    self.screen = Screen::Menu(MenuId::Spindle);
+                    return Cmd::Spindle { on: v.rpm != 0, rpm: self.edit_um as u16, set: true };
                 }
                 Cmd::None
             }
@@ -369,6 +390,7 @@ impl Ui {
                         MenuId::Job => 2,
                         MenuId::Jog => 3,
                         MenuId::Home => 4,
+                        MenuId::Spindle => 8,
                         _ => 5,
                     };
                     self.back_to(MenuId::Main, entry);
@@ -407,6 +429,27 @@ impl Ui {
             }
             Act::Info => {
                 self.go(Screen::Info);
+                Cmd::None
+            }
+            Act::SpindleMenu => {
+                self.go(Screen::Menu(MenuId::Spindle));
+                Cmd::None
+            }
+            // Not during a job: the job's M3/M5 are in charge (the override
+            // is not: it is what an operator turns during a cut).
+            Act::SpindleOnOff if !v.job_active() => {
+                let on = v.rpm == 0;
+                Cmd::Spindle { on, rpm: v.speed, set: false }
+            }
+            Act::SpindleSpeed if !v.job_active() => {
+                self.edit_um = v.speed as i32;
+                self.screen = Screen::SpindleSpeed;
+                Cmd::None
+            }
+            Act::SpindleOnOff | Act::SpindleSpeed => Cmd::None,
+            Act::SpindleOverride => {
+                self.override_pct = v.spindle_pct as u16;
+                self.screen = Screen::SpindleOverride;
                 Cmd::None
             }
             Act::PauseResume => {

@@ -18,6 +18,10 @@ pub enum Screen {
     ConfirmAbort,
     /// Feed override being set.
     Override,
+    /// Spindle > Speed: the S being set (rpm, in `Ui::edit_um`).
+    SpindleSpeed,
+    /// Spindle > Override: the percentage being set (`Ui::override_pct`).
+    SpindleOverride,
     /// Jogging: each detent moves the axis one step.
     Jogging,
     /// Every `$` setting (entry 0 "< Back", entry i is setting

@@ -33,8 +33,11 @@ fn screen_of(ui: &Ui, v: &View, m: &Machine) -> Vec<String> {
 
 #[test]
 fn the_menu_tree_is_laid_out_as_the_spec_says() {
-    assert_eq!(MenuId::Main.len(), 8);
+    assert_eq!(MenuId::Main.len(), 9);
     assert_eq!(MenuId::Main.item(1), (Text::RunFromSd, Act::Files));
+    assert_eq!(MenuId::Main.item(8), (Text::Spindle, Act::SpindleMenu));
+    assert_eq!(MenuId::Spindle.len(), 4);
+    assert_eq!(MenuId::Spindle.item(3), (Text::OverrideShort, Act::SpindleOverride));
     assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
     assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
     assert_eq!(MenuId::Tools.len(), 8);
@@ -53,7 +56,7 @@ fn every_menu_entry_reads_back_as_a_text_and_an_action() {
         assert!(Text::from_u8(t).is_some() && Act::from_u8(a).is_some(), "entry {t} {a}");
     }
     for b in 0..=255u8 {
-        assert_eq!(Act::from_u8(b).map(|a| a as u8), (b <= Act::OptStop as u8).then_some(b), "{b}");
+        assert_eq!(Act::from_u8(b).map(|a| a as u8), (b <= Act::SpindleOverride as u8).then_some(b), "{b}");
     }
 }
 
@@ -648,4 +651,41 @@ fn a_card_pulled_mid_job_shows_the_line_it_stopped_at() {
     v.state = State::Idle;
     v.job = Phase::Ended(Outcome::CardRemoved(41));
     assert_eq!(screen(&ui, &v)[6], "Card out: line 41");
+}
+
+#[test]
+fn the_spindle_menu_switches_sets_the_speed_and_the_override_and_leaves_a_job_s_spindle_alone() {
+    let mut ui = Ui::new();
+    let mut v = View::new();
+    v.speed = 8000;
+    ui.go(Screen::Menu(MenuId::Main));
+    ui.step(8, false, &v);
+    ui.step(0, true, &v);
+    assert_eq!(ui.screen, Screen::Menu(MenuId::Spindle));
+    // On at the speed in force; off again.
+    ui.step(1, false, &v);
+    assert_eq!(ui.step(0, true, &v), Cmd::Spindle { on: true, rpm: 8000, set: false });
+    v.rpm = 8000;
+    assert_eq!(ui.step(0, true, &v), Cmd::Spindle { on: false, rpm: 8000, set: false });
+    // Speed: 100 rpm a detent, kept on.
+    ui.step(1, false, &v);
+    ui.step(0, true, &v);
+    assert_eq!(ui.screen, Screen::SpindleSpeed);
+    ui.step(-30, false, &v);
+    assert_eq!(ui.step(0, true, &v), Cmd::Spindle { on: true, rpm: 5000, set: true });
+    // Override: 10 % a detent within 10..200.
+    ui.step(1, false, &v);
+    ui.step(0, true, &v);
+    assert_eq!(ui.screen, Screen::SpindleOverride);
+    ui.step(50, false, &v);
+    assert_eq!(ui.step(0, true, &v), Cmd::SpindleOverride(200));
+    // During a job, on/off and speed are the job's; the override is not.
+    v.job = Phase::Running;
+    ui.step(-2, false, &v);
+    assert_eq!(ui.step(0, true, &v), Cmd::None);
+    assert_eq!(ui.screen, Screen::Menu(MenuId::Spindle));
+    // Back returns to the main menu on Spindle.
+    ui.step(-5, false, &v);
+    ui.step(0, true, &v);
+    assert_eq!((ui.screen, ui.sel), (Screen::Menu(MenuId::Main), 8));
 }

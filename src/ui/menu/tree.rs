@@ -64,6 +64,14 @@ u8_enum! {
         /// Tools > Tool numbers: the tool number kept in each pocket.
         ToolNumbers,
         OptStop,
+        /// Main > Spindle.
+        SpindleMenu,
+        /// Spindle > On/off: M3 at the speed set, or M5.
+        SpindleOnOff,
+        /// Spindle > Speed: the S word (and M3 S when the spindle turns).
+        SpindleSpeed,
+        /// Spindle > Override: the spindle override, as 0x9A/0x9B set it.
+        SpindleOverride,
     }
 }
 
@@ -78,6 +86,7 @@ pub enum MenuId {
     Tools,
     /// Opened from the status screen in an alarm: what gets out of it.
     Alarm,
+    Spindle,
 }
 
 const fn item(t: Text, a: Act) -> [u8; 2] {
@@ -86,7 +95,7 @@ const fn item(t: Text, a: Act) -> [u8; 2] {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-pub(super) static ITEMS: [[u8; 2]; 38] = [
+pub(super) static ITEMS: [[u8; 2]; 43] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -96,6 +105,7 @@ pub(super) static ITEMS: [[u8; 2]; 38] = [
     item(Text::Tools, Act::ToolsMenu),
     item(Text::Settings, Act::Settings),
     item(Text::Info, Act::Info),
+    item(Text::Spindle, Act::SpindleMenu),
     // Job
     item(Text::Back, Act::Back),
     item(Text::Pause, Act::PauseResume),
@@ -131,11 +141,16 @@ pub(super) static ITEMS: [[u8; 2]; 38] = [
     item(Text::HomeAll, Act::HomeAll),
     item(Text::Jog, Act::JogMenu),
     item(Text::ConfirmSpindle, Act::ConfirmSpindle),
+    // Spindle
+    item(Text::Back, Act::Back),
+    item(Text::Spindle, Act::SpindleOnOff),
+    item(Text::SpindleSpeed, Act::SpindleSpeed),
+    item(Text::OverrideShort, Act::SpindleOverride),
 ];
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 7] = [0, 8, 13, 20, 25, 33, 38];
+static MENU_START: [u8; 8] = [0, 9, 14, 21, 26, 34, 39, 43];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {
@@ -174,6 +189,7 @@ impl MenuId {
             MenuId::Home => Text::Home,
             MenuId::Tools => Text::Tools,
             MenuId::Alarm => Text::AlarmMenu,
+            MenuId::Spindle => Text::Spindle,
         }
     }
 }

@@ -22,6 +22,10 @@ pub struct View {
     pub wcs: u8,
     /// Spindle speed, rpm (0 = off).
     pub rpm: u16,
+    /// The programmed speed (the S word in force), rpm, and the spindle
+    /// override, percent.
+    pub speed: u16,
+    pub spindle_pct: u8,
     pub job: Phase,
     pub job_pct: u8,
     /// Seconds since the job started (while it runs).
@@ -58,6 +62,8 @@ impl View {
             opt_stop: false,
             wcs: 0,
             rpm: 0,
+            speed: 0,
+            spindle_pct: 100,
             job: Phase::Idle,
             job_pct: 0,
             job_s: 0,
