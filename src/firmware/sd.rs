@@ -176,7 +176,6 @@ impl Card for SdFiles {
         self.vm.file_length(f).map_err(map_err)
     }
 
-    #[inline(never)]
     fn enter(&mut self, name: &Name) -> Result<(), SdError> {
         let sfn = embedded_sdmmc::ShortFileName::create_from_str(name.as_str()).map_err(|_| SdError::BadName)?;
         self.change_folder(sfn)?;
@@ -184,7 +183,6 @@ impl Card for SdFiles {
         Ok(())
     }
 
-    #[inline(never)]
     fn leave(&mut self) -> Result<(), SdError> {
         if self.depth == 0 {
             return Ok(());

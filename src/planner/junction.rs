@@ -30,6 +30,8 @@ const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
 /// [`JUNCTION_SPEED_SQR_STRAIGHT`] without the square root (`cap_cache`
 /// holds (bits of cap, cap²)). Used when a block is queued and when the
 /// overrides re-plan the ring.
+// Seven numbers of one junction, passed as they are: a struct would be
+// built on the per-line path only to be taken apart here.
 #[allow(clippy::too_many_arguments)]
 // correctness: as a call, `cap` goes on the stack, and LLVM-AVR reads stack
 // arguments one byte low on the ATmega2560 (it counts a 2-byte return address;

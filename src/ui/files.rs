@@ -197,7 +197,6 @@ impl FileList {
 
     /// Show the rows from sorted entry `first` on, and count the folder's
     /// entries (a missing or unreadable card lists nothing).
-    #[inline(never)]
     pub fn refresh(&mut self, card: &mut impl Card, first: u8) {
         let r = card.mount().and_then(|_| {
             if self.valid && first < self.first && self.first - first < ROWS as u8 && self.filled > 0 {
@@ -253,7 +252,6 @@ impl FileList {
     }
 
     /// The 8.3 name and kind of sorted entry `i`, when it is on screen.
-    #[inline(never)]
     pub fn entry(&self, card: &mut impl Card, i: u8) -> Option<(Name, bool)> {
         self.row(i)?;
         let want = self.pos[(i - self.first) as usize];

@@ -187,7 +187,6 @@ impl SdJob {
 
     /// Select the file `name` of folder `at` for a job (M23: the root; the
     /// menu: the folder its list shows).
-    #[inline(never)]
     pub fn select(&mut self, card: &mut impl Card, at: Folder, name: &Name) -> Result<(), SdError> {
         if self.active() || self.phase == Phase::Writing {
             card.close().ok();
@@ -276,7 +275,6 @@ impl SdJob {
 
     /// One main-loop turn. `motion_done`: nothing planned or stepping.
     /// May fill `line` with the next line to run (see [`Turn`]).
-    #[inline(never)]
     pub fn poll(
         &mut self,
         card: &mut impl Card,
@@ -345,7 +343,6 @@ impl SdJob {
     /// line the job stopped. True when the job ended here. Called every
     /// main-loop turn, also while a job's line waits (a long arc, a full
     /// planner), so no queued move outlives the card.
-    #[inline(never)]
     pub fn card_check(&mut self, detected: bool, m: &Machine, out: &mut impl uWrite) -> bool {
         if detected || !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) {
             return false;
@@ -358,7 +355,6 @@ impl SdJob {
     }
 
     /// After a line ran: on an error, stop reading (the moves before it finish).
-    #[inline(never)]
     pub fn line_done(&mut self, r: CmdResult, m: &mut Machine, out: &mut impl uWrite) {
         if let Err(e) = r {
             if self.phase == Phase::Running || self.phase == Phase::Paused {
@@ -372,8 +368,6 @@ impl SdJob {
             }
         }
     }
-
-    #[inline(never)]
     fn end(&mut self, card: &mut impl Card, m: &mut Machine, o: Outcome, out: &mut impl uWrite) -> Turn {
         card.close().ok();
         m.sd_job = false;
@@ -398,7 +392,6 @@ impl SdJob {
     /// from 0x80 up (UTF-8 or Latin-1 text, as in a comment `(fräsen)`) pass
     /// to the parser, which ignores them in a comment and refuses them
     /// anywhere else.
-    #[inline(never)]
     fn next_line(&mut self, card: &mut impl Card, line: &mut [u8; MAX_LINE_LEN]) -> Result<Option<usize>, Text> {
         loop {
             let mut n = 0usize;
@@ -458,7 +451,6 @@ impl SdJob {
     }
 
     /// M27: progress report.
-    #[inline(never)]
     pub fn report(&self, out: &mut impl uWrite) {
         if self.active() {
             uwriteln!(out, "{}{}/{}", Text::SdPrintingByte, self.pos, self.size).ok();
@@ -491,7 +483,6 @@ pub fn command(job: &mut SdJob, card: &mut impl Card, m: &mut Machine, out: &mut
 
 /// [`command`] over the machine's job flags only (what `Io::sd_command`
 /// is given).
-#[inline(never)]
 pub fn command_with(
     job: &mut SdJob,
     card: &mut impl Card,
