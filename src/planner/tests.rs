@@ -1,3 +1,7 @@
+//! Host tests of the planner: junction and entry speeds, trapezoids,
+//! look-ahead over long runs of tiny moves, the overrides' re-plan, and
+//! the ring's bookkeeping.
+
 use super::junction::REVERSAL_STEP_S;
 use super::*;
 use crate::config::Settings;
