@@ -1578,3 +1578,97 @@ fn work_zero_from_the_jog_menu_and_a_z_zero_by_probing() {
     let s = screen(&vm);
     assert!(s[2..7].join(" ").contains("probe"), "{s:?}");
 }
+
+// ------------------------------------------- everyday tasks, counted
+
+#[test]
+fn everyday_tasks_from_the_status_screen_take_these_encoder_actions() {
+    let mut vm = tools_vm();
+    vm.insert_sd(card(&[("LONG.NC", long_job(20).as_bytes())], FatKind::Fat16));
+    let mut table: Vec<(&str, u32)> = Vec::new();
+    // Home all: Menu > Home > Home all.
+    let mut h = Hands::default();
+    h.press(&mut vm);
+    h.turn(&mut vm, 4);
+    h.press(&mut vm);
+    h.turn(&mut vm, 1);
+    h.press(&mut vm);
+    homed_by_the_menu(&mut vm);
+    table.push(("home all", h.actions()));
+    settle(&mut vm);
+    // Zero X, Y and Z here: Menu > Jog > Zero X, then Axis and Zero for Y and Z.
+    let mut h = Hands::default();
+    h.press(&mut vm);
+    h.turn(&mut vm, 3);
+    h.press(&mut vm);
+    for axis in 0..3 {
+        if axis > 0 {
+            h.turn(&mut vm, -3);
+            h.press(&mut vm); // Axis: the next one
+            h.turn(&mut vm, 3);
+        } else {
+            h.turn(&mut vm, 4);
+        }
+        h.press(&mut vm); // Zero <axis>
+        settle(&mut vm);
+        h.press(&mut vm); // the reply: back to the Jog menu
+    }
+    table.push(("zero X, Y and Z", h.actions()));
+    turn(&mut vm, -10);
+    press(&mut vm);
+    turn(&mut vm, -10);
+    press(&mut vm);
+    settle(&mut vm);
+    let s = screen(&vm);
+    assert_eq!(s[1..4], ["X      0.000 mm", "Y      0.000 mm", "Z      0.000 mm"], "{s:?}");
+    // Pause and resume a running job: Menu > Job > Pause, then Resume.
+    ok(&mut vm, "M23 LONG.NC");
+    ok(&mut vm, "M24");
+    vm.run_for(1.0).unwrap();
+    let mut h = Hands::default();
+    h.press(&mut vm);
+    h.turn(&mut vm, 2);
+    h.press(&mut vm);
+    h.turn(&mut vm, 1);
+    h.press(&mut vm);
+    vm.run_for(1.0).unwrap();
+    let held = steps(&vm);
+    vm.run_for(0.5).unwrap();
+    assert_eq!(steps(&vm), held, "paused");
+    h.press(&mut vm); // Resume
+    vm.run_for(0.5).unwrap();
+    assert_ne!(steps(&vm), held, "resumed");
+    table.push(("pause and resume a job", h.actions()));
+    ok(&mut vm, "M524");
+    vm.run_for(2.0).unwrap();
+    turn(&mut vm, -10);
+    press(&mut vm);
+    turn(&mut vm, -10);
+    press(&mut vm);
+    settle(&mut vm);
+    // Change to T2: Menu > Tools > Change tool > T2 > Yes.
+    let mut h = Hands::default();
+    h.press(&mut vm);
+    h.turn(&mut vm, 5);
+    h.press(&mut vm);
+    h.turn(&mut vm, 1);
+    h.press(&mut vm);
+    let now = spindle_tool(&vm) as i32;
+    h.turn(&mut vm, 2 - now);
+    h.press(&mut vm);
+    h.turn(&mut vm, 1);
+    h.press(&mut vm);
+    for _ in 0..240 {
+        if spindle_tool(&vm) == 2 {
+            break;
+        }
+        vm.run_for(0.5).unwrap();
+    }
+    assert_eq!(spindle_tool(&vm), 2);
+    table.push(("change to T2", h.actions()));
+    for (task, n) in &table {
+        println!("{task}: {n} encoder actions");
+    }
+    // The README lists these; a menu made deeper shows here first.
+    assert_eq!(table, [("home all", 8), ("zero X, Y and Z", 29), ("pause and resume a job", 7), ("change to T2", 14)]);
+}
