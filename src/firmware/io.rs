@@ -175,7 +175,8 @@ impl Host for Hw {
             let cmd = self.ui.step(detents, presses != 0, &self.view);
             match cmd {
                 // An edit screen opened: its value, here where the machine is.
-                Cmd::Edit(e) => self.ui.edit_um = e.current(m),
+                // (Run from line's proposal needs the card: the main loop's.)
+                Cmd::Edit(e) if !matches!(e, mill::ui::menu::Edit::FromLine(_)) => self.ui.edit_um = e.current(m),
                 other => self.command_now(other),
             }
             self.ui.fit_edit(m);

@@ -8,7 +8,26 @@ use crate::board::spi::{BusyDelay, ClockDiv, SdDevice};
 use crate::board::{self, wdt};
 use core::ops::ControlFlow;
 use embedded_sdmmc::{LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
-use mill::ui::sd::{Card, Entry, Folder, Name, SdError};
+use mill::machine::Machine;
+use mill::ui::resume;
+use mill::ui::sd::{Card, Entry, Folder, Name, Phase, SdError};
+
+/// Run from line's bookkeeping, once per main-loop turn: a scan the job
+/// left (aborted, the card pulled, the file too short) is ended, and the
+/// line reached is recorded in EEPROM when it is due (`SdJob::record_due`).
+// stack: out of job_turn's frame, on every turn
+#[inline(never)]
+pub(super) fn keep_record(m: &mut Machine, hw: &mut super::Hw) {
+    if m.rebuild.active && !matches!(hw.job.phase, Phase::Scanning(_)) {
+        m.end_scan(hw);
+    }
+    let now_s = (board::millis() / 1000) as u16;
+    if let Some(line) = hw.job.record_due(m, now_s) {
+        // A programmed byte takes 3.3 ms: the segment ring topped up first.
+        m.fill_segments(hw);
+        resume::reached(hw, line);
+    }
+}
 
 /// Files get this date (there is no real-time clock).
 pub(super) struct FixedClock;

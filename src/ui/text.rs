@@ -172,6 +172,21 @@ crate::flash_texts! {
     TurnToSet = "Turn >",
     Save = "Save",
     LineG10L1P = "G10 L1 P",
+    // Run from line: the Run screen's entry, its edit screen, the scan.
+    FromLine = "From line",
+    LineWord = "Line",
+    Start = "Start",
+    FromLineHelp = "Proposed: the last line reached by its last run",
+    NoteFileChanged = "File changed since its last run: from line 1",
+    NoteNoRun = "No stopped run of this file: from line 1",
+    JobScanning = "Scan to ",
+    JobNotResumed = "Not resumed: ",
+    WhyPastEnd = "The file ends before that line",
+    WhyCardOut = "Card removed during the scan",
+    MsgPastEnd = "run from line: the file ends at line ",
+    MsgNothingMoved = ", nothing moved",
+    MsgNotResumed = "run from line not started: line ",
+    MsgResumeAt = "run from line ",
 }
 
 #[cfg(test)]

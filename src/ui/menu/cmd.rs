@@ -88,6 +88,7 @@ impl ToolOp {
             ToolOp::Wcs(_) => (Text::WorkSystem, 6),
             ToolOp::Store(Edit::Setting(_)) => (Text::Settings, 6),
             ToolOp::Store(Edit::Pocket(_)) => (Text::ToolNumbers, 7),
+            ToolOp::Store(Edit::FromLine(_)) => (Text::FromLine, 0),
         }
     }
 }

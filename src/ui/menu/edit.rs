@@ -18,6 +18,9 @@ pub enum Edit {
     /// The tool number kept in pocket p (1..=12; 0 = none), stored by
     /// running `G10 L1 P<tool> Q<p>` (after `G10 L1 P<old> Q0`).
     Pocket(u8),
+    /// Run from line: the line of file i of the list to start at, stored by
+    /// starting the job there (the firmware proposes the line, `ui::resume`).
+    FromLine(u8),
 }
 
 /// Entries of the edit screen: < Back, Value, Step, Save.
@@ -31,6 +34,7 @@ impl Edit {
         match self {
             Edit::Setting(n) => dollar::value(&m.settings, n).map_or(0, |(v, _)| v.micros()),
             Edit::Pocket(p) => m.atc.table.number_of(p) as i32 * 1000,
+            Edit::FromLine(_) => 1000,
         }
     }
 
@@ -38,7 +42,7 @@ impl Edit {
     pub(super) fn integer(self, m: &Machine) -> bool {
         match self {
             Edit::Setting(n) => !matches!(dollar::value(&m.settings, n), Some((dollar::Value::Num(_), _))),
-            Edit::Pocket(_) => true,
+            Edit::Pocket(_) | Edit::FromLine(_) => true,
         }
     }
 
@@ -52,6 +56,7 @@ impl Edit {
                 _ => (-99_999_999, 99_999_999),
             },
             Edit::Pocket(_) => (0, 254_000),
+            Edit::FromLine(_) => (1000, 2_000_000_000),
         }
     }
 
@@ -77,6 +82,7 @@ impl Edit {
                 let c = l.put(c, b" Q");
                 l.uint(c, q as u32)
             }
+            Edit::FromLine(_) => 0,
         }
     }
 }
