@@ -167,7 +167,7 @@ fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
     // left the ring emptier than a serial stream's: 10 % slower). Serial
     // bytes waiting (M27, a status query) end the batch: they go first, as
     // they did with one line per turn.
-    sd::keep_record(m, hw);
+    sd::end_left_scan(m, hw);
     for _ in 0..4 {
         let done = m.motion_done(hw);
         let turn = hw.job.poll(&mut hw.sd, m, done, line, &mut SerialOut);

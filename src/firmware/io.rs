@@ -166,6 +166,7 @@ impl Host for Hw {
         // The card pulled mid-job ends the job now, even while one of its
         // lines waits (a long arc, a full planner, M0): the status screen
         // says so.
+        super::sd::keep_record(self, m);
         if self.job.card_check(board::sd_detected(), m, &mut SerialOut) {
             self.sd.unmount();
             self.ui.screen = Screen::Status;

@@ -9,8 +9,8 @@ use crate::board;
 use mill::gcode::interp;
 use mill::machine::{Inputs, Machine};
 use mill::ui::menu::{Cmd, Edit, Reply, Screen};
-use mill::ui::resume;
 use mill::ui::render::Line;
+use mill::ui::resume;
 use mill::ui::sd::{req, Card, Folder, SdError};
 use ufmt::uwriteln;
 
@@ -108,10 +108,7 @@ fn files_cmd(m: &mut Machine, hw: &mut Hw, cmd: Cmd) -> mill::machine::CmdResult
             Some((name, false)) => match hw.job.select(&mut hw.sd, Folder::Current, &name) {
                 Ok(()) => {
                     m.job_start_ms = hw.millis();
-                    hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr()))?;
-                    let size = hw.job.size;
-                    resume::start(hw, &name, size, 1);
-                    Ok(())
+                    hw.job.start(m).map_err(|t| interp::Error::Sd(t.as_fstr()))
                 }
                 Err(e) => Err(sd_err(e)),
             },
@@ -151,8 +148,6 @@ fn run_from_line(m: &mut Machine, hw: &mut Hw, i: u8, line: u32) -> mill::machin
     }
     hw.job.start_from(m, line).map_err(|t| interp::Error::Sd(t.as_fstr()))?;
     m.job_start_ms = hw.millis();
-    let size = hw.job.size;
-    resume::start(hw, &name, size, line);
     uwriteln!(hw, "{}{}{}{}", mill::F!("echo:"), mill::ui::text::Text::MsgResumeAt, line, mill::F!(": scanning")).ok();
     hw.ui.screen = Screen::Status;
     Ok(())

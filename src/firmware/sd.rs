@@ -10,22 +10,34 @@ use core::ops::ControlFlow;
 use embedded_sdmmc::{LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
 use mill::machine::Machine;
 use mill::ui::resume;
-use mill::ui::sd::{Card, Entry, Folder, Name, Phase, SdError};
+use mill::ui::sd::{Card, Due, Entry, Folder, Name, Phase, SdError};
 
-/// Run from line's bookkeeping, once per main-loop turn: a scan the job
-/// left (aborted, the card pulled, the file too short) is ended, and the
-/// line reached is recorded in EEPROM when it is due (`SdJob::record_due`).
-// stack: out of job_turn's frame, on every turn
+/// Run from line: a scan the job left (aborted, the card pulled, the
+/// file too short) is ended. Once per main-loop turn.
+// stack: out of job_turn's frame
 #[inline(never)]
-pub(super) fn keep_record(m: &mut Machine, hw: &mut super::Hw) {
+pub(super) fn end_left_scan(m: &mut Machine, hw: &mut super::Hw) {
     if m.rebuild.active && !matches!(hw.job.phase, Phase::Scanning(_)) {
         m.end_scan(hw);
     }
+}
+
+/// Run from line's record: the line reached, in EEPROM when it is due
+/// (`SdJob::record_due`), and the file with it when a job starts (from
+/// the menu or M24). From the idle hook, so also during a line's
+/// wait, right after `Machine::idle` topped the segment ring up (a
+/// programmed byte takes 3.3 ms; a record programs one or two).
+// stack: out of the idle hook's frame
+#[inline(never)]
+pub(super) fn keep_record(hw: &mut super::Hw, m: &Machine) {
     let now_s = (board::millis() / 1000) as u16;
-    if let Some(line) = hw.job.record_due(m, now_s) {
-        // A programmed byte takes 3.3 ms: the segment ring topped up first.
-        m.fill_segments(hw);
-        resume::reached(hw, line);
+    match hw.job.record_due(m, now_s) {
+        Some(Due::Start(line)) => {
+            let (name, size) = (hw.job.name, hw.job.size);
+            resume::start(hw, &name, size, line);
+        }
+        Some(Due::Reached(line)) => resume::reached(hw, line),
+        None => {}
     }
 }
 

@@ -169,7 +169,8 @@ mod tests {
 
     /// A job: inches for a while, then metric in G55 (X offset 5 mm) with
     /// G92, T0 kept, spindle at 9000, flood, then relative moves.
-    const JOB: &str = "G20 G90\nG0 X1\nG21\nG10 L2 P2 X5\n\nG55\nG92 Y-1\nM3 S9000\nM8\nG0 X10 Y20\nG1 Z-3 F300\nG91\nG1 X1\nG1 X1\nG1 X1\nM5\nM2\n";
+    const JOB: &str =
+        "G20 G90\nG0 X1\nG21\nG10 L2 P2 X5\n\nG55\nG92 Y-1\nM3 S9000\nM8\nG0 X10 Y20\nG1 Z-3 F300\nG91\nG1 X1\nG1 X1\nG1 X1\nM5\nM2\n";
 
     /// Homed at 1 mm off each switch; the card holds `text` as A.NC.
     fn rig(text: &str) -> (Box<Machine>, FakeBoard, SdJob, FakeCard) {

@@ -130,10 +130,25 @@ pub struct SdJob {
     /// `Machine::aborts` when the job last looked.
     seen_aborts: u8,
     /// The last line reached (run from line's record), when it was last
-    /// recorded (seconds, wrapping), and a record is due now (pause, end).
+    /// recorded (seconds, wrapping), and a record due now (a start, a
+    /// pause, the end).
     reached: u32,
     saved_s: u16,
-    record_now: bool,
+    record_now: u8,
+}
+
+/// `SdJob::record_now`: nothing, the line reached, a job's start.
+const NO_RECORD: u8 = 0;
+const RECORD_LINE: u8 = 1;
+const RECORD_START: u8 = 2;
+
+/// A record of run from line's EEPROM record due ([`SdJob::record_due`]).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Due {
+    /// A job starts on the selected file at this line: the whole record.
+    Start(u32),
+    /// The job reached this line (0: it ran to its end).
+    Reached(u32),
 }
 
 impl Default for SdJob {
@@ -159,7 +174,7 @@ impl SdJob {
             seen_aborts: 0,
             reached: 1,
             saved_s: 0,
-            record_now: false,
+            record_now: NO_RECORD,
         }
     }
 
@@ -246,6 +261,8 @@ impl SdJob {
                 self.seen_aborts = f.aborts;
                 self.phase = Phase::Running;
                 self.reached = 1;
+                // Recorded at once: the records' clock starts with the job.
+                self.record_now = RECORD_START;
                 *f.sd_job = true;
                 Ok(())
             }
@@ -269,6 +286,7 @@ impl SdJob {
         self.seen_aborts = m.aborts;
         self.phase = Phase::Scanning(line);
         self.reached = line;
+        self.record_now = RECORD_START;
         m.sd_job = true;
         Ok(())
     }
@@ -286,7 +304,7 @@ impl SdJob {
         if self.phase == Phase::Running {
             self.request(req::HOLD);
             self.phase = Phase::Paused;
-            self.record_now = true;
+            self.record_now = self.record_now.max(RECORD_LINE);
         }
     }
 
@@ -411,23 +429,33 @@ impl SdJob {
 
     /// A record of the line reached is due (run from line, `ui::resume`):
     /// when the job pauses or ends, and every [`RECORD_EVERY_S`] seconds
-    /// while it cuts. `now_s`: a clock in seconds (wrapping). The line,
-    /// 0 for a job that ran to its end.
+    /// while it cuts; when a job starts (from the menu or M24), the whole
+    /// record. `now_s`: a clock in seconds (wrapping). Called from every wait (the main
+    /// loop sits in a line's wait for the last part of a job: M5 waits for
+    /// the moves queued before it), it follows the line reached while the
+    /// job cuts; not while a scan reads lines (they are not reached), nor
+    /// after it.
     ///
     /// [`RECORD_EVERY_S`]: crate::ui::resume::RECORD_EVERY_S
-    pub fn record_due(&mut self, m: &Machine, now_s: u16) -> Option<u32> {
-        // Not while a scan reads lines (they are not reached), nor after it.
+    pub fn record_due(&mut self, m: &Machine, now_s: u16) -> Option<Due> {
         if matches!(self.phase, Phase::Running | Phase::Draining(Outcome::Done)) && self.line > 0 {
             self.reached = self.cut_line(m).max(1);
             if now_s.wrapping_sub(self.saved_s) >= crate::ui::resume::RECORD_EVERY_S {
-                self.record_now = true;
+                self.record_now = self.record_now.max(RECORD_LINE);
             }
         }
-        if !core::mem::take(&mut self.record_now) {
+        let due = core::mem::replace(&mut self.record_now, NO_RECORD);
+        if due == NO_RECORD {
             return None;
         }
         self.saved_s = now_s;
-        Some(if matches!(self.phase, Phase::Ended(Outcome::Done)) { 0 } else { self.reached })
+        Some(if due == RECORD_START {
+            Due::Start(self.reached)
+        } else if matches!(self.phase, Phase::Ended(Outcome::Done)) {
+            Due::Reached(0)
+        } else {
+            Due::Reached(self.reached)
+        })
     }
 
     /// The card is gone (`detected` false) while the job still runs: end
@@ -447,7 +475,9 @@ impl SdJob {
             self.not_resumed(to, Text::WhyCardOut);
             return true;
         }
-        if !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) || matches!(self.phase, Phase::Draining(Outcome::NotResumed(_))) {
+        if !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_))
+            || matches!(self.phase, Phase::Draining(Outcome::NotResumed(_)))
+        {
             return false;
         }
         let stopped = self.cut_line(m);
@@ -476,7 +506,7 @@ impl SdJob {
         card.close().ok();
         m.sd_job = false;
         self.phase = Phase::Ended(o);
-        self.record_now = true;
+        self.record_now = self.record_now.max(RECORD_LINE);
         match o {
             Outcome::Done => uwriteln!(out, "{}", Text::MsgDonePrinting).ok(),
             Outcome::Aborted => uwriteln!(out, "{}{}", Text::Echo, Text::MsgAborted).ok(),

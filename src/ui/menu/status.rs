@@ -97,7 +97,10 @@ pub(super) fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcode
             job_time(v, l)
         }
         // A job stopped on a bad line: why (the refusal's first words).
-        7 if matches!(v.job, Phase::Ended(Outcome::BadLine(_) | Outcome::NotResumed(_))) && v.job_why.is_some() && v.state != State::Alarm => {
+        7 if matches!(v.job, Phase::Ended(Outcome::BadLine(_) | Outcome::NotResumed(_)))
+            && v.job_why.is_some()
+            && v.state != State::Alarm =>
+        {
             if let Some(why) = v.job_why {
                 let mut w = LineWriter { l, at: 0, mid_word: false };
                 ufmt::uwrite!(w, "{}", why).ok();
