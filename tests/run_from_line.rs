@@ -266,12 +266,6 @@ fn long_job(lines: usize) -> String {
     s + "G0 Z0\nM9\nM5\nM2\n"
 }
 
-/// The pick screen's line, after the display settled.
-fn picked(vm: &Vm) -> u32 {
-    let s = screen(vm);
-    s[5].trim_start_matches('[').trim_end_matches(']').rsplit(' ').next().unwrap().parse().unwrap_or_else(|_| panic!("{s:?}"))
-}
-
 /// On the pick screen: the step to 10^k lines (Step pressed k times from
 /// 1), then `detents` on the line; the selection back on Start.
 fn set_line(vm: &mut Vm, k: usize, detents: i32) {

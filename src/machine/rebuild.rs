@@ -144,7 +144,7 @@ impl Machine {
         if r.spindle {
             // The job's M3 at its S (built on the stack: a constant would
             // sit in RAM).
-            self.run_job_line(&core::hint::black_box([b'M', b'3']), io)?;
+            self.run_job_line(&core::hint::black_box(*b"M3"), io)?;
         }
         if r.coolant != 9 {
             io.coolant(true);
