@@ -70,6 +70,15 @@ fn recorded_line(vm: &Vm, size: usize) -> Option<u32> {
     (0..8).map(|i| u32::from_le_bytes(e[SLOTS + 4 * i..SLOTS + 4 * i + 4].try_into().unwrap())).filter(|&v| v != u32::MAX).max()
 }
 
+/// Static RAM plus the stack's high-water mark so far within the 7 KiB
+/// budget (as tests/ui.rs prints it).
+fn ram_within_budget(vm: &Vm) {
+    let stack = vm.stack_high_water_bytes().unwrap();
+    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
+    println!("static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
+    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
+}
+
 /// From the status screen: Run from SD, the file, the Run screen.
 fn open_run_screen(vm: &mut Vm) {
     press(vm);
@@ -189,6 +198,7 @@ fn after_an_abort_run_from_line_proposes_the_line_and_finishes_the_job_as_the_fu
     // Done: nothing left to resume.
     assert_eq!(recorded_line(&vm, text.len()), None);
     assert_eq!(vm.eeprom()[REC], 0);
+    ram_within_budget(&vm);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 
@@ -253,6 +263,7 @@ fn after_a_power_cut_run_from_line_is_refused_until_homed_then_goes_on_from_the_
     press(&mut vm);
     wait_for(&mut vm, |l| l == "Done printing file", 60.0);
     check_approach(&vm, pressed, &reference, duty, 100);
+    ram_within_budget(&vm);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 
@@ -352,5 +363,6 @@ fn after_a_card_pull_the_line_named_is_proposed_and_a_scan_stops_cleanly_on_a_pu
     golden(&vm, "run_from_line_past_the_end");
     assert_eq!(vm.positions(), still, "nothing moved");
     assert!(status(&mut vm).starts_with("<Idle|"));
+    ram_within_budget(&vm);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }

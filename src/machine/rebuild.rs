@@ -226,6 +226,9 @@ mod tests {
         let t = m.interp.pos_mm;
         assert!((t[0] - 17.0).abs() < 1e-4 && (t[1] - 22.0).abs() < 1e-4 && (t[2] - 3.0).abs() < 1e-4, "{t:?}");
         assert_eq!(job.phase, Phase::Running);
+        // `$C` cannot end the scan's check mode (the rest would run for real).
+        assert_eq!(m.execute(b"$C", &mut io), Err(interp::Error::JobRunning));
+        assert_eq!(m.state, State::Check);
     }
 
     #[test]
