@@ -199,7 +199,10 @@ mod tests {
                     job.line_done(r, m, &mut out);
                 }
                 Turn::Approach(n) => return Some(String::from_utf8(buf[..n].to_vec()).unwrap()),
-                Turn::Idle if !job.active() => return None,
+                Turn::Idle if !job.active() => {
+                    eprintln!("scan ended: {:?} {}", job.phase, out.0);
+                    return None;
+                }
                 _ => {}
             }
             m.idle(io);
@@ -258,6 +261,30 @@ mod tests {
         // The plunge at F300: 2 mm in at least 0.4 s (16 MHz cycles).
         let last_z = steps.iter().rev().find(z_down).unwrap().cycle;
         assert!((last_z - first_z) as f64 / 16e6 >= 0.39, "plunge too fast: {} cycles", last_z - first_z);
+    }
+
+    /// A job that changes to T2 (25 mm long: Z-30 is 5 mm below the Z
+    /// switch with it): the scan notes the change
+    /// and takes T2's length offset without moving; the approach changes
+    /// the tool first and arrives where the job would be with T2.
+    #[test]
+    fn a_tool_change_in_the_scan_is_made_by_the_approach_with_the_new_tool_length() {
+        let (mut m, mut io, mut job, mut card) = rig("G21 G90\nT2 M6\nM3 S6000\nG0 X10 Y10\nG1 Z-30 F200\nG1 X12\n");
+        m.execute(b"G10 L1 P2 Z25", &mut io).unwrap();
+        let steps = io.steps.len();
+        assert_eq!(scan(&mut m, &mut io, &mut job, &mut card, 6).as_deref(), Some("G1 X12"));
+        assert_eq!(io.steps.len(), steps, "nothing stepped");
+        assert_eq!(m.atc.spindle(), 0, "not changed by the scan");
+        assert_eq!(m.rebuild.tool, 2);
+        let tlo = crate::atc::tool_length_offset_mm(25.0);
+        assert_eq!(m.interp.tlo_mm, tlo);
+        let target = m.interp.pos_mm;
+        m.approach(&mut io).unwrap();
+        m.wait_idle(&mut io).unwrap();
+        assert_eq!(m.atc.spindle(), 2, "T2 in the spindle");
+        assert_eq!(m.interp.tlo_mm, tlo);
+        assert_eq!(m.interp.pos_mm[..3], target[..3]);
+        assert!(io.spindle > 0);
     }
 
     #[test]
