@@ -243,13 +243,30 @@ pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
 
 /// The menu's edit stored through the serial lines: `$n=<value>`, or for
 /// a pocket's tool number `G10 L1 P<old> Q0` then `G10 L1 P<new> Q<p>`
-/// (the old number put back if the new one is refused).
+/// (the old number put back if the new one is refused); the setter's
+/// reference tool into its record, then `G37 L R`.
 // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
 #[inline(never)]
 fn store_edit(m: &mut Machine, hw: &mut Hw, e: mill::ui::menu::Edit, um: i32) -> mill::machine::CmdResult {
     let mut l = Line::blank();
     if let Edit::FromLine(i) = e {
         return run_from_line(m, hw, i, (um / 1000) as u32);
+    }
+    if let Edit::RefLength | Edit::RefDia = e {
+        // The reference tool goes into the setter record; its diameter
+        // stored, the calibration runs with both (`G37 L R`).
+        let mut s = m.setter;
+        if e == Edit::RefLength {
+            s.ref_length_um = um;
+        } else {
+            s.ref_diameter_um = um;
+        }
+        mill::machine::setter::store_setter(m, hw, s);
+        if e == Edit::RefLength {
+            return Ok(());
+        }
+        let n = mill::ui::menu::calibrate_line(s.ref_length_um, um, &mut l);
+        return m.run_menu_line(&l.chars[..n], hw);
     }
     let Edit::Pocket(p) = e else {
         let n = e.gcode(um, None, &mut l);

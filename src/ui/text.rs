@@ -148,9 +148,11 @@ crate::flash_texts! {
     HintBack = "Press: back",
     // Jog menu: work zero.
     ZeroAxis = "Zero",
+    ZeroAll = "Zero X Y Z",
     ProbeZ = "Probe Z zero",
     WorkSystem = "Work G5",
     LineZero = "G10 L20 P0 ",
+    LineZeroAll = "G10 L20 P0 X0 Y0 Z0",
     // Tools > Changer: the station's points, and teaching one.
     Changer = "Changer",
     TeachQ = "Teach ",
@@ -187,6 +189,15 @@ crate::flash_texts! {
     MsgNothingMoved = ", nothing moved",
     MsgNotResumed = "run from line not started: line ",
     MsgResumeAt = "run from line ",
+    // Tools > Calibrate setter: the reference tool, then G37 L R.
+    CalibrateSetter = "Calibrate setter",
+    RefLengthHelp = "Reference tool in the spindle: its length, mm",
+    RefDiaHelp = "Its diameter, mm. Save: measure it in the beam",
+    RefLength = "Ref length",
+    BeamZ = "Beam Z",
+    BeamWidth = "Beam width",
+    LineG37L = "G37 L",
+    LineR = " R",
 }
 
 #[cfg(test)]

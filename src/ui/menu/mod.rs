@@ -61,8 +61,8 @@ mod tool_rows;
 mod tree;
 mod view;
 
-pub use cmd::{Cmd, Reply, ToolOp, PROBE_Z_FEED, PROBE_Z_MM};
-pub use edit::Edit;
+pub use cmd::{Cmd, Reply, ToolOp, ALL_AXES, PROBE_Z_FEED, PROBE_Z_MM};
+pub use edit::{calibrate_line, Edit};
 pub use nav::Ui;
 pub use screen::Screen;
 pub use status::state_text;

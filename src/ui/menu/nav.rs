@@ -2,7 +2,7 @@
 //! entry, the values being set), [`Ui::step`] (turns and presses in, a
 //! [`Cmd`] for the firmware out), and the way between the screens.
 
-use super::cmd::{Cmd, Reply, ToolOp};
+use super::cmd::{Cmd, Reply, ToolOp, ALL_AXES};
 use super::edit::{pow10, Edit, EDIT_ENTRIES};
 use super::screen::{Screen, STATION_POINTS};
 use super::tree::{Act, MenuId};
@@ -185,8 +185,13 @@ impl Ui {
             }
             Screen::Reply(op) => {
                 if press && !matches!(self.reply, Reply::Pending) {
-                    if let ToolOp::Store(e) = op {
-                        return self.open_edit(e);
+                    // The reference tool's length stored: its diameter next;
+                    // calibrated: back to Tools.
+                    match op {
+                        ToolOp::Store(Edit::RefLength) if self.reply == Reply::Ok => return self.open_edit(Edit::RefDia),
+                        ToolOp::Store(Edit::RefDia) => {}
+                        ToolOp::Store(e) => return self.open_edit(e),
+                        _ => {}
                     }
                     self.back_to(op.menu(), op.entry().1);
                 }
@@ -496,6 +501,7 @@ impl Ui {
                 Cmd::None
             }
             Act::ZeroAxis => self.run_tool(ToolOp::Zero(self.jog_axis % 3), v),
+            Act::ZeroAll => self.run_tool(ToolOp::Zero(ALL_AXES), v),
             Act::ProbeZ => self.run_tool(ToolOp::ProbeZ, v),
             Act::WorkSystem => self.run_tool(ToolOp::Wcs((v.wcs + 1) % 6), v),
             Act::HomeAll | Act::HomeZ | Act::HomeY | Act::HomeX => {
@@ -530,6 +536,7 @@ impl Ui {
                 self.go(Screen::Changer);
                 Cmd::None
             }
+            Act::CalibrateSetter => self.open_edit(Edit::RefLength),
             Act::ToolNumbers => {
                 self.go(Screen::Numbers);
                 Cmd::None
@@ -565,6 +572,7 @@ impl Edit {
             Edit::Setting(n) => (Screen::Settings, (0..dollar::count()).find(|&i| dollar::nth(i) == n).unwrap_or(0) + 1),
             Edit::Pocket(p) => (Screen::Numbers, p),
             Edit::FromLine(i) => (Screen::ConfirmRun(i), 2),
+            Edit::RefLength | Edit::RefDia => (Screen::Menu(MenuId::Tools), ToolOp::Store(self).entry().1),
         }
     }
 }
