@@ -430,11 +430,11 @@ impl SdJob {
     /// A record of the line reached is due (run from line, `ui::resume`):
     /// when the job pauses or ends, and every [`RECORD_EVERY_S`] seconds
     /// while it cuts; when a job starts (from the menu or M24), the whole
-    /// record. `now_s`: a clock in seconds (wrapping). Called from every wait (the main
-    /// loop sits in a line's wait for the last part of a job: M5 waits for
-    /// the moves queued before it), it follows the line reached while the
-    /// job cuts; not while a scan reads lines (they are not reached), nor
-    /// after it.
+    /// record. `now_s`: a clock in seconds (wrapping). Called from every
+    /// wait (the main loop sits in a line's wait for the last part of a
+    /// job: M5 waits for the moves queued before it), it follows the line
+    /// reached while the job cuts; not while a scan reads lines (they are
+    /// not reached), nor after it.
     ///
     /// [`RECORD_EVERY_S`]: crate::ui::resume::RECORD_EVERY_S
     pub fn record_due(&mut self, m: &Machine, now_s: u16) -> Option<Due> {
