@@ -293,7 +293,7 @@ fn set_line(vm: &mut Vm, k: usize, detents: i32) {
 }
 
 #[test]
-fn after_a_card_pull_the_line_named_is_proposed_and_a_scan_stops_cleanly_on_a_pull_or_past_the_end() {
+fn after_a_card_pull_the_line_named_is_proposed_a_scan_stops_cleanly_on_a_pull_or_past_the_end_and_an_edited_file_starts_at_1() {
     let text = long_job(3000);
     let mut vm = motion_util::boot_homed();
     vm.insert_sd(card(&text));
@@ -363,6 +363,15 @@ fn after_a_card_pull_the_line_named_is_proposed_and_a_scan_stops_cleanly_on_a_pu
     golden(&vm, "run_from_line_past_the_end");
     assert_eq!(vm.positions(), still, "nothing moved");
     assert!(status(&mut vm).starts_with("<Idle|"));
+    // The file edited since (same name, another size): line 1, and why.
+    vm.pull_sd();
+    vm.run_for(0.5).unwrap();
+    vm.insert_sd(card(&long_job(2999)));
+    redraw(&mut vm);
+    open_run_screen(&mut vm);
+    assert_eq!(open_from_line(&mut vm), 1);
+    assert_eq!(screen(&vm)[1..3], [" File changed since", " its last run: line 1"], "{:?}", screen(&vm));
+    golden(&vm, "run_from_line_file_changed");
     ram_within_budget(&vm);
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
