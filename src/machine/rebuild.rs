@@ -99,7 +99,9 @@ impl Machine {
     }
 
     /// End a scan (if one runs): out of check mode, the commanded position
-    /// back where the machine is, the stored work offsets. Returns where
+    /// back where the machine is, the length offset of the tool really in
+    /// the spindle (the approach puts the job's back); the other modes stay
+    /// as the scanned lines left them, as `$C` leaves them. Returns where
     /// the job would have been (internal machine mm).
     pub fn end_scan(&mut self, io: &mut impl Io) -> [f32; crate::N_AXES] {
         let target = self.interp.pos_mm;
@@ -107,6 +109,7 @@ impl Machine {
             self.rebuild.active = false;
             self.state = State::Idle;
             self.interp.sync_position(&self.settings, io.stepper().position);
+            toolchange::apply_offset(self);
         }
         target
     }
