@@ -93,6 +93,7 @@ impl ToolOp {
             ToolOp::Wcs(_) => (Text::WorkSystem, 7),
             ToolOp::Store(Edit::Setting(_)) => (Text::Settings, 6),
             ToolOp::Store(Edit::Pocket(_)) => (Text::ToolNumbers, 7),
+            ToolOp::Store(Edit::FromLine(_)) => (Text::FromLine, 0),
             ToolOp::Store(Edit::RefLength | Edit::RefDia) => (Text::CalibrateSetter, 8),
         }
     }

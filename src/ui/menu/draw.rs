@@ -53,6 +53,7 @@ impl Ui {
                         Screen::Teach(_) => Text::TeachQ,
                         Screen::Numbers => Text::ToolNumbers,
                         Screen::Edit(Edit::Pocket(_), _) => Text::Pocket,
+                        Screen::Edit(Edit::FromLine(_), _) => Text::FromLine,
                         Screen::Edit(Edit::RefLength | Edit::RefDia, _) => Text::CalibrateSetter,
                         _ => Text::Settings,
                     };
@@ -152,6 +153,9 @@ impl Ui {
                             station_line(e - 1, &m.settings.station, &mut l);
                         }
                     }
+                    Screen::ConfirmRun(_) if e == 2 => {
+                        l.text(1, Text::FromLine);
+                    }
                     Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) | Screen::Teach(_) => {
                         l.text(1, if e == 0 { Text::No } else { Text::Yes });
                     }
@@ -181,6 +185,12 @@ impl Ui {
             let what = match ed {
                 Edit::Setting(n) => dollar::value(&m.settings, n).map(|(_, w)| w),
                 Edit::Pocket(_) => Some(Text::NumberHelp.as_fstr()),
+                // The firmware's note on the line proposed (a file changed,
+                // no earlier run), or where it comes from.
+                Edit::FromLine(_) => Some(match self.reply {
+                    Reply::Err(note) => note,
+                    _ => Text::FromLineHelp.as_fstr(),
+                }),
                 Edit::RefLength => Some(Text::RefLengthHelp.as_fstr()),
                 Edit::RefDia => Some(Text::RefDiaHelp.as_fstr()),
             };
@@ -197,7 +207,8 @@ impl Ui {
                 l.text(1, Text::Back);
             }
             1 => {
-                l.text(1, if adjusting { Text::TurnToSet } else { Text::Value });
+                let label = if matches!(ed, Edit::FromLine(_)) { Text::LineWord } else { Text::Value };
+                l.text(1, if adjusting { Text::TurnToSet } else { label });
                 match ed {
                     Edit::Pocket(_) => number_text((self.edit_um / 1000) as u8, COLS, l),
                     _ if integer => l.uint_right(COLS, (self.edit_um / 1000) as u32),
@@ -214,7 +225,7 @@ impl Ui {
                 }
             }
             _ => {
-                l.text(1, Text::Save);
+                l.text(1, if matches!(ed, Edit::FromLine(_)) { Text::Start } else { Text::Save });
             }
         }
     }

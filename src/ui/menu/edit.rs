@@ -18,6 +18,9 @@ pub enum Edit {
     /// The tool number kept in pocket p (1..=12; 0 = none), stored by
     /// running `G10 L1 P<tool> Q<p>` (after `G10 L1 P<old> Q0`).
     Pocket(u8),
+    /// Run from line: the line of file i of the list to start at, stored by
+    /// starting the job there (the firmware proposes the line, `ui::resume`).
+    FromLine(u8),
     /// The tool setter's reference tool: its length (stored in the setter
     /// record), then its diameter, whose Save runs the calibration
     /// [`calibrate_line`].
@@ -36,6 +39,7 @@ impl Edit {
         match self {
             Edit::Setting(n) => dollar::value(&m.settings, n).map_or(0, |(v, _)| v.micros()),
             Edit::Pocket(p) => m.atc.table.number_of(p) as i32 * 1000,
+            Edit::FromLine(_) => 1000,
             Edit::RefLength => m.setter.ref_length_um,
             Edit::RefDia => m.setter.ref_diameter_um,
         }
@@ -45,7 +49,7 @@ impl Edit {
     pub(super) fn integer(self, m: &Machine) -> bool {
         match self {
             Edit::Setting(n) => !matches!(dollar::value(&m.settings, n), Some((dollar::Value::Num(_), _))),
-            Edit::Pocket(_) => true,
+            Edit::Pocket(_) | Edit::FromLine(_) => true,
             Edit::RefLength | Edit::RefDia => false,
         }
     }
@@ -60,6 +64,7 @@ impl Edit {
                 _ => (-99_999_999, 99_999_999),
             },
             Edit::Pocket(_) => (0, 254_000),
+            Edit::FromLine(_) => (1000, 2_000_000_000),
             Edit::RefLength => (0, 300_000),
             Edit::RefDia => (0, 50_000),
         }
@@ -87,6 +92,7 @@ impl Edit {
                 let c = l.put(c, b" Q");
                 l.uint(c, q as u32)
             }
+            Edit::FromLine(_) => 0,
             // Stored in the setter record, not by a line.
             Edit::RefLength | Edit::RefDia => 0,
         }

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //!  Status ──press──► Menu: < Status | Run from SD | Job | Jog | Home | Tools | Settings | Info
-//!    Run from SD: < Back, files (scrolling) ──► "Run NAME?" No/Yes
+//!    Run from SD: < Back, files (scrolling) ──► "Run NAME?" No/Yes/From line ──► edit (the line)
 //!    Job:  < Back | Pause/Resume | Abort ──► "Abort the job?" No/Yes | Feed override nnn%
 //!    Jog:  < Back | Axis X/Y/Z | Step 0.1/1/10 mm | Jog now (turn = move, press = done)
 //!    Home: < Back | Home all | Home Z | Home Y | Home X

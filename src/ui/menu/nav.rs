@@ -79,7 +79,9 @@ impl Ui {
         match self.screen {
             Screen::Menu(m) => m.len() as u8,
             Screen::Files => v.files + 1,
-            Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) => 2,
+            // No | Yes | From line.
+            Screen::ConfirmRun(_) => 3,
+            Screen::ConfirmAbort | Screen::AskTool(_) => 2,
             Screen::PickTool(_) => TOOL_ENTRIES,
             Screen::Changer => STATION_POINTS + 1,
             Screen::Teach(_) => 2,
@@ -231,7 +233,12 @@ impl Ui {
         if let Screen::Edit(e, _) = self.screen {
             let (lo, hi) = e.range(m);
             self.edit_um = self.edit_um.clamp(lo, hi);
-            let (first, last) = if e.integer(m) { (3, 5) } else { (0, 6) };
+            let (first, last) = match e {
+                // Lines: 1, 10, 100 or 1000 a detent.
+                Edit::FromLine(_) => (3, 6),
+                _ if e.integer(m) => (3, 5),
+                _ => (0, 6),
+            };
             if !(first..=last).contains(&self.edit_step) {
                 self.edit_step = first;
             }
@@ -281,6 +288,9 @@ impl Ui {
                 Cmd::None
             }
             Screen::ConfirmRun(i) => {
+                if sel == 2 {
+                    return self.open_edit(Edit::FromLine(i));
+                }
                 if sel == 1 {
                     self.go(Screen::Status);
                     Cmd::RunFile(i)
@@ -561,6 +571,7 @@ impl Edit {
         match self {
             Edit::Setting(n) => (Screen::Settings, (0..dollar::count()).find(|&i| dollar::nth(i) == n).unwrap_or(0) + 1),
             Edit::Pocket(p) => (Screen::Numbers, p),
+            Edit::FromLine(i) => (Screen::ConfirmRun(i), 2),
             Edit::RefLength | Edit::RefDia => (Screen::Menu(MenuId::Tools), ToolOp::Store(self).entry().1),
         }
     }
