@@ -338,7 +338,9 @@ fn run_session(controller: &str) -> (Vm, Session, Jobs) {
                 }
             }
             Some(Pending::Still { still_s, since, deadline }) => {
-                let quiet = quiet_for(&vm);
+                // Quiet since the request too: a line just answered may
+                // not have started its steps yet.
+                let quiet = quiet_for(&vm).min(vm.seconds() - since);
                 if quiet >= *still_s {
                     reply(&mut stdin, &format!("STILL {:.3} s after the request, quiet for {quiet:.3} s", t - since - quiet));
                     pending = None;
