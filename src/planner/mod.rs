@@ -67,6 +67,8 @@ mod queue;
 mod ring;
 
 #[cfg(test)]
+mod reference;
+#[cfg(test)]
 mod tests;
 
 pub use block::{Block, PlanError, Push, Speed};
