@@ -210,6 +210,8 @@ impl Planner {
         }
         // Path length and unit vector.
         let (mm, inv_mm);
+        // (√S, 1/√S) of a cached root: see below.
+        let mut roots = None;
         if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
             // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
             // of short moves repeats a few dozen values of the integer Σd²,
@@ -225,6 +227,7 @@ impl Planner {
                 *e = root_entry(sum_sqr);
             }
             let (root, inv_root) = (e.1, e.2);
+            roots = Some((root, inv_root));
             mm = root * ax.mm_per_step[0];
             inv_mm = inv_root * s.steps_per_mm[0];
             for i in 0..3 {
@@ -268,13 +271,30 @@ impl Planner {
         } else if moving & !ax.uniform == 0 {
             // Every moving axis has axis 0's limits: the largest |u| decides
             // (exactly: rounding keeps the order of the products).
-            let mut u_max = 0.0f32;
-            for i in 0..N_AXES {
-                if moving & (1 << i) != 0 {
-                    u_max = max_nn(u_max, abs_f32(unit[i]));
+            let (u_max, accel) = match roots {
+                // From a cached root: |u| is largest on the dominant axis,
+                // n = step_event_count steps of the √S: |u|max = n/√S, and
+                // the acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
+                // table for short moves (two multiplies, not a division).
+                Some((root, inv_root)) => {
+                    let n = b.step_event_count;
+                    let u_max = n as f32 * inv_root;
+                    match crate::math::recip_small(n) {
+                        Some(r) => (u_max, s.accel_mm_per_s2[0] * root * r),
+                        None => (u_max, 1.0 / (u_max * ax.inv_accel[0])),
+                    }
                 }
-            }
-            (1.0 / (u_max * ax.inv_accel[0]), u_max * ax.inv_max_speed[0])
+                None => {
+                    let mut u_max = 0.0f32;
+                    for i in 0..N_AXES {
+                        if moving & (1 << i) != 0 {
+                            u_max = max_nn(u_max, abs_f32(unit[i]));
+                        }
+                    }
+                    (u_max, 1.0 / (u_max * ax.inv_accel[0]))
+                }
+            };
+            (accel, u_max * ax.inv_max_speed[0])
         } else {
             let mut inv_accel = 0.0f32; // s²/mm along the path
             let mut t_axes = 0.0f32; // s/mm along the path

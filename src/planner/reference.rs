@@ -225,3 +225,99 @@ fn accepted_moves_get_the_reference_junctions_once_flushed() {
         }
     }
 }
+
+/// The plain junction rule (f64): v² = a·δ·s/(1 − s), s = sin(θ/2), at most
+/// `cap`, with the reversal limit, for unit vectors `p` then `u`.
+fn plain_junction(p: &[f64; N_AXES], u: &[f64; N_AXES], a: f64, cap: f64, s: &Settings) -> f64 {
+    let cos = -(0..N_AXES).map(|i| p[i] * u[i]).sum::<f64>();
+    if cos > 0.999_999 {
+        return 0.0;
+    }
+    if cos < -0.999_999 {
+        return cap;
+    }
+    let sin_half = ((1.0 - cos) / 2.0).sqrt();
+    let mut v = a * s.junction_deviation_mm as f64 * sin_half / (1.0 - sin_half);
+    for i in 0..N_AXES {
+        if p[i] * u[i] < 0.0 {
+            let dv = REVERSAL_STEP_S as f64 * s.accel_mm_per_s2[i] as f64 / (p[i].abs() + u[i].abs());
+            v = v.min(dv * dv);
+        }
+    }
+    v.min(cap)
+}
+
+#[test]
+fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
+    use super::junction::{junction_sqr, CapCache};
+    let mut r = 99u32;
+    let mut next = move || {
+        r = r.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        ((r >> 8) % 2001) as f64 / 1000.0 - 1.0
+    };
+    let mut cache = CapCache::EMPTY;
+    let mut straight = 0;
+    for (v, st) in settings_variants().into_iter().enumerate() {
+        let mut prev = [1.0f64, 0.0, 0.0, 0.0];
+        for k in 0..20_000 {
+            // Mostly gentle turns (a curve's chords), some sharp ones.
+            let turn = if k % 4 == 0 { 1.0 } else { 0.01 };
+            let mut u = [prev[0] + turn * next(), prev[1] + turn * next(), prev[2] + turn * 0.3 * next(), 0.0];
+            if k % 50 == 0 {
+                u[3] = 0.2 * next();
+            }
+            let n = u.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let u = u.map(|x| x / n);
+            let moving = (0..N_AXES).fold(0u8, |m, i| if u[i] != 0.0 { m | 1 << i } else { m });
+            // A path's acceleration is at least its slowest axis'.
+            let a_floor = (0..N_AXES)
+                .filter(|&i| u[i] != 0.0 || prev[i] != 0.0)
+                .map(|i| st.accel_mm_per_s2[i] as f64)
+                .fold(f64::INFINITY, f64::min);
+            let (a0, a1) = (a_floor * (1.0 + next().abs()), a_floor * (1.0 + next().abs()));
+            let cap = [2500.0f64, 900.0, 40.0][k % 3];
+            let (pf, uf) = (prev.map(|x| x as f32), u.map(|x| x as f32));
+            let got = junction_sqr(false, &pf, &uf, moving, (a0 as f32, a1 as f32), cap as f32, &mut cache, &st).min(cap as f32);
+            let want = plain_junction(&prev, &u, a0.min(a1), cap, &st);
+            assert!(
+                (got as f64 - want).abs() <= 1e-3 * want + 1e-6,
+                "settings {v} junction {k}: {got} vs plain {want} ({prev:?} → {u:?})"
+            );
+            straight += (got as f64 == cap) as u32;
+            prev = u;
+        }
+    }
+    assert!(straight > 10_000, "the cached threshold is taken: {straight}");
+}
+
+#[test]
+fn a_short_moves_acceleration_from_the_reciprocal_table_is_the_plain_division() {
+    // X/Y/Z at one steps/mm and the same limits: the cached-root path.
+    let st = Settings::DEFAULT;
+    for dx in -17i32..=17 {
+        for dy in -17i32..=17 {
+            for dz in [-3i32, 0, 5] {
+                if (dx, dy, dz) == (0, 0, 0) {
+                    continue;
+                }
+                let mut p = Planner::new();
+                p.push_line([dx, dy, dz, 0], 3000.0, false, &st).unwrap();
+                let b = p.block(0).unwrap();
+                // The plain way: the largest unit component, then a₀ / it.
+                let n = (dx * dx + dy * dy + dz * dz) as f32;
+                let u_max = dx.abs().max(dy.abs()).max(dz.abs()) as f32 / n.sqrt();
+                let want = 1.0 / (u_max * (1.0 / st.accel_mm_per_s2[0]));
+                assert!((b.acceleration - want).abs() <= 4e-7 * want, "({dx}, {dy}, {dz}): {} vs {want}", b.acceleration);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_reciprocal_table_is_one_over_n() {
+    assert_eq!(crate::math::recip_small(0), None);
+    for n in 1..=16u32 {
+        assert_eq!(crate::math::recip_small(n), Some(1.0 / n as f32));
+    }
+    assert_eq!(crate::math::recip_small(17), None);
+}

@@ -4,6 +4,7 @@
 //! block executes, dropping it, the position, emptying the ring.
 
 use super::axis_cache::AxisCache;
+use super::junction::CapCache;
 use super::block::Block;
 use crate::N_AXES;
 use core::mem::size_of;
@@ -78,8 +79,8 @@ pub struct Planner {
     /// Bits of the last time per mm before the step-rate limits, and it
     /// times `MAX_STEP_RATE_HZ` and `MIN_STEP_RATE_HZ`, steps/mm.
     pub(super) rate_cache: (u32, f32, f32),
-    /// Bits of the last junction cap `L` (a speed²) and L².
-    pub(super) cap_sqr_cache: (u32, f32),
+    /// What the junction rule derives from the last junction cap.
+    pub(super) cap_sqr_cache: CapCache,
     /// (n, √n, 1/√n) for path lengths in steps, squared (n ≥ 1), direct
     /// mapped on n's low bits. RAM: 12 B each.
     pub(super) roots: [(u32, f32, f32); ROOTS_LEN],
@@ -138,7 +139,7 @@ impl Planner {
             feed_cache: (0, 0.0),
             nominal_cache: (0, 0.0),
             rate_cache: (0, 0.0, 0.0),
-            cap_sqr_cache: (0, 0.0),
+            cap_sqr_cache: CapCache::EMPTY,
             roots: [(0, 0.0, 0.0); ROOTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,

@@ -24,30 +24,15 @@ pub(super) fn ceil_u32(x: f32) -> u32 {
     }
 }
 
-in_flash! {
-    /// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
-    /// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
-    /// of flash).
-    static RECIPROCALS: [f32; 13] = {
-        let mut t = [0.0f32; 13];
-        let mut i = 1;
-        while i < 13 {
-            t[i] = 1.0 / i as f32;
-            i += 1;
-        }
-        t
-    };
-}
-
 /// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
-/// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12
-/// this multiplies by 1/n (~140 cycles on the AVR instead of a ~540-cycle
-/// division; within an ulp of it, far below the timer count the period is
-/// rounded to).
+/// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for small n
+/// this multiplies by 1/n ([`crate::math::recip_small`]: ~140 cycles on the
+/// AVR instead of a ~540-cycle division; within an ulp of it, far below the
+/// timer count the period is rounded to).
 pub(super) fn per_tick(cycles: f32, n: u32) -> f32 {
-    match RECIPROCALS.row(n as usize) {
-        Some(r) if n != 0 => cycles * r,
-        _ => crate::math::div_cold(cycles, n as f32),
+    match crate::math::recip_small(n) {
+        Some(r) => cycles * r,
+        None => crate::math::div_cold(cycles, n as f32),
     }
 }
 
