@@ -229,7 +229,8 @@ impl Planner {
             let (root, inv_root) = (e.1, e.2);
             roots = Some((root, inv_root));
             mm = root * ax.mm_per_step[0];
-            inv_mm = inv_root * s.steps_per_mm[0];
+            // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
+            inv_mm = inv_root;
             for i in 0..3 {
                 if moving & (1 << i) != 0 {
                     unit[i] = delta[i] as f32 * inv_root;
@@ -320,20 +321,28 @@ impl Planner {
         // Step-rate limits: the dominant axis makes step_event_count steps
         // over mm. At time per mm t the rate stays within them while the
         // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
-        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's).
-        let steps_per_mm = b.step_event_count as f32 * inv_mm;
-        if self.rate_cache.0 != t.to_bits() {
-            self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
-        }
-        let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
+        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's). An
+        // X/Y/Z move at a t within `AxisCache::rate_free_inv_feed` can meet
+        // neither limit: then no test (a conversion and two multiplies).
         let mut capped = false;
         let mut floored = false;
-        if lt_nn(max_steps_per_mm, steps_per_mm) {
-            t = steps_per_mm * INV_MAX_STEP_RATE;
-            capped = true;
-        } else if lt_nn(steps_per_mm, min_steps_per_mm) {
-            t = steps_per_mm * INV_MIN_STEP_RATE;
-            floored = true;
+        let (t_lo, t_hi) = ax.rate_free_inv_feed;
+        if moving & 0b1000 != 0 || lt_nn(t, t_lo) || lt_nn(t_hi, t) {
+            let mut steps_per_mm = b.step_event_count as f32 * inv_mm;
+            if roots.is_some() {
+                steps_per_mm *= s.steps_per_mm[0];
+            }
+            if self.rate_cache.0 != t.to_bits() {
+                self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
+            }
+            let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
+            if lt_nn(max_steps_per_mm, steps_per_mm) {
+                t = steps_per_mm * INV_MAX_STEP_RATE;
+                capped = true;
+            } else if lt_nn(steps_per_mm, min_steps_per_mm) {
+                t = steps_per_mm * INV_MIN_STEP_RATE;
+                floored = true;
+            }
         }
         // t is usually the same as for the last block (the feed is modal).
         if self.nominal_cache.0 != t.to_bits() {

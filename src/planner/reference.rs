@@ -138,7 +138,7 @@ fn random_moves(seed: u32, n: usize) -> Vec<([i32; N_AXES], Speed)> {
         let speed = match next(10) {
             0 => Speed::Rapid,
             1 => Speed::Fixed(250.0),
-            _ => Speed::Feed([3000.0, 600.0, 1800.0, 5000.0, 40.0][next(5) as usize]),
+            _ => Speed::Feed([3000.0, 600.0, 1800.0, 5000.0, 40.0, 20.0][next(6) as usize]),
         };
         v.push((pos, speed));
     }
@@ -270,19 +270,14 @@ fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
             let u = u.map(|x| x / n);
             let moving = (0..N_AXES).fold(0u8, |m, i| if u[i] != 0.0 { m | 1 << i } else { m });
             // A path's acceleration is at least its slowest axis'.
-            let a_floor = (0..N_AXES)
-                .filter(|&i| u[i] != 0.0 || prev[i] != 0.0)
-                .map(|i| st.accel_mm_per_s2[i] as f64)
-                .fold(f64::INFINITY, f64::min);
+            let a_floor =
+                (0..N_AXES).filter(|&i| u[i] != 0.0 || prev[i] != 0.0).map(|i| st.accel_mm_per_s2[i] as f64).fold(f64::INFINITY, f64::min);
             let (a0, a1) = (a_floor * (1.0 + next().abs()), a_floor * (1.0 + next().abs()));
             let cap = [2500.0f64, 900.0, 40.0][k % 3];
             let (pf, uf) = (prev.map(|x| x as f32), u.map(|x| x as f32));
             let got = junction_sqr(false, &pf, &uf, moving, (a0 as f32, a1 as f32), cap as f32, &mut cache, &st).min(cap as f32);
             let want = plain_junction(&prev, &u, a0.min(a1), cap, &st);
-            assert!(
-                (got as f64 - want).abs() <= 1e-3 * want + 1e-6,
-                "settings {v} junction {k}: {got} vs plain {want} ({prev:?} → {u:?})"
-            );
+            assert!((got as f64 - want).abs() <= 1e-3 * want + 1e-6, "settings {v} junction {k}: {got} vs plain {want} ({prev:?} → {u:?})");
             straight += (got as f64 == cap) as u32;
             prev = u;
         }

@@ -4,8 +4,8 @@
 //! block executes, dropping it, the position, emptying the ring.
 
 use super::axis_cache::AxisCache;
-use super::junction::CapCache;
 use super::block::Block;
+use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
