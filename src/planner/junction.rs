@@ -127,7 +127,9 @@ pub(super) struct CapCache {
 }
 
 impl CapCache {
-    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 2.0 };
+    /// All zero (so it needs no RAM image). It only matches a cap of +0.0,
+    /// where any junction is 0 whatever `h_min` says.
+    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 0.0 };
 
     /// `h_min` for `cap` (e_axis: 1 when the E axis takes part), from the
     /// cache when the cap and the settings are the ones it holds.

@@ -321,8 +321,7 @@ impl Planner {
         // Step-rate limits: the dominant axis makes step_event_count steps
         // over mm. At time per mm t the rate stays within them while the
         // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
-        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's). An
-        // X/Y/Z move at a t within `AxisCache::rate_free_inv_feed` can meet
+        // t·MAX_STEP_RATE_HZ. An X/Y/Z move at a t within `AxisCache::rate_free_inv_feed` can meet
         // neither limit: then no test (a conversion and two multiplies).
         let mut capped = false;
         let mut floored = false;
@@ -332,14 +331,10 @@ impl Planner {
             if roots.is_some() {
                 steps_per_mm *= s.steps_per_mm[0];
             }
-            if self.rate_cache.0 != t.to_bits() {
-                self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
-            }
-            let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
-            if lt_nn(max_steps_per_mm, steps_per_mm) {
+            if lt_nn(t * MAX_STEP_RATE_HZ, steps_per_mm) {
                 t = steps_per_mm * INV_MAX_STEP_RATE;
                 capped = true;
-            } else if lt_nn(steps_per_mm, min_steps_per_mm) {
+            } else if lt_nn(steps_per_mm, t * MIN_STEP_RATE_HZ) {
                 t = steps_per_mm * INV_MIN_STEP_RATE;
                 floored = true;
             }

@@ -187,7 +187,7 @@ fn junction_and_entry_speeds_match_an_f64_reference_on_random_paths() {
     for (v, st) in settings_variants().into_iter().enumerate() {
         for seed in 1..=6u32 {
             let mut p = Planner::new();
-            let mut r = RefPlanner { s: st.clone(), blocks: Vec::new(), pos: [0; N_AXES] };
+            let mut r = RefPlanner { s: st, blocks: Vec::new(), pos: [0; N_AXES] };
             for (i, (target, speed)) in random_moves(seed * 7919 + v as u32, 600).into_iter().enumerate() {
                 if p.is_full() {
                     // The executing block is done; the next one keeps its entry.
@@ -210,7 +210,7 @@ fn junction_and_entry_speeds_match_an_f64_reference_on_random_paths() {
 fn accepted_moves_get_the_reference_junctions_once_flushed() {
     for (v, st) in settings_variants().into_iter().enumerate() {
         let mut p = Planner::new();
-        let mut r = RefPlanner { s: st.clone(), blocks: Vec::new(), pos: [0; N_AXES] };
+        let mut r = RefPlanner { s: st, blocks: Vec::new(), pos: [0; N_AXES] };
         for (i, (target, speed)) in random_moves(31 + v as u32, 800).into_iter().enumerate() {
             if p.is_full() {
                 p.flush(&st);
