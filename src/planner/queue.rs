@@ -178,7 +178,6 @@ impl Planner {
     /// AVR cost (simavr, 16 MHz, see the module doc): ~9–13 k cycles including
     /// the re-plan; every f32 multiply is ~170 cycles, a divide or sqrt ~500.
     fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
-        let prev_unit = self.previous_unit_vec;
         let prev_nominal_sqr = self.previous_nominal_speed_sqr;
         let prev_accel = self.previous_acceleration;
         let prev_t_axes = self.previous_t_axes;
@@ -260,7 +259,7 @@ impl Planner {
         }
         let mut same_dir = prev_valid;
         for i in 0..N_AXES {
-            same_dir &= unit[i].to_bits() == prev_unit[i].to_bits();
+            same_dir &= unit[i].to_bits() == self.previous_unit_vec[i].to_bits();
         }
 
         // Per-axis limits: the path may go at most as fast (and accelerate at most
@@ -353,7 +352,7 @@ impl Planner {
         } else {
             let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
             let junction_sqr =
-                junction_sqr(same_dir, &prev_unit, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
+                junction_sqr(same_dir, &self.previous_unit_vec, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
             min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
         };
         b.millimeters = mm;

@@ -55,7 +55,7 @@ impl Prep {
         if self.holding || self.ramp == Ramp::DecelOverride {
             return None;
         }
-        let inv_a = 2.0 * self.inv_2_accel_cache.1; // s² / mm
+        let inv_a = super::timer::times2(self.inv_2_accel_cache.1); // s² / mm
         let b = pl.current_block()?;
         let mm = b.millimeters;
         let v0 = self.current_speed;

@@ -10,6 +10,18 @@ pub(super) fn abs_f32(x: f32) -> f32 {
     f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
 
+/// 2·x exactly, by adding one to the exponent of a normal x below 2¹²⁶
+/// (a soft-float add or multiply on the AVR otherwise); other values take
+/// the multiply.
+pub(super) fn times2(x: f32) -> f32 {
+    let e = x.to_bits() & 0x7F80_0000;
+    if e != 0 && e < 0x7E80_0000 {
+        f32::from_bits(x.to_bits() + 0x0080_0000)
+    } else {
+        2.0 * x
+    }
+}
+
 /// ⌈x⌉ for 0 ≤ x < 2³².
 #[inline]
 pub(super) fn ceil_u32(x: f32) -> u32 {
@@ -60,7 +72,21 @@ pub(super) fn timer_for(cycles: f32) -> (u16, Prescale) {
 
 #[cfg(test)]
 mod tests {
-    use super::per_tick;
+    use super::{per_tick, times2};
+
+    #[test]
+    fn times2_is_the_multiply_bit_for_bit() {
+        let mut b = 1u32;
+        for _ in 0..200_000 {
+            b = b.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let x = f32::from_bits(b);
+            let (got, want) = (times2(x), 2.0 * x);
+            assert!(got.to_bits() == want.to_bits() || (x.is_nan() && got.is_nan()), "{x:e}: {got:e} vs {want:e}");
+        }
+        for x in [0.0f32, -0.0, f32::MIN_POSITIVE, 1e-45, f32::MAX, -f32::MAX, 1.7e38, f32::INFINITY] {
+            assert_eq!(times2(x).to_bits(), (2.0 * x).to_bits(), "{x:e}");
+        }
+    }
 
     #[test]
     fn per_tick_is_the_division_within_an_ulp() {
