@@ -167,11 +167,13 @@ fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
     // left the ring emptier than a serial stream's: 10 % slower). Serial
     // bytes waiting (M27, a status query) end the batch: they go first, as
     // they did with one line per turn.
+    sd::end_left_scan(m, hw);
     for _ in 0..4 {
         let done = m.motion_done(hw);
         let turn = hw.job.poll(&mut hw.sd, m, done, line, &mut SerialOut);
         match turn {
-            Turn::Run(n) => {
+            // A line scanned for run from line runs the same way, in check mode.
+            Turn::Run(n) | Turn::Scan(n) => {
                 let r = m.run_job_line(&line[..n], hw);
                 hw.job.line_done(r, m, &mut SerialOut);
                 if serial::rx_len() != 0 {
@@ -185,6 +187,11 @@ fn job_turn(m: &mut Machine, hw: &mut Hw, line: &mut [u8; MAX_LINE_LEN]) {
                 if !stepper::queued_at_least(mill::F_CPU_HZ / 200) {
                     m.fill_segments(hw);
                 }
+            }
+            Turn::Approach(n) => {
+                let r = m.approach(hw).and_then(|()| m.run_job_line(&line[..n], hw));
+                hw.job.line_done(r, m, &mut SerialOut);
+                return;
             }
             Turn::SpindleOff => {
                 m.spindle_off(hw);

@@ -26,6 +26,7 @@
 //! | [`setter`] | G37 |
 //! | [`report`] | M114, M119, M503 |
 //! | [`startup`] | grbl's startup blocks and `$I` text |
+//! | [`rebuild`] | run from line: the scan's notes and the approach |
 //!
 //! `Machine::run_line` asks the interpreter for a line's commands one at a
 //! time and carries each out. Every move, whoever makes it, enters the
@@ -61,6 +62,7 @@ pub mod io;
 pub mod line;
 pub mod motion;
 pub mod realtime;
+pub mod rebuild;
 pub mod report;
 pub mod setter;
 pub mod settings;
@@ -220,6 +222,8 @@ pub struct Machine {
     /// `line_aborts`, the count when the current line started.
     pub aborts: u8,
     line_aborts: u8,
+    /// Run from line: what the scan keeps (4 bytes).
+    pub rebuild: rebuild::Rebuild,
 }
 
 impl Default for Machine {
@@ -301,6 +305,7 @@ impl Machine {
             abort_keeps_spindle: false,
             aborts: 0,
             line_aborts: 0,
+            rebuild: rebuild::Rebuild::OFF,
         }
     }
 

@@ -170,6 +170,7 @@ impl Host for Hw {
         // The card pulled mid-job ends the job now, even while one of its
         // lines waits (a long arc, a full planner, M0): the status screen
         // says so.
+        super::sd::keep_record(self, m);
         if self.job.card_check(board::sd_detected(), m, &mut SerialOut) {
             self.sd.unmount();
             self.ui.screen = Screen::Status;
@@ -179,7 +180,8 @@ impl Host for Hw {
             let cmd = self.ui.step(detents, presses != 0, &self.view);
             match cmd {
                 // An edit screen opened: its value, here where the machine is.
-                Cmd::Edit(e) => self.ui.edit_um = e.current(m),
+                // (Run from line's proposal needs the card: the main loop's.)
+                Cmd::Edit(e) if !matches!(e, mill::ui::menu::Edit::FromLine(_)) => self.ui.edit_um = e.current(m),
                 other => self.command_now(other),
             }
             self.ui.fit_edit(m);

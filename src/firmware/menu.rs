@@ -8,8 +8,9 @@ use super::Hw;
 use crate::board;
 use mill::gcode::interp;
 use mill::machine::{Inputs, Machine};
-use mill::ui::menu::{Cmd, Reply, Screen};
+use mill::ui::menu::{Cmd, Edit, Reply, Screen};
 use mill::ui::render::Line;
+use mill::ui::resume;
 use mill::ui::sd::{req, Card, Folder, SdError};
 use ufmt::uwriteln;
 
@@ -113,8 +114,43 @@ fn files_cmd(m: &mut Machine, hw: &mut Hw, cmd: Cmd) -> mill::machine::CmdResult
             },
             _ => Err(sd_err(SdError::NotFound)),
         },
+        Cmd::Edit(Edit::FromLine(i)) => {
+            // The line proposed: the last one reached, when the record is
+            // this file's (same name and size); else line 1 and why.
+            let (line, note) = match hw.files.entry(&mut hw.sd, i) {
+                Some((name, false)) => match hw.job.select(&mut hw.sd, Folder::Current, &name) {
+                    Ok(()) => resume::propose(resume::load(hw), &name, hw.job.size),
+                    Err(e) => (1, Some(e.text())),
+                },
+                _ => (1, Some(SdError::NotFound.text())),
+            };
+            hw.ui.edit_um = line.min(2_000_000) as i32 * 1000;
+            hw.ui.reply = note.map_or(Reply::Ok, |t| Reply::Err(t.as_fstr()));
+            Ok(())
+        }
         _ => Ok(()),
     }
+}
+
+/// Run from line `line` of file `i` of the list: refused unless homed and
+/// idle (nothing moves then); the scan starts, the job runs it
+/// (`SdJob::start_from`), the status screen shows its progress.
+#[inline(never)]
+fn run_from_line(m: &mut Machine, hw: &mut Hw, i: u8, line: u32) -> mill::machine::CmdResult {
+    let sd_err = |e: SdError| interp::Error::Sd(e.text().as_fstr());
+    let Some((name, false)) = hw.files.entry(&mut hw.sd, i) else {
+        return Err(sd_err(SdError::NotFound));
+    };
+    m.begin_scan(hw)?;
+    if let Err(e) = hw.job.select(&mut hw.sd, Folder::Current, &name) {
+        m.end_scan(hw);
+        return Err(sd_err(e));
+    }
+    hw.job.start_from(m, line).map_err(|t| interp::Error::Sd(t.as_fstr()))?;
+    m.job_start_ms = hw.millis();
+    uwriteln!(hw, "{}{}{}{}", mill::F!("echo:"), mill::ui::text::Text::MsgResumeAt, line, mill::F!(": scanning")).ok();
+    hw.ui.screen = Screen::Status;
+    Ok(())
 }
 
 /// The menu's commands that run at the top level.
@@ -131,7 +167,7 @@ pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
     }
     let cmd = core::mem::replace(&mut hw.pending, Cmd::None);
     let r = match cmd {
-        Cmd::ListFiles | Cmd::OpenFolder(_) | Cmd::FolderUp | Cmd::RunFile(_) => files_cmd(m, hw, cmd),
+        Cmd::ListFiles | Cmd::OpenFolder(_) | Cmd::FolderUp | Cmd::RunFile(_) | Cmd::Edit(_) => files_cmd(m, hw, cmd),
         Cmd::Override(pct) => {
             m.set_feed_override(pct);
             Ok(())
@@ -207,12 +243,31 @@ pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
 
 /// The menu's edit stored through the serial lines: `$n=<value>`, or for
 /// a pocket's tool number `G10 L1 P<old> Q0` then `G10 L1 P<new> Q<p>`
-/// (the old number put back if the new one is refused).
+/// (the old number put back if the new one is refused); the setter's
+/// reference tool into its record, then `G37 L R`.
 // stack: out of run's frame (the firmware's attributes removed: +88 B stack, +242 B flash)
 #[inline(never)]
 fn store_edit(m: &mut Machine, hw: &mut Hw, e: mill::ui::menu::Edit, um: i32) -> mill::machine::CmdResult {
-    use mill::ui::menu::Edit;
     let mut l = Line::blank();
+    if let Edit::FromLine(i) = e {
+        return run_from_line(m, hw, i, (um / 1000) as u32);
+    }
+    if let Edit::RefLength | Edit::RefDia = e {
+        // The reference tool goes into the setter record; its diameter
+        // stored, the calibration runs with both (`G37 L R`).
+        let mut s = m.setter;
+        if e == Edit::RefLength {
+            s.ref_length_um = um;
+        } else {
+            s.ref_diameter_um = um;
+        }
+        mill::machine::setter::store_setter(m, hw, s);
+        if e == Edit::RefLength {
+            return Ok(());
+        }
+        let n = mill::ui::menu::calibrate_line(s.ref_length_um, um, &mut l);
+        return m.run_menu_line(&l.chars[..n], hw);
+    }
     let Edit::Pocket(p) = e else {
         let n = e.gcode(um, None, &mut l);
         return m.run_menu_line(&l.chars[..n], hw);

@@ -8,7 +8,38 @@ use crate::board::spi::{BusyDelay, ClockDiv, SdDevice};
 use crate::board::{self, wdt};
 use core::ops::ControlFlow;
 use embedded_sdmmc::{LfnBuffer, Mode, RawDirectory, RawFile, RawVolume, SdCard, TimeSource, Timestamp, VolumeIdx, VolumeManager};
-use mill::ui::sd::{Card, Entry, Folder, Name, SdError};
+use mill::machine::Machine;
+use mill::ui::resume;
+use mill::ui::sd::{Card, Due, Entry, Folder, Name, Phase, SdError};
+
+/// Run from line: a scan the job left (aborted, the card pulled, the
+/// file too short) is ended. Once per main-loop turn.
+// stack: out of job_turn's frame
+#[inline(never)]
+pub(super) fn end_left_scan(m: &mut Machine, hw: &mut super::Hw) {
+    if m.rebuild.active && !matches!(hw.job.phase, Phase::Scanning(_)) {
+        m.end_scan(hw);
+    }
+}
+
+/// Run from line's record: the line reached, in EEPROM when it is due
+/// (`SdJob::record_due`), and the file with it when a job starts (from
+/// the menu or M24). From the idle hook, so also during a line's
+/// wait, right after `Machine::idle` topped the segment ring up (a
+/// programmed byte takes 3.3 ms; a record programs one or two).
+// stack: out of the idle hook's frame
+#[inline(never)]
+pub(super) fn keep_record(hw: &mut super::Hw, m: &Machine) {
+    let now_s = (board::millis() / 1000) as u16;
+    match hw.job.record_due(m, now_s) {
+        Some(Due::Start(line)) => {
+            let (name, size) = (hw.job.name, hw.job.size);
+            resume::start(hw, &name, size, line);
+        }
+        Some(Due::Reached(line)) => resume::reached(hw, line),
+        None => {}
+    }
+}
 
 /// Files get this date (there is no real-time clock).
 pub(super) struct FixedClock;

@@ -251,6 +251,11 @@ impl Machine {
     /// stored ones; the modal state stays as the checked lines left it
     /// (grbl resets it with a soft reset).
     pub(super) fn toggle_check(&mut self, io: &mut impl Io) -> CmdResult {
+        // Not during an SD job: a run from line's scan is check mode, and
+        // leaving it would run the rest of the scan for real.
+        if self.sd_job {
+            return Err(interp::Error::JobRunning);
+        }
         if self.state == State::Check {
             let p = io.stepper().position;
             self.interp.sync_position(&self.settings, p);

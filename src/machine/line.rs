@@ -305,7 +305,11 @@ impl Machine {
                 Ok(Some(Command::Move { feed_mm_per_min, rapid })) => self.move_interp(io, *feed_mm_per_min, *rapid)?,
                 // `$C`: only reports run; spindle, tool, probe, dwell,
                 // homing and EEPROM writes are checked and skipped.
-                Ok(Some(cmd)) if self.state == State::Check && !matches!(cmd, Command::Report(_)) => {}
+                Ok(Some(cmd)) if self.state == State::Check && !matches!(cmd, Command::Report(_)) => {
+                    if self.rebuild.active {
+                        self.scan_note(cmd);
+                    }
+                }
                 Ok(Some(cmd)) => self.dispatch(cmd, io)?,
                 Ok(None) => return Ok(()),
                 Err(e) => return Err(*e),

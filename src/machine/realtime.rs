@@ -72,11 +72,12 @@ impl Machine {
         if self.limits_held != 0 {
             self.rearm_limits(io);
         }
-        if rt.status {
-            self.status_report(io);
-        }
+        // Before the report: a `?` right after M400's `ok` says Idle.
         if matches!(self.state, State::Run | State::Jog) && self.motion_done(io) {
             self.state = State::Idle;
+        }
+        if rt.status {
+            self.status_report(io);
         }
         io.background(self);
     }

@@ -118,10 +118,7 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
             }
         }
         Outcome::Calibrated(s) => {
-            if s != m.setter {
-                m.setter = s;
-                io.eeprom_write(EEPROM_SETTER_ADDR, &s.to_bytes());
-            }
+            store_setter(m, io, s);
             if tool != 0 {
                 let i = tool as usize - 1;
                 m.atc.table.length_um[i] = s.ref_length_um;
@@ -141,6 +138,15 @@ fn store(m: &mut Machine, io: &mut impl Io, tool: u8, o: Outcome) -> Result<(), 
     super::toolchange::store_table(m, io, &before);
     super::toolchange::apply_offset(m);
     Ok(())
+}
+
+/// The setter record as `s` (its reference tool, say), in EEPROM when it
+/// changed.
+pub fn store_setter(m: &mut Machine, io: &mut impl Io, s: crate::toolsetter::Setter) {
+    if s != m.setter {
+        m.setter = s;
+        io.eeprom_write(EEPROM_SETTER_ADDR, &s.to_bytes());
+    }
 }
 
 /// Rapid to machine mm (`None` keeps the axis) and wait.

@@ -17,7 +17,8 @@
 //! - [`menu`]: the menu tree as data and its state machine;
 //! - [`encoder`]: quadrature decoding and button debouncing;
 //! - [`card`]: the SD card as a trait: names, entries, folders, errors;
-//! - [`sd`]: SD jobs and M20–M29;
+//! - [`sd`]: SD jobs and M20–M29 (and run from line's scan);
+//! - [`resume`]: run from line's EEPROM record of the last job and the line it reached;
 //! - [`files`]: the Files screen's sorted list of folders and files.
 
 pub mod card;
@@ -27,5 +28,6 @@ pub mod flash;
 pub mod font;
 pub mod menu;
 pub mod render;
+pub mod resume;
 pub mod sd;
 pub mod text;

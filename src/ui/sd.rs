@@ -55,6 +55,9 @@ pub enum Outcome {
     /// The card was pulled mid-job: the job stopped in this line (the one
     /// whose move was executing, or the last one read when none was).
     CardRemoved(u32),
+    /// Run from this line did not start ([`SdJob::why`] says why: the file
+    /// ends before it, the card was pulled during the scan); nothing moved.
+    NotResumed(u32),
 }
 
 /// Where the job is.
@@ -76,6 +79,9 @@ pub enum Phase {
     Ended(Outcome),
     /// M28: serial lines are written to the open file until M29.
     Writing,
+    /// Run from line: the lines before this one are read without moving
+    /// (the modal state rebuilt, `machine::rebuild`).
+    Scanning(u32),
 }
 
 /// What the main loop should do after [`SdJob::poll`].
@@ -90,13 +96,19 @@ pub enum Turn {
     /// The card was pulled and the job's moves are dropped: retract Z to
     /// the safe height, then turn the spindle off.
     RetractThenSpindleOff,
+    /// Run from line: scan the line in the caller's buffer (this many
+    /// bytes) in check mode.
+    Scan(usize),
+    /// Run from line: the scan reached the line; go to where the job was
+    /// (`Machine::approach`), then run the line in the caller's buffer.
+    Approach(usize),
 }
 
 /// Bytes of read-ahead.
 const CHUNK: usize = 64;
 
 /// An SD job: the selected file, its read position and the line splitter.
-/// RAM: about 100 bytes.
+/// RAM: about 110 bytes (7 of them for run from line's record).
 pub struct SdJob {
     pub phase: Phase,
     /// Selected file.
@@ -117,6 +129,26 @@ pub struct SdJob {
     requests: u8,
     /// `Machine::aborts` when the job last looked.
     seen_aborts: u8,
+    /// The last line reached (run from line's record), when it was last
+    /// recorded (seconds, wrapping), and a record due now (a start, a
+    /// pause, the end).
+    reached: u32,
+    saved_s: u16,
+    record_now: u8,
+}
+
+/// `SdJob::record_now`: nothing, the line reached, a job's start.
+const NO_RECORD: u8 = 0;
+const RECORD_LINE: u8 = 1;
+const RECORD_START: u8 = 2;
+
+/// A record of run from line's EEPROM record due ([`SdJob::record_due`]).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Due {
+    /// A job starts on the selected file at this line: the whole record.
+    Start(u32),
+    /// The job reached this line (0: it ran to its end).
+    Reached(u32),
 }
 
 impl Default for SdJob {
@@ -140,12 +172,15 @@ impl SdJob {
             eof: false,
             requests: 0,
             seen_aborts: 0,
+            reached: 1,
+            saved_s: 0,
+            record_now: NO_RECORD,
         }
     }
 
     /// A job is under way (serial motion is refused meanwhile).
     pub fn active(&self) -> bool {
-        matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_))
+        matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_) | Phase::Scanning(_))
     }
 
     /// Progress in percent of the file's bytes read.
@@ -159,6 +194,10 @@ impl SdJob {
     /// length count in proportion. Per mille.
     pub fn permille_cut(&self, m: &Machine) -> u16 {
         let read = scaled(self.pos.min(self.size), self.size, 1000);
+        if let Phase::Scanning(to) = self.phase {
+            // The scan's progress toward its line.
+            return scaled(self.line, to, 1000) as u16;
+        }
         if !self.active() || self.line == 0 {
             return read as u16;
         }
@@ -221,6 +260,9 @@ impl SdJob {
             Phase::Selected => {
                 self.seen_aborts = f.aborts;
                 self.phase = Phase::Running;
+                self.reached = 1;
+                // Recorded at once: the records' clock starts with the job.
+                self.record_now = RECORD_START;
                 *f.sd_job = true;
                 Ok(())
             }
@@ -231,6 +273,22 @@ impl SdJob {
             Phase::Running => Ok(()),
             _ => Err(Text::ErrNoFileSelected),
         }
+    }
+
+    /// Run from line `line` of the selected file: its lines before `line`
+    /// are scanned first ([`Turn::Scan`]), then the machine goes there
+    /// ([`Turn::Approach`]). The caller started the scan
+    /// (`Machine::begin_scan`).
+    pub fn start_from(&mut self, m: &mut Machine, line: u32) -> Result<(), Text> {
+        if !matches!(self.phase, Phase::Selected) {
+            return Err(Text::ErrNoFileSelected);
+        }
+        self.seen_aborts = m.aborts;
+        self.phase = Phase::Scanning(line);
+        self.reached = line;
+        self.record_now = RECORD_START;
+        m.sd_job = true;
+        Ok(())
     }
 
     /// Resume a paused job (M24, the menu).
@@ -246,12 +304,13 @@ impl SdJob {
         if self.phase == Phase::Running {
             self.request(req::HOLD);
             self.phase = Phase::Paused;
+            self.record_now = self.record_now.max(RECORD_LINE);
         }
     }
 
     /// Abort the job: decelerate, drop the queue, spindle off.
     pub fn abort(&mut self) {
-        if matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) {
+        if matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Scanning(_)) {
             self.request(req::ABORT);
             self.phase = Phase::Aborting(Outcome::Aborted);
         }
@@ -331,9 +390,72 @@ impl SdJob {
                     }
                 }
             }
+            Phase::Scanning(to) => self.scan(card, m, to, line, out),
             Phase::Draining(o) if motion_done => self.end(card, m, o, out),
             _ => Turn::Idle,
         }
+    }
+
+    /// The scan's next line: lines before `to` are scanned; the first one
+    /// from `to` on (blank lines skipped) is the one to go on with.
+    fn scan(&mut self, card: &mut impl Card, m: &mut Machine, to: u32, line: &mut [u8; MAX_LINE_LEN], out: &mut impl uWrite) -> Turn {
+        match self.next_line(card, line) {
+            Ok(Some(n)) if self.line >= to => {
+                self.phase = Phase::Running;
+                m.planner.line_tag = self.line as u16;
+                Turn::Approach(n)
+            }
+            Ok(Some(n)) => Turn::Scan(n),
+            Ok(None) => {
+                uwriteln!(out, "{}{}{}{}", Text::Echo, Text::MsgPastEnd, self.line, Text::MsgNothingMoved).ok();
+                self.not_resumed(to, Text::WhyPastEnd);
+                Turn::Idle
+            }
+            Err(e) => {
+                uwriteln!(out, "{}{}{}{}{}{}", Text::Error, e, Text::AtSdByte, self.pos, Text::JobStopped, self.line + 1).ok();
+                self.not_resumed(to, e);
+                Turn::Idle
+            }
+        }
+    }
+
+    /// Run from line `to` will not start: the job ends with `why`, nothing
+    /// moved (the scan is ended by the firmware, `Machine::end_scan`).
+    fn not_resumed(&mut self, to: u32, why: Text) {
+        self.why = Some(why.as_fstr());
+        self.reached = to;
+        self.phase = Phase::Draining(Outcome::NotResumed(to));
+    }
+
+    /// A record of the line reached is due (run from line, `ui::resume`):
+    /// when the job pauses or ends, and every [`RECORD_EVERY_S`] seconds
+    /// while it cuts; when a job starts (from the menu or M24), the whole
+    /// record. `now_s`: a clock in seconds (wrapping). Called from every
+    /// wait (the main loop sits in a line's wait for the last part of a
+    /// job: M5 waits for the moves queued before it), it follows the line
+    /// reached while the job cuts; not while a scan reads lines (they are
+    /// not reached), nor after it.
+    ///
+    /// [`RECORD_EVERY_S`]: crate::ui::resume::RECORD_EVERY_S
+    pub fn record_due(&mut self, m: &Machine, now_s: u16) -> Option<Due> {
+        if matches!(self.phase, Phase::Running | Phase::Draining(Outcome::Done)) && self.line > 0 {
+            self.reached = self.cut_line(m).max(1);
+            if now_s.wrapping_sub(self.saved_s) >= crate::ui::resume::RECORD_EVERY_S {
+                self.record_now = self.record_now.max(RECORD_LINE);
+            }
+        }
+        let due = core::mem::replace(&mut self.record_now, NO_RECORD);
+        if due == NO_RECORD {
+            return None;
+        }
+        self.saved_s = now_s;
+        Some(if due == RECORD_START {
+            Due::Start(self.reached)
+        } else if matches!(self.phase, Phase::Ended(Outcome::Done)) {
+            Due::Reached(0)
+        } else {
+            Due::Reached(self.reached)
+        })
     }
 
     /// The card is gone (`detected` false) while the job still runs: end
@@ -344,10 +466,22 @@ impl SdJob {
     /// main-loop turn, also while a job's line waits (a long arc, a full
     /// planner), so no queued move outlives the card.
     pub fn card_check(&mut self, detected: bool, m: &Machine, out: &mut impl uWrite) -> bool {
-        if detected || !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_)) {
+        if detected {
+            return false;
+        }
+        if let Phase::Scanning(to) = self.phase {
+            // Nothing moves during a scan: the job only ends.
+            uwriteln!(out, "{}{}{}{}", Text::Echo, Text::MsgCardRemovedAt, to, Text::MsgNothingMoved).ok();
+            self.not_resumed(to, Text::WhyCardOut);
+            return true;
+        }
+        if !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_))
+            || matches!(self.phase, Phase::Draining(Outcome::NotResumed(_)))
+        {
             return false;
         }
         let stopped = self.cut_line(m);
+        self.reached = stopped;
         self.request(req::ABORT | req::KEEP_SPINDLE);
         self.phase = Phase::Aborting(Outcome::CardRemoved(stopped));
         uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgCardRemovedAt, stopped).ok();
@@ -357,7 +491,7 @@ impl SdJob {
     /// After a line ran: on an error, stop reading (the moves before it finish).
     pub fn line_done(&mut self, r: CmdResult, m: &mut Machine, out: &mut impl uWrite) {
         if let Err(e) = r {
-            if self.phase == Phase::Running || self.phase == Phase::Paused {
+            if matches!(self.phase, Phase::Running | Phase::Paused | Phase::Scanning(_)) {
                 if e == crate::gcode::interp::Error::Aborted {
                     return; // the abort path ends the job
                 }
@@ -372,11 +506,13 @@ impl SdJob {
         card.close().ok();
         m.sd_job = false;
         self.phase = Phase::Ended(o);
+        self.record_now = self.record_now.max(RECORD_LINE);
         match o {
             Outcome::Done => uwriteln!(out, "{}", Text::MsgDonePrinting).ok(),
             Outcome::Aborted => uwriteln!(out, "{}{}", Text::Echo, Text::MsgAborted).ok(),
             Outcome::BadLine(n) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgEndedAtLine, n).ok(),
             Outcome::ReadError(p) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgReadErrorAt, p).ok(),
+            Outcome::NotResumed(n) => uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgNotResumed, n).ok(),
             Outcome::CardRemoved(n) => {
                 uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgCardEnded, n).ok();
                 return Turn::RetractThenSpindleOff;

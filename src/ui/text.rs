@@ -148,9 +148,11 @@ crate::flash_texts! {
     HintBack = "Press: back",
     // Jog menu: work zero.
     ZeroAxis = "Zero",
+    ZeroAll = "Zero X Y Z",
     ProbeZ = "Probe Z zero",
     WorkSystem = "Work G5",
     LineZero = "G10 L20 P0 ",
+    LineZeroAll = "G10 L20 P0 X0 Y0 Z0",
     // Tools > Changer: the station's points, and teaching one.
     Changer = "Changer",
     TeachQ = "Teach ",
@@ -172,6 +174,30 @@ crate::flash_texts! {
     TurnToSet = "Turn >",
     Save = "Save",
     LineG10L1P = "G10 L1 P",
+    // Run from line: the Run screen's entry, its edit screen, the scan.
+    FromLine = "From line",
+    LineWord = "Line",
+    Start = "Start",
+    FromLineHelp = "Proposed: the last line reached by its last run",
+    NoteFileChanged = "File changed since its last run: line 1",
+    NoteNoRun = "No stopped run of this file: line 1",
+    JobScanning = "Scan to ",
+    JobNotResumed = "Not resumed: ",
+    WhyPastEnd = "File ends before it",
+    WhyCardOut = "Card out during scan",
+    MsgPastEnd = "run from line: the file ends at line ",
+    MsgNothingMoved = ", nothing moved",
+    MsgNotResumed = "run from line not started: line ",
+    MsgResumeAt = "run from line ",
+    // Tools > Calibrate setter: the reference tool, then G37 L R.
+    CalibrateSetter = "Calibrate setter",
+    RefLengthHelp = "Reference tool in the spindle: its length, mm",
+    RefDiaHelp = "Its diameter, mm. Save: measure it in the beam",
+    RefLength = "Ref length",
+    BeamZ = "Beam Z",
+    BeamWidth = "Beam width",
+    LineG37L = "G37 L",
+    LineR = " R",
 }
 
 #[cfg(test)]

@@ -32,10 +32,15 @@
 //! - **Crashes.** `cpu_Crashed` (PC past flash), `cpu_Done` (SLEEP with
 //!   interrupts off) and invalid opcodes (simavr only logs and skips them) stop
 //!   the VM with an error carrying the PC.
-//! - **UART timing.** simavr counts 11 bits per byte (it always adds a parity
-//!   bit): serial in simulation is ~10 % slower than at the real baud rate. The
-//!   host link paces bytes with simavr's own `cycles_per_byte` for UART0, so it
-//!   follows the firmware's UBRR setting.
+//! - **UART timing.** simavr computes a frame time only when UBRRnL is
+//!   written, from the U2Xn bit of that moment, and counts 11 bits per byte
+//!   (it always adds a parity bit): a firmware that writes UBRR0 before
+//!   U2X0 (this one) ran its link at half the baud rate in simulation, and
+//!   every link ~10 % slow. The VM recomputes UART0's frame time after every
+//!   write to UCSR0A/B/C and UBRR0H/L as the hardware counts it (start,
+//!   data, parity only if UPM0 is set, stop bits; `uart_clock`), and the
+//!   host link paces bytes with that same frame time
+//!   ([`Vm::uart_frame_cycles`]).
 //! - **UART receiver buffer.** simavr buffers 64 received bytes where the
 //!   hardware holds 2, and drops bytes while RXEN is 0. [`Vm::send`] is a host
 //!   with ideal flow control: it holds bytes while RXEN is 0 or simavr's FIFO
@@ -73,6 +78,7 @@
 //!   across them and the bootloader's start-up delay.
 //! - `timers`: the TCCRnB wrap that keeps TCNTn across a clock stop/start.
 //! - `interrupts`: vector entry/exit: ISR statistics and nesting.
+//! - `uart_clock`: UART0's frame time recomputed as the hardware has it.
 //! - `uart`: UART0's host side: paced and flood sending, the lines the
 //!   firmware prints, commands and streamed jobs.
 //! - `drivers`: step/dir/enable pins into the [`Recorder`]; positions.
@@ -99,6 +105,7 @@ mod simavr;
 mod summary;
 mod timers;
 mod uart;
+mod uart_clock;
 
 pub use config::VmConfig;
 pub use memory::{EEPROM_SIZE, RAMEND, STACK_PAINT};
@@ -118,6 +125,7 @@ use simavr_ffi as ffi;
 use std::ffi::{c_int, c_void};
 use timers::TimerWrap;
 use uart::UartHost;
+use uart_clock::UartWrap;
 
 /// Why the VM stopped or could not start.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -238,6 +246,7 @@ pub struct Vm {
     inner: *mut Inner,
     hooks: Box<[PinHook]>,
     timer_wraps: Box<[TimerWrap]>,
+    uart_wraps: Box<[UartWrap]>,
     config: VmConfig,
     symbols: ElfSymbols,
     wall_start: std::time::Instant,
@@ -420,6 +429,6 @@ impl Drop for Vm {
             free(self.avr as *mut c_void);
             drop(Box::from_raw(self.inner));
         }
-        let _ = (&self.hooks, &self.timer_wraps);
+        let _ = (&self.hooks, &self.timer_wraps, &self.uart_wraps);
     }
 }

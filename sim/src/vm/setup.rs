@@ -6,7 +6,7 @@ use super::inputs::drive_input;
 use super::reset::reset_hook;
 use super::simavr::{free, logger, no_sleep, zeroed_pod};
 use super::uart::UartHost;
-use super::{bad_opcode_notify, display, drivers, inputs, interrupts, outputs, sd_socket, timers, uart};
+use super::{bad_opcode_notify, display, drivers, inputs, interrupts, outputs, sd_socket, timers, uart, uart_clock};
 use super::{Inner, Vm, VmConfig, VmError};
 use crate::boot;
 use crate::elf::ElfSymbols;
@@ -159,8 +159,10 @@ impl Vm {
         // SAFETY: avr is live and not running; the wraps are kept in the Vm
         // and dropped after the instance (Vm::drop).
         let timer_wraps = unsafe { timers::wrap(avr, config.fix_tcnt_on_clock_start) };
+        // SAFETY: as above; `uart` is the instance's UART0 (found by uart::attach).
+        let uart_wraps = unsafe { uart_clock::wrap(avr, (*inner).uart) };
 
-        Ok(Vm { avr, inner, hooks, timer_wraps, config, symbols, wall_start: std::time::Instant::now() })
+        Ok(Vm { avr, inner, hooks, timer_wraps, uart_wraps, config, symbols, wall_start: std::time::Instant::now() })
     }
 
     /// A VM for `elf` with the default machine.

@@ -230,6 +230,13 @@ impl Vm {
         h.flood.clear();
     }
 
+    /// UART0's frame time, cycles: one byte on the wire at the rate and
+    /// frame format the firmware set (`uart_clock`).
+    pub fn uart_frame_cycles(&self) -> u64 {
+        // SAFETY: `uart` points into the live instance (found at start).
+        unsafe { (*self.inner().uart).cycles_per_byte }
+    }
+
     /// Flood bytes lost because the chip did not read them in time.
     pub fn uart_rx_dropped(&self) -> u64 {
         self.inner().host.rx_dropped

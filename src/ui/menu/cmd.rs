@@ -20,7 +20,7 @@ pub enum ToolOp {
     /// `M61 Q<t>`: the spindle holds tool t (after an interrupted change).
     Confirm(u8),
     /// Jog menu: `G10 L20 P0 <axis>0`, the active work system's zero of
-    /// axis 0..3 where the machine is.
+    /// axis 0..3 where the machine is; 3: of all three (`X0 Y0 Z0`).
     Zero(u8),
     /// Jog menu: probe Z down (G38.2 on the probe input, at most
     /// [`PROBE_Z_MM`]), then the Z work zero where it touched.
@@ -30,6 +30,9 @@ pub enum ToolOp {
     /// An edit stored (the line is [`Edit::gcode`]'s).
     Store(Edit),
 }
+
+/// [`ToolOp::Zero`] of X, Y and Z at once.
+pub const ALL_AXES: u8 = 3;
 
 /// How far the menu's Z probe goes down at most, mm, and its feed, mm/min.
 pub const PROBE_Z_MM: f32 = 20.0;
@@ -58,6 +61,7 @@ impl ToolOp {
             }
             // The probe itself is the firmware's (`Machine::probe`); the
             // line is what follows it.
+            ToolOp::Zero(ALL_AXES) => l.text(0, Text::LineZeroAll),
             ToolOp::Zero(_) | ToolOp::ProbeZ => {
                 let a = if let ToolOp::Zero(a) = self { a } else { 2 };
                 let c = l.text(0, Text::LineZero);
@@ -83,11 +87,14 @@ impl ToolOp {
             ToolOp::Measure { diameter: false } => (Text::MeasureLength, 2),
             ToolOp::Measure { diameter: true } => (Text::MeasureDia, 3),
             ToolOp::Confirm(_) => (Text::ConfirmSpindle, 5),
+            ToolOp::Zero(ALL_AXES) => (Text::ZeroAll, 5),
             ToolOp::Zero(_) => (Text::ZeroAxis, 4),
-            ToolOp::ProbeZ => (Text::ProbeZ, 5),
-            ToolOp::Wcs(_) => (Text::WorkSystem, 6),
+            ToolOp::ProbeZ => (Text::ProbeZ, 6),
+            ToolOp::Wcs(_) => (Text::WorkSystem, 7),
             ToolOp::Store(Edit::Setting(_)) => (Text::Settings, 6),
             ToolOp::Store(Edit::Pocket(_)) => (Text::ToolNumbers, 7),
+            ToolOp::Store(Edit::FromLine(_)) => (Text::FromLine, 0),
+            ToolOp::Store(Edit::RefLength | Edit::RefDia) => (Text::CalibrateSetter, 8),
         }
     }
 }

@@ -3,7 +3,7 @@
 //! reply screens (the status screen is `status`'s, the Tools pages' rows
 //! `tool_rows`').
 
-use super::cmd::{Reply, ToolOp};
+use super::cmd::{Reply, ToolOp, ALL_AXES};
 use super::edit::{pow10, Edit, EDIT_ROW};
 use super::nav::{Ui, JOG_STEPS_UM};
 use super::screen::{point_text, Screen};
@@ -53,6 +53,8 @@ impl Ui {
                         Screen::Teach(_) => Text::TeachQ,
                         Screen::Numbers => Text::ToolNumbers,
                         Screen::Edit(Edit::Pocket(_), _) => Text::Pocket,
+                        Screen::Edit(Edit::FromLine(_), _) => Text::FromLine,
+                        Screen::Edit(Edit::RefLength | Edit::RefDia, _) => Text::CalibrateSetter,
                         _ => Text::Settings,
                     };
                     if let Screen::Edit(Edit::Setting(n), _) = self.screen {
@@ -151,6 +153,9 @@ impl Ui {
                             station_line(e - 1, &m.settings.station, &mut l);
                         }
                     }
+                    Screen::ConfirmRun(_) if e == 2 => {
+                        l.text(1, Text::FromLine);
+                    }
                     Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) | Screen::Teach(_) => {
                         l.text(1, if e == 0 { Text::No } else { Text::Yes });
                     }
@@ -180,6 +185,14 @@ impl Ui {
             let what = match ed {
                 Edit::Setting(n) => dollar::value(&m.settings, n).map(|(_, w)| w),
                 Edit::Pocket(_) => Some(Text::NumberHelp.as_fstr()),
+                // The firmware's note on the line proposed (a file changed,
+                // no earlier run), or where it comes from.
+                Edit::FromLine(_) => Some(match self.reply {
+                    Reply::Err(note) => note,
+                    _ => Text::FromLineHelp.as_fstr(),
+                }),
+                Edit::RefLength => Some(Text::RefLengthHelp.as_fstr()),
+                Edit::RefDia => Some(Text::RefDiaHelp.as_fstr()),
             };
             if let Some(w) = what {
                 wrapped(w, row - 1, l);
@@ -194,7 +207,8 @@ impl Ui {
                 l.text(1, Text::Back);
             }
             1 => {
-                l.text(1, if adjusting { Text::TurnToSet } else { Text::Value });
+                let label = if matches!(ed, Edit::FromLine(_)) { Text::LineWord } else { Text::Value };
+                l.text(1, if adjusting { Text::TurnToSet } else { label });
                 match ed {
                     Edit::Pocket(_) => number_text((self.edit_um / 1000) as u8, COLS, l),
                     _ if integer => l.uint_right(COLS, (self.edit_um / 1000) as u32),
@@ -211,7 +225,7 @@ impl Ui {
                 }
             }
             _ => {
-                l.text(1, Text::Save);
+                l.text(1, if matches!(ed, Edit::FromLine(_)) { Text::Start } else { Text::Save });
             }
         }
     }
@@ -333,6 +347,12 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
             let c = l.text(1, Text::WorkSystem);
             l.put(c, &[b'4' + v.wcs % 6]);
         }
+        // All three zeroed: their work positions now, a row each.
+        (Reply::Ok, 2..=4) if op == ToolOp::Zero(ALL_AXES) => {
+            let a = row - 2;
+            l.put(1, &[b"XYZ"[a]]);
+            l.micros_right(COLS, v.wpos_um[a]);
+        }
         // A work zero: the axis' work position now (0.000).
         (Reply::Ok, 2) if matches!(op, ToolOp::Zero(_) | ToolOp::ProbeZ) => {
             let a = if let ToolOp::Zero(a) = op { a as usize % 3 } else { 2 };
@@ -347,8 +367,22 @@ fn reply_line(row: usize, op: ToolOp, r: Reply, v: &View, m: &Machine, l: &mut L
                 number_text(m.atc.table.number_of(p), COLS, l);
             }
             ToolOp::Store(Edit::Setting(n)) => setting_line(n, m, l),
+            ToolOp::Store(Edit::RefLength) => {
+                l.text(1, Text::RefLength);
+                l.micros_right(COLS, m.setter.ref_length_um);
+            }
+            // Calibrated: where the beam is (the user's machine Z) and
+            // what it adds to a diameter.
+            ToolOp::Store(Edit::RefDia) => {
+                l.text(1, Text::BeamZ);
+                l.micros_right(COLS, crate::frame::z_user_from_internal_i32(m.setter.beam_z_um));
+            }
             _ => {}
         },
+        (Reply::Ok, 3) if op == ToolOp::Store(Edit::RefDia) => {
+            l.text(1, Text::BeamWidth);
+            l.micros_right(COLS, m.setter.beam_width_um);
+        }
         (Reply::Ok, 2) => {
             tool_and_note(l, m, t, Some(Text::InSpindle));
         }

@@ -18,6 +18,14 @@ pub enum Edit {
     /// The tool number kept in pocket p (1..=12; 0 = none), stored by
     /// running `G10 L1 P<tool> Q<p>` (after `G10 L1 P<old> Q0`).
     Pocket(u8),
+    /// Run from line: the line of file i of the list to start at, stored by
+    /// starting the job there (the firmware proposes the line, `ui::resume`).
+    FromLine(u8),
+    /// The tool setter's reference tool: its length (stored in the setter
+    /// record), then its diameter, whose Save runs the calibration
+    /// [`calibrate_line`].
+    RefLength,
+    RefDia,
 }
 
 /// Entries of the edit screen: < Back, Value, Step, Save.
@@ -31,6 +39,9 @@ impl Edit {
         match self {
             Edit::Setting(n) => dollar::value(&m.settings, n).map_or(0, |(v, _)| v.micros()),
             Edit::Pocket(p) => m.atc.table.number_of(p) as i32 * 1000,
+            Edit::FromLine(_) => 1000,
+            Edit::RefLength => m.setter.ref_length_um,
+            Edit::RefDia => m.setter.ref_diameter_um,
         }
     }
 
@@ -38,7 +49,8 @@ impl Edit {
     pub(super) fn integer(self, m: &Machine) -> bool {
         match self {
             Edit::Setting(n) => !matches!(dollar::value(&m.settings, n), Some((dollar::Value::Num(_), _))),
-            Edit::Pocket(_) => true,
+            Edit::Pocket(_) | Edit::FromLine(_) => true,
+            Edit::RefLength | Edit::RefDia => false,
         }
     }
 
@@ -52,6 +64,9 @@ impl Edit {
                 _ => (-99_999_999, 99_999_999),
             },
             Edit::Pocket(_) => (0, 254_000),
+            Edit::FromLine(_) => (1000, 2_000_000_000),
+            Edit::RefLength => (0, 300_000),
+            Edit::RefDia => (0, 50_000),
         }
     }
 
@@ -77,8 +92,22 @@ impl Edit {
                 let c = l.put(c, b" Q");
                 l.uint(c, q as u32)
             }
+            Edit::FromLine(_) => 0,
+            // Stored in the setter record, not by a line.
+            Edit::RefLength | Edit::RefDia => 0,
         }
     }
+}
+
+/// The calibration line of a reference tool `length_um` long and
+/// `diameter_um` thick: `G37 L<length> R<radius>`, the radius to the
+/// micrometre below (G37 keeps the diameter as twice the radius). Written
+/// into `l` from column 0; returns its length.
+pub fn calibrate_line(length_um: i32, diameter_um: i32, l: &mut Line) -> usize {
+    let c = l.text(0, Text::LineG37L);
+    let c = l.micros(c, length_um);
+    let c = l.text(c, Text::LineR);
+    l.micros(c, diameter_um / 2)
 }
 
 /// 10^k: the edit step k in thousandths.

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //!  Status ──press──► Menu: < Status | Run from SD | Job | Jog | Home | Tools | Settings | Info
-//!    Run from SD: < Back, files (scrolling) ──► "Run NAME?" No/Yes
+//!    Run from SD: < Back, files (scrolling) ──► "Run NAME?" No/Yes/From line ──► edit (the line)
 //!    Job:  < Back | Pause/Resume | Abort ──► "Abort the job?" No/Yes | Feed override nnn%
 //!    Jog:  < Back | Axis X/Y/Z | Step 0.1/1/10 mm | Jog now (turn = move, press = done)
 //!    Home: < Back | Home all | Home Z | Home Y | Home X
@@ -61,8 +61,8 @@ mod tool_rows;
 mod tree;
 mod view;
 
-pub use cmd::{Cmd, Reply, ToolOp, PROBE_Z_FEED, PROBE_Z_MM};
-pub use edit::Edit;
+pub use cmd::{Cmd, Reply, ToolOp, ALL_AXES, PROBE_Z_FEED, PROBE_Z_MM};
+pub use edit::{calibrate_line, Edit};
 pub use nav::Ui;
 pub use screen::Screen;
 pub use status::state_text;

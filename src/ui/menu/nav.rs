@@ -2,7 +2,7 @@
 //! entry, the values being set), [`Ui::step`] (turns and presses in, a
 //! [`Cmd`] for the firmware out), and the way between the screens.
 
-use super::cmd::{Cmd, Reply, ToolOp};
+use super::cmd::{Cmd, Reply, ToolOp, ALL_AXES};
 use super::edit::{pow10, Edit, EDIT_ENTRIES};
 use super::screen::{Screen, STATION_POINTS};
 use super::tree::{Act, MenuId};
@@ -79,7 +79,9 @@ impl Ui {
         match self.screen {
             Screen::Menu(m) => m.len() as u8,
             Screen::Files => v.files + 1,
-            Screen::ConfirmRun(_) | Screen::ConfirmAbort | Screen::AskTool(_) => 2,
+            // No | Yes | From line.
+            Screen::ConfirmRun(_) => 3,
+            Screen::ConfirmAbort | Screen::AskTool(_) => 2,
             Screen::PickTool(_) => TOOL_ENTRIES,
             Screen::Changer => STATION_POINTS + 1,
             Screen::Teach(_) => 2,
@@ -183,8 +185,13 @@ impl Ui {
             }
             Screen::Reply(op) => {
                 if press && !matches!(self.reply, Reply::Pending) {
-                    if let ToolOp::Store(e) = op {
-                        return self.open_edit(e);
+                    // The reference tool's length stored: its diameter next;
+                    // calibrated: back to Tools.
+                    match op {
+                        ToolOp::Store(Edit::RefLength) if self.reply == Reply::Ok => return self.open_edit(Edit::RefDia),
+                        ToolOp::Store(Edit::RefDia) => {}
+                        ToolOp::Store(e) => return self.open_edit(e),
+                        _ => {}
                     }
                     self.back_to(op.menu(), op.entry().1);
                 }
@@ -226,7 +233,12 @@ impl Ui {
         if let Screen::Edit(e, _) = self.screen {
             let (lo, hi) = e.range(m);
             self.edit_um = self.edit_um.clamp(lo, hi);
-            let (first, last) = if e.integer(m) { (3, 5) } else { (0, 6) };
+            let (first, last) = match e {
+                // Lines: 1, 10, 100 or 1000 a detent.
+                Edit::FromLine(_) => (3, 6),
+                _ if e.integer(m) => (3, 5),
+                _ => (0, 6),
+            };
             if !(first..=last).contains(&self.edit_step) {
                 self.edit_step = first;
             }
@@ -276,6 +288,9 @@ impl Ui {
                 Cmd::None
             }
             Screen::ConfirmRun(i) => {
+                if sel == 2 {
+                    return self.open_edit(Edit::FromLine(i));
+                }
                 if sel == 1 {
                     self.go(Screen::Status);
                     Cmd::RunFile(i)
@@ -486,6 +501,7 @@ impl Ui {
                 Cmd::None
             }
             Act::ZeroAxis => self.run_tool(ToolOp::Zero(self.jog_axis % 3), v),
+            Act::ZeroAll => self.run_tool(ToolOp::Zero(ALL_AXES), v),
             Act::ProbeZ => self.run_tool(ToolOp::ProbeZ, v),
             Act::WorkSystem => self.run_tool(ToolOp::Wcs((v.wcs + 1) % 6), v),
             Act::HomeAll | Act::HomeZ | Act::HomeY | Act::HomeX => {
@@ -520,6 +536,7 @@ impl Ui {
                 self.go(Screen::Changer);
                 Cmd::None
             }
+            Act::CalibrateSetter => self.open_edit(Edit::RefLength),
             Act::ToolNumbers => {
                 self.go(Screen::Numbers);
                 Cmd::None
@@ -554,6 +571,8 @@ impl Edit {
         match self {
             Edit::Setting(n) => (Screen::Settings, (0..dollar::count()).find(|&i| dollar::nth(i) == n).unwrap_or(0) + 1),
             Edit::Pocket(p) => (Screen::Numbers, p),
+            Edit::FromLine(i) => (Screen::ConfirmRun(i), 2),
+            Edit::RefLength | Edit::RefDia => (Screen::Menu(MenuId::Tools), ToolOp::Store(self).entry().1),
         }
     }
 }

@@ -97,7 +97,10 @@ pub(super) fn status_line(row: usize, v: &View, tool: u8, host: &crate::hostcode
             job_time(v, l)
         }
         // A job stopped on a bad line: why (the refusal's first words).
-        7 if matches!(v.job, Phase::Ended(Outcome::BadLine(_))) && v.job_why.is_some() && v.state != State::Alarm => {
+        7 if matches!(v.job, Phase::Ended(Outcome::BadLine(_) | Outcome::NotResumed(_)))
+            && v.job_why.is_some()
+            && v.state != State::Alarm =>
+        {
             if let Some(why) = v.job_why {
                 let mut w = LineWriter { l, at: 0, mid_word: false };
                 ufmt::uwrite!(w, "{}", why).ok();
@@ -155,6 +158,12 @@ fn job_status(v: &View, l: &mut Line) {
         Phase::Aborting(_) => {
             l.text(0, Text::JobStopping);
         }
+        // Run from line: the scan's progress toward the line.
+        Phase::Scanning(n) => {
+            let c = l.text(0, Text::JobScanning);
+            l.uint(c, n);
+            pct(l);
+        }
         Phase::Ended(o) => match o {
             Outcome::Done => {
                 let c = l.text(0, Text::JobDone);
@@ -172,6 +181,10 @@ fn job_status(v: &View, l: &mut Line) {
             }
             Outcome::CardRemoved(n) => {
                 let c = l.text(0, Text::JobCardOut);
+                l.uint(c, n);
+            }
+            Outcome::NotResumed(n) => {
+                let c = l.text(0, Text::JobNotResumed);
                 l.uint(c, n);
             }
         },

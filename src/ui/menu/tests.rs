@@ -40,9 +40,12 @@ fn the_menu_tree_is_laid_out_as_the_spec_says() {
     assert_eq!(MenuId::Spindle.item(3), (Text::OverrideShort, Act::SpindleOverride));
     assert_eq!(MenuId::Main.item(5), (Text::Tools, Act::ToolsMenu));
     assert_eq!(MenuId::Main.item(7), (Text::Info, Act::Info));
-    assert_eq!(MenuId::Tools.len(), 8);
-    assert_eq!(MenuId::Jog.len(), 7);
+    assert_eq!(MenuId::Tools.len(), 9);
+    assert_eq!(MenuId::Tools.item(8), (Text::CalibrateSetter, Act::CalibrateSetter));
+    assert_eq!(MenuId::Jog.len(), 8);
     assert_eq!(MenuId::Jog.item(4), (Text::ZeroAxis, Act::ZeroAxis));
+    assert_eq!(MenuId::Jog.item(5), (Text::ZeroAll, Act::ZeroAll));
+    assert_eq!(MenuId::Jog.item(6), (Text::ProbeZ, Act::ProbeZ));
     assert_eq!(MenuId::Tools.item(5), (Text::ConfirmSpindle, Act::ConfirmSpindle));
     assert_eq!(MenuId::Tools.item(6), (Text::Changer, Act::Changer));
     assert_eq!(MenuId::Tools.item(7), (Text::ToolNumbers, Act::ToolNumbers));
@@ -402,6 +405,70 @@ fn a_pockets_tool_number_is_edited_and_stored_as_g10_l1_lines() {
 }
 
 /// Open the Tools menu from the status screen and press entry `i`.
+#[test]
+fn the_setter_is_calibrated_from_the_reference_tools_length_and_diameter() {
+    let mut m = Machine::new();
+    m.setter.ref_length_um = 40_000;
+    let v = View::new();
+    let mut ui = Ui::new();
+    let c = tools_entry(&mut ui, &v, 8);
+    assert_eq!(c, Cmd::Edit(Edit::RefLength));
+    ui.edit_um = Edit::RefLength.current(&m);
+    ui.fit_edit(&m);
+    let s = screen_of(&ui, &v, &m);
+    assert_eq!(s[0], "[ Calibrate setter]");
+    assert_eq!(s[1..4].join(" ").split_whitespace().collect::<Vec<_>>().join(" "), "Reference tool in the spindle: its length, mm");
+    assert_eq!(s[5], "[ Value         40.000]");
+    // 50.000 mm (10 detents of 1), saved: stored, then the diameter.
+    edit_step(&mut ui, 0, true, &v, &m);
+    edit_step(&mut ui, 10, true, &v, &m);
+    assert_eq!(edit_step(&mut ui, 2, true, &v, &m), Cmd::Store(Edit::RefLength, 50_000));
+    assert_eq!(ui.screen, Screen::Reply(ToolOp::Store(Edit::RefLength)));
+    m.setter.ref_length_um = 50_000;
+    ui.reply = Reply::Ok;
+    assert_eq!(screen_of(&ui, &v, &m)[2], " Ref length    50.000");
+    assert_eq!(edit_step(&mut ui, 0, true, &v, &m), Cmd::Edit(Edit::RefDia));
+    assert_eq!(ui.screen, Screen::Edit(Edit::RefDia, false));
+    // 6 mm; Save runs the calibration.
+    edit_step(&mut ui, 0, true, &v, &m);
+    edit_step(&mut ui, 6, true, &v, &m);
+    assert_eq!(edit_step(&mut ui, 2, true, &v, &m), Cmd::Store(Edit::RefDia, 6_000));
+    let mut l = Line::blank();
+    let n = calibrate_line(50_000, 6_000, &mut l);
+    assert_eq!(&l.chars[..n], b"G37 L50.000 R3.000");
+    // The result: the beam's Z (user's, +Z up) and width; a press: Tools.
+    m.setter.beam_z_um = 12_345;
+    m.setter.beam_width_um = 1_500;
+    ui.reply = Reply::Ok;
+    let s = screen_of(&ui, &v, &m);
+    assert_eq!(s[2..4], [" Beam Z       -12.345", " Beam width     1.500"], "{s:?}");
+    edit_step(&mut ui, 0, true, &v, &m);
+    assert_eq!((ui.screen, ui.sel), (Screen::Menu(MenuId::Tools), 8));
+    // A refused length goes back to its edit, not on to the diameter.
+    tools_entry(&mut ui, &v, 8);
+    edit_step(&mut ui, 3, true, &v, &m);
+    ui.reply = Reply::Err(Text::NotIdle.as_fstr());
+    edit_step(&mut ui, 0, true, &v, &m);
+    assert_eq!(ui.screen, Screen::Edit(Edit::RefLength, false));
+}
+
+#[test]
+fn zero_x_y_z_zeroes_all_three_in_one_line() {
+    let mut l = Line::blank();
+    let n = ToolOp::Zero(ALL_AXES).gcode(&mut l);
+    assert_eq!(&l.chars[..n], b"G10 L20 P0 X0 Y0 Z0");
+    let mut ui = Ui::new();
+    let mut v = View::new();
+    ui.go(Screen::Menu(MenuId::Jog));
+    assert_eq!(ui.step(5, true, &v), Cmd::Tool(ToolOp::Zero(ALL_AXES)));
+    v.wpos_um = [0, 0, 0];
+    ui.reply = Reply::Ok;
+    let s = screen(&ui, &v);
+    assert_eq!(s[0..5], ["[ Zero X Y Z]", "", " X              0.000", " Y              0.000", " Z              0.000"], "{s:?}");
+    ui.step(0, true, &v);
+    assert_eq!((ui.screen, ui.sel), (Screen::Menu(MenuId::Jog), 5));
+}
+
 fn tools_entry(ui: &mut Ui, v: &View, i: i8) -> Cmd {
     *ui = Ui::new();
     // The main menu (a press on the status screen, outside an alarm).

@@ -57,6 +57,11 @@ u8_enum! {
         Changer,
         /// Jog > Zero <axis>: the work zero of the jog axis here.
         ZeroAxis,
+        /// Jog > Zero X Y Z: the work zero of all three axes here.
+        ZeroAll,
+        /// Tools > Calibrate setter: the reference tool's length and
+        /// diameter, then `G37 L R` with it.
+        CalibrateSetter,
         /// Jog > Probe Z zero: probe down, Z zero where it touches.
         ProbeZ,
         /// Jog > Work G5x: the next work system (G54 … G59, round).
@@ -95,7 +100,7 @@ const fn item(t: Text, a: Act) -> [u8; 2] {
 
 /// Every fixed entry, menu after menu (see MENU_START), in flash.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-pub(super) static ITEMS: [[u8; 2]; 43] = [
+pub(super) static ITEMS: [[u8; 2]; 45] = [
     // Main
     item(Text::Status, Act::Back),
     item(Text::RunFromSd, Act::Files),
@@ -118,6 +123,7 @@ pub(super) static ITEMS: [[u8; 2]; 43] = [
     item(Text::Step, Act::JogStep),
     item(Text::JogNow, Act::JogNow),
     item(Text::ZeroAxis, Act::ZeroAxis),
+    item(Text::ZeroAll, Act::ZeroAll),
     item(Text::ProbeZ, Act::ProbeZ),
     item(Text::WorkSystem, Act::WorkSystem),
     // Home
@@ -135,6 +141,7 @@ pub(super) static ITEMS: [[u8; 2]; 43] = [
     item(Text::ConfirmSpindle, Act::ConfirmSpindle),
     item(Text::Changer, Act::Changer),
     item(Text::ToolNumbers, Act::ToolNumbers),
+    item(Text::CalibrateSetter, Act::CalibrateSetter),
     // Alarm
     item(Text::Status, Act::Back),
     item(Text::Unlock, Act::Unlock),
@@ -150,7 +157,7 @@ pub(super) static ITEMS: [[u8; 2]; 43] = [
 
 /// First entry of each menu in ITEMS, plus the end.
 #[cfg_attr(target_arch = "avr", link_section = ".progmem.data")]
-static MENU_START: [u8; 8] = [0, 9, 14, 21, 26, 34, 39, 43];
+static MENU_START: [u8; 8] = [0, 9, 14, 22, 27, 36, 41, 45];
 
 impl MenuId {
     fn range(self) -> (usize, usize) {

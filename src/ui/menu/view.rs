@@ -83,7 +83,7 @@ impl View {
 
     /// An SD job runs, is paused, or is ending.
     pub(super) fn job_active(&self) -> bool {
-        matches!(self.job, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_))
+        matches!(self.job, Phase::Running | Phase::Paused | Phase::Draining(_) | Phase::Aborting(_) | Phase::Scanning(_))
     }
 
     /// A Tools command may start: no job, and the machine idle (or in alarm,

@@ -3,11 +3,21 @@
 //! wall clock).
 //!
 //! ```text
-//! cargo run -p sim --release --bin bench -- [--elf PATH] [--json FILE] [--feed F]
+//! cargo run -p sim --release --bin bench -- [--elf PATH] [--elf-115200 PATH]
+//!     [--grbl DIR] [--json FILE] [--feed F] [--side-only | --no-side]
+//!     [--cpu-feed F] [--cpu-accel A]
 //! ```
 //!
 //! `--feed F` runs the 0.1 mm streams at F mm/min instead of F3000 (the
 //! CPU margin: at which feed the firmware stops keeping up).
+//!
+//! After the table, the side-by-side section (`side.rs`): this firmware
+//! (`--elf`, and the `MILL_BAUD=115200` build `--elf-115200`, default
+//! `target/variants/mill-115200.elf`) against grbl-Mega (`--grbl DIR`,
+//! default `../shared/peers/grbl-mega/`) in the same VM, row by row.
+//! `--side-only` runs only that section, `--no-side` only the table.
+//! `--cpu-feed F --cpu-accel A` run the CPU row at F mm/min and A mm/s²
+//! instead of F12000 and 5000 mm/s².
 //!
 //! Runs, each on a freshly booted VM, with the firmware's own G-code:
 //! 1. **single axis**: `M92 X1000`, feed and acceleration raised far beyond
@@ -34,6 +44,8 @@ use sim::{circle, Axis, CardKind, FatKind, Flow, IsrStats, SdCard, SdImage, Stre
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 
+mod side;
+
 const F_CPU: f64 = 16e6;
 
 struct Args {
@@ -41,17 +53,47 @@ struct Args {
     json: Option<PathBuf>,
     /// Feed of the 0.1 mm streams, mm/min.
     feed: f64,
+    /// The `MILL_BAUD=115200` build.
+    elf_115200: PathBuf,
+    /// grbl-Mega's ELFs.
+    grbl_dir: PathBuf,
+    /// Run the SPEC table / the side-by-side section.
+    table: bool,
+    side: bool,
+    /// Feed (mm/min) and X/Y acceleration (mm/s²) of the CPU row.
+    cpu_feed: f64,
+    cpu_accel: f64,
 }
 
 fn parse_args() -> Result<Args, String> {
-    let mut a = Args { elf: VmConfig::default_elf_path(), json: None, feed: 3000.0 };
+    let mut a = Args {
+        elf: VmConfig::default_elf_path(),
+        json: None,
+        feed: 3000.0,
+        elf_115200: std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/variants/mill-115200.elf"),
+        grbl_dir: side::default_grbl_dir(),
+        table: true,
+        side: true,
+        cpu_feed: side::CPU_FEED,
+        cpu_accel: side::CPU_ACCEL,
+    };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         match arg.as_str() {
             "--elf" => a.elf = it.next().ok_or("--elf needs a path")?.into(),
             "--json" => a.json = Some(it.next().ok_or("--json needs a path")?.into()),
             "--feed" => a.feed = it.next().and_then(|v| v.parse().ok()).filter(|f: &f64| *f > 0.0).ok_or("--feed needs mm/min")?,
-            _ => return Err(format!("usage: bench [--elf PATH] [--json FILE] [--feed F] (unknown {arg})")),
+            "--elf-115200" => a.elf_115200 = it.next().ok_or("--elf-115200 needs a path")?.into(),
+            "--grbl" => a.grbl_dir = it.next().ok_or("--grbl needs a directory")?.into(),
+            "--side-only" => a.table = false,
+            "--cpu-feed" => a.cpu_feed = it.next().and_then(|v| v.parse().ok()).filter(|f: &f64| *f > 0.0).ok_or("--cpu-feed needs mm/min")?,
+            "--cpu-accel" => a.cpu_accel = it.next().and_then(|v| v.parse().ok()).filter(|f: &f64| *f > 0.0).ok_or("--cpu-accel needs mm/s²")?,
+            "--no-side" => a.side = false,
+            _ => {
+                return Err(format!(
+                    "usage: bench [--elf PATH] [--elf-115200 PATH] [--grbl DIR] [--json FILE] [--feed F] [--side-only | --no-side] [--cpu-feed F] [--cpu-accel A] (unknown {arg})"
+                ))
+            }
         }
     }
     Ok(a)
@@ -105,6 +147,8 @@ struct Results {
     static_ram_bytes: u64,
     stack_bytes: u32,
     resets: usize,
+    /// The side-by-side section (`side.rs`).
+    side_by_side: Vec<side::Row>,
     failures: Vec<String>,
 }
 
@@ -476,14 +520,45 @@ fn main() -> ExitCode {
         ("corners", Bench::corners),
         ("sizes", Bench::sizes),
     ];
-    for (name, f) in runs {
-        eprintln!("bench: {name} ...");
-        if let Err(e) = f(&mut b) {
-            b.r.failures.push(format!("{name}: {e}"));
+    if args.table {
+        for (name, f) in runs {
+            eprintln!("bench: {name} ...");
+            if let Err(e) = f(&mut b) {
+                b.r.failures.push(format!("{name}: {e}"));
+            }
         }
+        print_table(&b.r, b.feed, &args.elf);
+    }
+    if args.side {
+        let builds = side::Builds {
+            mill_250000: args.elf.clone(),
+            mill_115200: args.elf_115200.clone(),
+            grbl_dir: args.grbl_dir.clone(),
+            cpu_feed: args.cpu_feed,
+            cpu_accel: args.cpu_accel,
+        };
+        b.r.side_by_side = side::measure(&builds, &mut b.r.failures);
+        side::print(&b.r.side_by_side);
     }
     let r = &b.r;
-    println!("MillFW benchmark, {} (simavr, 16 MHz; every figure from simulated cycles)", args.elf.display());
+    for f in &r.failures {
+        println!("FAILED: {f}");
+    }
+    if let Some(p) = &args.json {
+        if let Err(e) = std::fs::write(p, serde_json::to_string_pretty(&r).unwrap()) {
+            eprintln!("cannot write {}: {e}", p.display());
+        }
+    }
+    if r.failures.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}
+
+/// Prints the SPEC §11 table.
+fn print_table(r: &Results, feed: f64, elf: &std::path::Path) {
+    println!("MillFW benchmark, {} (simavr, 16 MHz; every figure from simulated cycles)", elf.display());
     println!();
     println!("| {:<44} | {:<22} | {:<52} | {:<4} |", "what (SPEC §11)", "target", "measured", "");
     println!("|{}|{}|{}|{}|", "-".repeat(46), "-".repeat(24), "-".repeat(54), "-".repeat(6));
@@ -533,12 +608,12 @@ fn main() -> ExitCode {
             &if st.flow == "from SD" {
                 "the same 0.1 mm job from SD".to_string()
             } else {
-                format!("0.1 mm G1 stream, F{}, 250000 bd, {}", b.feed, st.flow)
+                format!("0.1 mm G1 stream, F{}, 250000 bd, {}", feed, st.flow)
             },
-            &format!(">= {:.0}/s sustained (F held)", b.feed / 6.0),
+            &format!(">= {:.0}/s sustained (F held)", feed / 6.0),
             format!(
                 "{:.1}/s mid-job (F{} gives {:.1} on the step path), {:.0}/s whole job",
-                st.sustained_per_s, b.feed, st.feed_per_s, st.segments_per_s
+                st.sustained_per_s, feed, st.feed_per_s, st.segments_per_s
             ),
             // Within 0.1 %: the step timer rounds each period up, by at most
             // two counts in the ~3,500 of a step at this feed.
@@ -551,7 +626,7 @@ fn main() -> ExitCode {
             format!("{:.3} s vs {:.3} s = {:.3}x", st.job_s, st.ideal_s, ratio),
             Some(ratio > 0.0 && ratio <= 1.1),
         );
-        let starved = st.underruns > 1 || st.min_speed_mm_s < 0.9 * b.feed / 60.0;
+        let starved = st.underruns > 1 || st.min_speed_mm_s < 0.9 * feed / 60.0;
         row(
             "  planner starved (speed < 90 % of F mid-job)",
             "never",
@@ -604,17 +679,4 @@ fn main() -> ExitCode {
         format!("{} + {} = {} B", r.static_ram_bytes, r.stack_bytes, ram),
         Some(r.static_ram_bytes > 0 && ram <= 7168),
     );
-    for f in &r.failures {
-        println!("FAILED: {f}");
-    }
-    if let Some(p) = &args.json {
-        if let Err(e) = std::fs::write(p, serde_json::to_string_pretty(&r).unwrap()) {
-            eprintln!("cannot write {}: {e}", p.display());
-        }
-    }
-    if r.failures.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    }
 }
