@@ -72,6 +72,32 @@ pub fn div_cold(a: f32, b: f32) -> f32 {
     a / b
 }
 
+in_flash! {
+    /// 1/n for n = 1..=16 (entry 0 unused), in flash on the AVR (a RAM table
+    /// would take 68 bytes of the 8 KiB; a `match` of constants took 270
+    /// bytes of flash for 12 entries).
+    static RECIPROCALS: [f32; 17] = {
+        let mut t = [0.0f32; 17];
+        let mut i = 1;
+        while i < 17 {
+            t[i] = 1.0 / i as f32;
+            i += 1;
+        }
+        t
+    };
+}
+
+/// 1/n, correctly rounded, for 1 ≤ n ≤ 16 (a flash read: the small step
+/// counts of short moves and segments); `None` otherwise.
+#[inline]
+pub fn recip_small(n: u32) -> Option<f32> {
+    if n == 0 {
+        None
+    } else {
+        RECIPROCALS.row(n as usize)
+    }
+}
+
 /// Sine and cosine for arc chords. On AVR these are avr-libc's assembly
 /// routines (tables in flash); `libm`'s argument reduction would put a
 /// 264-byte table and 64 bytes of constants in RAM.

@@ -247,6 +247,12 @@ pub fn push(cmd: StepperCmd) -> bool {
     rings().push(&cmd, &pins::STEP_MAP, &mut Mem)
 }
 
+/// Queue one command that fits ([`space`] > 0 and nothing queued since);
+/// returns [`space`] after it.
+pub fn push_fitting(cmd: StepperCmd) -> usize {
+    rings().push_fitting(&cmd, &pins::STEP_MAP, &mut Mem)
+}
+
 /// Machine position in steps: what has been output on the pins.
 pub fn position() -> [i32; N_AXES] {
     rings().position(&pins::STEP_MAP, &Mem)

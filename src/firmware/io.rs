@@ -40,6 +40,10 @@ impl Stepper for Hw {
         stepper::space()
     }
 
+    fn push_fitting(&mut self, cmd: StepperCmd) -> usize {
+        stepper::push_fitting(cmd)
+    }
+
     fn stepper(&self) -> StepperStatus {
         let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
         StepperStatus {

@@ -68,6 +68,15 @@ pub trait Stepper {
     fn push_segment(&mut self, cmd: StepperCmd) -> bool;
     /// Free slots in the segment ring.
     fn segment_space(&self) -> usize;
+    /// Queue a command that fits (`segment_space() > 0`, nothing queued
+    /// since); returns `segment_space()` after it.
+    fn push_fitting(&mut self, cmd: StepperCmd) -> usize {
+        if self.push_segment(cmd) {
+            self.segment_space()
+        } else {
+            0
+        }
+    }
     /// Stepper position and activity.
     fn stepper(&self) -> StepperStatus;
     /// Overwrite the stepper's position counter (only while stopped).

@@ -317,17 +317,14 @@ impl Machine {
         // stopped (after an emergency stop it throws segments away as fast
         // as they come: the whole planner queue was prepped before the next
         // poll, 0.7 s before the alarm was even reported). The space is asked
-        // again for each segment: the board caps the queued motion time, not
-        // only the slots.
+        // again after each segment (the push answers it): the board caps the
+        // queued motion time, not only the slots.
         let mut room = io.segment_space();
-        while room > 0 && io.segment_space() > 0 && !io.stepper_stopped() {
+        let mut space = room;
+        while room > 0 && space > 0 && !io.stepper_stopped() {
             room -= 1;
             match self.prep.next_segment(&mut self.planner) {
-                Some(cmd) => {
-                    if !io.push_segment(cmd) {
-                        break;
-                    }
-                }
+                Some(cmd) => space = io.push_fitting(cmd),
                 None => break,
             }
         }

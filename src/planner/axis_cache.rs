@@ -28,6 +28,11 @@ pub(super) struct AxisCache {
     /// move may be planned later
     /// ([`Planner::accept_line`](super::Planner::accept_line)).
     pub(super) defer_min_inv_feed: f32,
+    /// Times per mm (s/mm) between which an X/Y/Z move meets neither
+    /// step-rate limit: from `defer_min_inv_feed` up to 1 % below
+    /// min(steps/mm) / (√3 · `MIN_STEP_RATE_HZ`) (along any X/Y/Z path the
+    /// dominant axis makes at least min(steps/mm) / √3 steps per mm).
+    pub(super) rate_free_inv_feed: (f32, f32),
     /// X, Y and Z have the same steps/mm (bit for bit).
     pub(super) xyz_same_steps: bool,
     /// Bit i: axis i has the acceleration and speed limits of axis 0 (bit
@@ -43,6 +48,7 @@ impl AxisCache {
         inv_accel: [0.0; N_AXES],
         inv_max_speed: [0.0; N_AXES],
         defer_min_inv_feed: 0.0,
+        rate_free_inv_feed: (0.0, 0.0),
         xyz_same_steps: false,
         uniform: 0,
     };
@@ -76,6 +82,16 @@ impl AxisCache {
             }
         }
         self.defer_min_inv_feed = 1.01 * spm * INV_MAX_STEP_RATE;
+        let mut spm_min = s.steps_per_mm[0];
+        for i in 1..3 {
+            if s.steps_per_mm[i] < spm_min {
+                spm_min = s.steps_per_mm[i];
+            }
+        }
+        // 0.99 / √3.
+        let hi = 0.571_577 * spm_min * INV_MIN_STEP_RATE;
+        // An empty range (lo > hi, or settings not valid) tests every move.
+        self.rate_free_inv_feed = if hi.is_finite() && hi > self.defer_min_inv_feed { (self.defer_min_inv_feed, hi) } else { (1.0, 0.0) };
         self.xyz_same_steps =
             s.steps_per_mm[1].to_bits() == s.steps_per_mm[0].to_bits() && s.steps_per_mm[2].to_bits() == s.steps_per_mm[0].to_bits();
         self.uniform = 0;

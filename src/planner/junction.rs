@@ -27,9 +27,9 @@ const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
 /// `unit` (grbl's junction deviation rule), (mm/s)²: `accel` is (this
 /// block's, the previous block's) acceleration, `cap` the smaller nominal
 /// speed² of the two: a junction at least as fast as that is
-/// [`JUNCTION_SPEED_SQR_STRAIGHT`] without the square root (`cap_cache`
-/// holds (bits of cap, cap²)). Used when a block is queued and when the
-/// overrides re-plan the ring.
+/// [`JUNCTION_SPEED_SQR_STRAIGHT`] without the square root (`cap_cache`,
+/// see [`CapCache`]). Used when a block is queued and when the overrides
+/// re-plan the ring.
 // Seven numbers of one junction, passed as they are: a struct would be
 // built on the per-line path only to be taken apart here.
 #[allow(clippy::too_many_arguments)]
@@ -45,7 +45,7 @@ pub(super) fn junction_sqr(
     moving: u8,
     accel: (f32, f32),
     cap: f32,
-    cap_cache: &mut (u32, f32),
+    cap_cache: &mut CapCache,
     s: &Settings,
 ) -> f32 {
     if same_dir {
@@ -66,8 +66,6 @@ pub(super) fn junction_sqr(
     } else if beyond {
         JUNCTION_SPEED_SQR_STRAIGHT
     } else {
-        let a = min_nn(accel.0, accel.1);
-        let ad = a * s.junction_deviation_mm;
         let h = half(1.0 - cos_theta); // sin²(θ/2)
         let mut reversing = 0u8;
         for i in 0..N_AXES {
@@ -79,12 +77,18 @@ pub(super) fn junction_sqr(
         // The deviation rule gives v² = a·δ·s / (1 − s), s = sin(θ/2).
         // It reaches the cap L = min(nominal²) when s ≥ L / (a·δ + L),
         // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the
-        // division (most junctions of a smooth curve).
-        if cap_cache.0 != cap.to_bits() {
-            *cap_cache = (cap.to_bits(), cap * cap);
+        // division (most junctions of a smooth curve). First against the
+        // cached h_min of the smallest acceleration these axes allow (a
+        // compare instead of three multiplies), then exactly.
+        let e_axis = (moving & 0b1000 != 0 || prev_unit[3].to_bits() != 0) as u32;
+        let h_min = cap_cache.h_min(cap, e_axis, s);
+        if reversing == 0 && !lt_nn(h, h_min) {
+            return JUNCTION_SPEED_SQR_STRAIGHT;
         }
+        let a = min_nn(accel.0, accel.1);
+        let ad = a * s.junction_deviation_mm;
         let k = ad + cap;
-        if reversing == 0 && !lt_nn(h * (k * k), cap_cache.1) {
+        if reversing == 0 && !lt_nn(h * (k * k), cap_cache.cap_sqr) {
             JUNCTION_SPEED_SQR_STRAIGHT
         } else {
             let sin_theta_d2 = sqrtf(h);
@@ -101,5 +105,59 @@ pub(super) fn junction_sqr(
             }
             v_sqr
         }
+    }
+}
+
+/// What the junction rule derives from a cap L (the smaller nominal speed²
+/// of two blocks), cached: L changes only with the feed. RAM: 20 B.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct CapCache {
+    /// Bits of L, with bit 31 set when the E axis takes part (L > 0, so
+    /// its sign bit is free).
+    key: u32,
+    /// Bits of the smallest acceleration of the axes (mm/s², X Y Z, and E
+    /// when it takes part) and of the junction deviation (mm) `h_min` is for.
+    limits: (u32, u32),
+    /// L², (mm/s)⁴.
+    pub(super) cap_sqr: f32,
+    /// sin²(θ/2) from which a junction reaches L even at the smallest
+    /// acceleration: (L / (a_min·δ + L))². A path's acceleration is never
+    /// below its slowest axis' (1 / max(|uᵢ| / aᵢ) ≥ min aᵢ).
+    h_min: f32,
+}
+
+impl CapCache {
+    /// All zero (so it needs no RAM image). It only matches a cap of +0.0,
+    /// where any junction is 0 whatever `h_min` says.
+    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 0.0 };
+
+    /// `h_min` for `cap` (e_axis: 1 when the E axis takes part), from the
+    /// cache when the cap and the settings are the ones it holds.
+    // speed: inlined into `junction_sqr`, on the per-block path
+    #[inline(always)]
+    fn h_min(&mut self, cap: f32, e_axis: u32, s: &Settings) -> f32 {
+        let mut a_min = min_nn(min_nn(s.accel_mm_per_s2[0], s.accel_mm_per_s2[1]), s.accel_mm_per_s2[2]);
+        if e_axis != 0 {
+            a_min = min_nn(a_min, s.accel_mm_per_s2[3]);
+        }
+        let key = cap.to_bits() | e_axis << 31;
+        let limits = (a_min.to_bits(), s.junction_deviation_mm.to_bits());
+        if self.key != key || self.limits != limits {
+            self.key = key;
+            self.limits = limits;
+            self.refill(cap, a_min * s.junction_deviation_mm);
+        }
+        self.h_min
+    }
+
+    /// Recompute L² and `h_min` for `cap` (`ad_min`: the smallest a·δ, mm²/s²).
+    // speed: a cold call, so that LLVM-AVR does not speculate the division
+    #[inline(never)]
+    fn refill(&mut self, cap: f32, ad_min: f32) {
+        let r = cap / (ad_min + cap);
+        // Never straight on a cap of 0 or a non-finite ratio (settings not
+        // yet valid): 2 is above any sin².
+        self.h_min = if r.is_finite() && r > 0.0 { r * r } else { 2.0 };
+        self.cap_sqr = cap * cap;
     }
 }

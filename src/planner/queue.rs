@@ -178,7 +178,6 @@ impl Planner {
     /// AVR cost (simavr, 16 MHz, see the module doc): ~9–13 k cycles including
     /// the re-plan; every f32 multiply is ~170 cycles, a divide or sqrt ~500.
     fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
-        let prev_unit = self.previous_unit_vec;
         let prev_nominal_sqr = self.previous_nominal_speed_sqr;
         let prev_accel = self.previous_acceleration;
         let prev_t_axes = self.previous_t_axes;
@@ -210,6 +209,8 @@ impl Planner {
         }
         // Path length and unit vector.
         let (mm, inv_mm);
+        // (√S, 1/√S) of a cached root: see below.
+        let mut roots = None;
         if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
             // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
             // of short moves repeats a few dozen values of the integer Σd²,
@@ -225,8 +226,10 @@ impl Planner {
                 *e = root_entry(sum_sqr);
             }
             let (root, inv_root) = (e.1, e.2);
+            roots = Some((root, inv_root));
             mm = root * ax.mm_per_step[0];
-            inv_mm = inv_root * s.steps_per_mm[0];
+            // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
+            inv_mm = inv_root;
             for i in 0..3 {
                 if moving & (1 << i) != 0 {
                     unit[i] = delta[i] as f32 * inv_root;
@@ -256,7 +259,7 @@ impl Planner {
         }
         let mut same_dir = prev_valid;
         for i in 0..N_AXES {
-            same_dir &= unit[i].to_bits() == prev_unit[i].to_bits();
+            same_dir &= unit[i].to_bits() == self.previous_unit_vec[i].to_bits();
         }
 
         // Per-axis limits: the path may go at most as fast (and accelerate at most
@@ -268,13 +271,30 @@ impl Planner {
         } else if moving & !ax.uniform == 0 {
             // Every moving axis has axis 0's limits: the largest |u| decides
             // (exactly: rounding keeps the order of the products).
-            let mut u_max = 0.0f32;
-            for i in 0..N_AXES {
-                if moving & (1 << i) != 0 {
-                    u_max = max_nn(u_max, abs_f32(unit[i]));
+            let (u_max, accel) = match roots {
+                // From a cached root: |u| is largest on the dominant axis,
+                // n = step_event_count steps of the √S: |u|max = n/√S, and
+                // the acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
+                // table for short moves (two multiplies, not a division).
+                Some((root, inv_root)) => {
+                    let n = b.step_event_count;
+                    let u_max = n as f32 * inv_root;
+                    match crate::math::recip_small(n) {
+                        Some(r) => (u_max, s.accel_mm_per_s2[0] * root * r),
+                        None => (u_max, 1.0 / (u_max * ax.inv_accel[0])),
+                    }
                 }
-            }
-            (1.0 / (u_max * ax.inv_accel[0]), u_max * ax.inv_max_speed[0])
+                None => {
+                    let mut u_max = 0.0f32;
+                    for i in 0..N_AXES {
+                        if moving & (1 << i) != 0 {
+                            u_max = max_nn(u_max, abs_f32(unit[i]));
+                        }
+                    }
+                    (u_max, 1.0 / (u_max * ax.inv_accel[0]))
+                }
+            };
+            (accel, u_max * ax.inv_max_speed[0])
         } else {
             let mut inv_accel = 0.0f32; // s²/mm along the path
             let mut t_axes = 0.0f32; // s/mm along the path
@@ -300,20 +320,23 @@ impl Planner {
         // Step-rate limits: the dominant axis makes step_event_count steps
         // over mm. At time per mm t the rate stays within them while the
         // steps per mm of path lie within t·MIN_STEP_RATE_HZ and
-        // t·MAX_STEP_RATE_HZ (cached: t is usually the last block's).
-        let steps_per_mm = b.step_event_count as f32 * inv_mm;
-        if self.rate_cache.0 != t.to_bits() {
-            self.rate_cache = (t.to_bits(), t * MAX_STEP_RATE_HZ, t * MIN_STEP_RATE_HZ);
-        }
-        let (max_steps_per_mm, min_steps_per_mm) = (self.rate_cache.1, self.rate_cache.2);
+        // t·MAX_STEP_RATE_HZ. An X/Y/Z move at a t within `AxisCache::rate_free_inv_feed` can meet
+        // neither limit: then no test (a conversion and two multiplies).
         let mut capped = false;
         let mut floored = false;
-        if lt_nn(max_steps_per_mm, steps_per_mm) {
-            t = steps_per_mm * INV_MAX_STEP_RATE;
-            capped = true;
-        } else if lt_nn(steps_per_mm, min_steps_per_mm) {
-            t = steps_per_mm * INV_MIN_STEP_RATE;
-            floored = true;
+        let (t_lo, t_hi) = ax.rate_free_inv_feed;
+        if moving & 0b1000 != 0 || lt_nn(t, t_lo) || lt_nn(t_hi, t) {
+            let mut steps_per_mm = b.step_event_count as f32 * inv_mm;
+            if roots.is_some() {
+                steps_per_mm *= s.steps_per_mm[0];
+            }
+            if lt_nn(t * MAX_STEP_RATE_HZ, steps_per_mm) {
+                t = steps_per_mm * INV_MAX_STEP_RATE;
+                capped = true;
+            } else if lt_nn(steps_per_mm, t * MIN_STEP_RATE_HZ) {
+                t = steps_per_mm * INV_MIN_STEP_RATE;
+                floored = true;
+            }
         }
         // t is usually the same as for the last block (the feed is modal).
         if self.nominal_cache.0 != t.to_bits() {
@@ -329,7 +352,7 @@ impl Planner {
         } else {
             let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
             let junction_sqr =
-                junction_sqr(same_dir, &prev_unit, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
+                junction_sqr(same_dir, &self.previous_unit_vec, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
             min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
         };
         b.millimeters = mm;

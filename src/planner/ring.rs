@@ -5,6 +5,7 @@
 
 use super::axis_cache::AxisCache;
 use super::block::Block;
+use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
@@ -75,11 +76,8 @@ pub struct Planner {
     pub(super) feed_cache: (u32, f32),
     /// Bits of the last time per mm `t` and the nominal speed² 1/t², (mm/s)².
     pub(super) nominal_cache: (u32, f32),
-    /// Bits of the last time per mm before the step-rate limits, and it
-    /// times `MAX_STEP_RATE_HZ` and `MIN_STEP_RATE_HZ`, steps/mm.
-    pub(super) rate_cache: (u32, f32, f32),
-    /// Bits of the last junction cap `L` (a speed²) and L².
-    pub(super) cap_sqr_cache: (u32, f32),
+    /// What the junction rule derives from the last junction cap.
+    pub(super) cap_sqr_cache: CapCache,
     /// (n, √n, 1/√n) for path lengths in steps, squared (n ≥ 1), direct
     /// mapped on n's low bits. RAM: 12 B each.
     pub(super) roots: [(u32, f32, f32); ROOTS_LEN],
@@ -137,8 +135,7 @@ impl Planner {
             previous_limits_valid: false,
             feed_cache: (0, 0.0),
             nominal_cache: (0, 0.0),
-            rate_cache: (0, 0.0, 0.0),
-            cap_sqr_cache: (0, 0.0),
+            cap_sqr_cache: CapCache::EMPTY,
             roots: [(0, 0.0, 0.0); ROOTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,

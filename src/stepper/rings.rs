@@ -292,6 +292,18 @@ impl Rings {
         true
     }
 
+    /// Queue one command that fits: the caller saw [`Rings::space`] > 0
+    /// and has not queued anything since (the ISR only frees room). Returns
+    /// [`Rings::space`] after it, so that a fill loop asks once per command,
+    /// not twice (~150 cycles each on the AVR).
+    // flash: see `free_slots`
+    #[inline(always)]
+    pub fn push_fitting(&mut self, cmd: &StepperCmd, map: &StepMap, mem: &mut impl RingMem) -> usize {
+        let cw = self.watch.chunk_watch();
+        self.split.push(cmd, map, &cw, &mut SlotSink { w: &mut self.w, mem });
+        self.space(mem)
+    }
+
     /// Machine position in steps: what has been output on the pins.
     pub fn position(&mut self, map: &StepMap, mem: &impl RingMem) -> [i32; N_AXES] {
         let s = mem.snapshot();

@@ -10,6 +10,18 @@ pub(super) fn abs_f32(x: f32) -> f32 {
     f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
 }
 
+/// 2·x exactly, by adding one to the exponent of a normal x below 2¹²⁶
+/// (a soft-float add or multiply on the AVR otherwise); other values take
+/// the multiply.
+pub(super) fn times2(x: f32) -> f32 {
+    let e = x.to_bits() & 0x7F80_0000;
+    if e != 0 && e < 0x7E80_0000 {
+        f32::from_bits(x.to_bits() + 0x0080_0000)
+    } else {
+        2.0 * x
+    }
+}
+
 /// ⌈x⌉ for 0 ≤ x < 2³².
 #[inline]
 pub(super) fn ceil_u32(x: f32) -> u32 {
@@ -24,30 +36,15 @@ pub(super) fn ceil_u32(x: f32) -> u32 {
     }
 }
 
-in_flash! {
-    /// 1/n for n = 1..=12 (entry 0 unused), in flash on the AVR (a RAM table
-    /// would take 52 bytes of the 8 KiB; a `match` of constants took 270 bytes
-    /// of flash).
-    static RECIPROCALS: [f32; 13] = {
-        let mut t = [0.0f32; 13];
-        let mut i = 1;
-        while i < 13 {
-            t[i] = 1.0 / i as f32;
-            i += 1;
-        }
-        t
-    };
-}
-
 /// `cycles / n`: the CPU cycles per step event of a segment of `n` ticks.
-/// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for n ≤ 12
-/// this multiplies by 1/n (~140 cycles on the AVR instead of a ~540-cycle
-/// division; within an ulp of it, far below the timer count the period is
-/// rounded to).
+/// A 0.1 mm block makes at most ~10 ticks (100 steps/mm), so for small n
+/// this multiplies by 1/n ([`crate::math::recip_small`]: ~140 cycles on the
+/// AVR instead of a ~540-cycle division; within an ulp of it, far below the
+/// timer count the period is rounded to).
 pub(super) fn per_tick(cycles: f32, n: u32) -> f32 {
-    match RECIPROCALS.row(n as usize) {
-        Some(r) if n != 0 => cycles * r,
-        _ => crate::math::div_cold(cycles, n as f32),
+    match crate::math::recip_small(n) {
+        Some(r) => cycles * r,
+        None => crate::math::div_cold(cycles, n as f32),
     }
 }
 
@@ -75,7 +72,21 @@ pub(super) fn timer_for(cycles: f32) -> (u16, Prescale) {
 
 #[cfg(test)]
 mod tests {
-    use super::per_tick;
+    use super::{per_tick, times2};
+
+    #[test]
+    fn times2_is_the_multiply_bit_for_bit() {
+        let mut b = 1u32;
+        for _ in 0..200_000 {
+            b = b.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let x = f32::from_bits(b);
+            let (got, want) = (times2(x), 2.0 * x);
+            assert!(got.to_bits() == want.to_bits() || (x.is_nan() && got.is_nan()), "{x:e}: {got:e} vs {want:e}");
+        }
+        for x in [0.0f32, -0.0, f32::MIN_POSITIVE, 1e-45, f32::MAX, -f32::MAX, 1.7e38, f32::INFINITY] {
+            assert_eq!(times2(x).to_bits(), (2.0 * x).to_bits(), "{x:e}");
+        }
+    }
 
     #[test]
     fn per_tick_is_the_division_within_an_ulp() {

@@ -362,3 +362,41 @@ fn the_watch_gives_the_splitter_its_limit_masks() {
     assert_eq!(c.limit, 0b110);
     assert_eq!(c.dir_out[0], 0x02 | 0x80);
 }
+
+#[test]
+fn push_fitting_queues_what_push_queues_and_answers_the_space_after() {
+    let mut rng = XorShift(0xF17);
+    let mut cmds = Vec::new();
+    for n in 0..40u32 {
+        let steps = [rng.next() % 300, rng.next() % 300, rng.next() % 20, if n % 9 == 0 { 70_000 } else { 0 }];
+        if steps.iter().all(|&v| v == 0) {
+            continue;
+        }
+        cmds.extend(commands(block(steps, (rng.next() & 0x0F) as u8, false), 120, &mut rng));
+    }
+    // The plain way (space, then push) and push_fitting, the ISR running
+    // between fills the same way in both.
+    let (mut plain, mut fast) = (Rings::new(), Rings::new());
+    let (mut bp, mut bf) = (Board::new(), Board::new());
+    let (mut next, mut isr_runs) = (0, 0u32);
+    while next < cmds.len() {
+        let start = next;
+        let mut space = fast.space(&bf.mem);
+        assert_eq!(space, plain.space(&bp.mem));
+        while space > 0 && next < cmds.len() {
+            assert!(plain.push(&cmds[next], &MAP, &mut bp.mem));
+            space = fast.push_fitting(&cmds[next], &MAP, &mut bf.mem);
+            assert_eq!(space, plain.space(&bp.mem), "command {next}");
+            next += 1;
+        }
+        assert_eq!((bf.seg_head, bf.queued_segs()), (bp.seg_head, bp.queued_segs()), "after commands {start}..{next}");
+        for _ in 0..=(rng.next() % 40) {
+            bp.interrupt();
+            bf.interrupt();
+            isr_runs += 1;
+        }
+        assert_eq!(fast.position(&MAP, &bf.mem), plain.position(&MAP, &bp.mem));
+        assert_eq!(bf.out, bp.out);
+    }
+    assert!(isr_runs > 100);
+}
