@@ -554,6 +554,43 @@ fn a_star_inside_a_comment_is_not_a_checksum() {
     assert_eq!(checksum_star(b"G0 (*"), None);
 }
 
+/// The `*` finder as it was before its quick pass: every byte read with
+/// its comment state.
+fn plain_checksum_star(line: &[u8]) -> Option<usize> {
+    let mut paren = false;
+    let mut star = None;
+    for (i, &b) in line.iter().enumerate() {
+        match b {
+            b')' if paren => paren = false,
+            _ if paren => {}
+            b'(' => paren = true,
+            b';' => break,
+            b'*' => star = Some(i),
+            _ => {}
+        }
+    }
+    star
+}
+
+#[test]
+fn the_quick_star_scan_matches_the_plain_one() {
+    let mut rng = crate::test_util::XorShift(0x57A2);
+    // Lines of the bytes that matter, their neighbours, and G-code text.
+    let alphabet = b"()*;'+):<GX1.-N \t";
+    for n in 0..200_000u32 {
+        let len = (rng.next() % 24) as usize;
+        let line: Vec<u8> = (0..len)
+            .map(|_| if n % 2 == 0 { alphabet[(rng.next() as usize) % alphabet.len()] } else { (rng.next() & 0x7F) as u8 })
+            .collect();
+        assert_eq!(checksum_star(&line), plain_checksum_star(&line), "{:?}", String::from_utf8_lossy(&line));
+    }
+    for b in 0..=255u8 {
+        for line in [vec![b], vec![b, b'*'], vec![b'(', b, b'*'], vec![b'*', b, b'*', b')']] {
+            assert_eq!(checksum_star(&line), plain_checksum_star(&line), "{line:?}");
+        }
+    }
+}
+
 #[test]
 fn reset_forgets_the_line_in_progress() {
     let mut a = LineAssembler::new();

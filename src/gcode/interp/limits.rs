@@ -52,8 +52,42 @@ impl Interp {
         for a in 0..3 {
             self.travel_steps[a] = to_steps(s.travel_mm[a], s.steps_per_mm[a]);
         }
+        self.uncapped_feed_bits = uncapped_feed(s).to_bits();
         self.conv_fresh = true;
     }
+
+    /// True when a feed move at `feed_mm_per_min` (100 % override) can
+    /// never be slowed by the planner's step-rate cap, so that queuing it
+    /// prints no warning (the firmware then sends the line's `ok` before
+    /// queuing it). Conservative: false until the caches are fresh.
+    #[inline]
+    pub fn never_rate_capped(&self, feed_mm_per_min: f32) -> bool {
+        // Positive floats order as their bits.
+        self.conv_fresh && feed_mm_per_min.to_bits() <= self.uncapped_feed_bits
+    }
+}
+
+/// The largest feed, mm/min, at which no axis can step faster than
+/// `MAX_STEP_RATE_HZ` less 1 % (an axis never moves faster than the path,
+/// and the planner only slows a move below its feed), and 0 when a
+/// backlash take-up (a rapid, at the axis' maximum speed) could reach the
+/// cap.
+fn uncapped_feed(s: &Settings) -> f32 {
+    const RATE: f32 = crate::config::MAX_STEP_RATE_HZ * 60.0 / 1.01;
+    let mut top = 0.0f32;
+    for a in 0..N_AXES {
+        let spm = s.steps_per_mm[a];
+        if !(spm > 0.0) || !spm.is_finite() {
+            return 0.0;
+        }
+        if spm > top {
+            top = spm;
+        }
+        if a < 3 && s.backlash_mm[a] > 0.0 && !(s.max_feed_mm_per_min[a] * spm <= RATE) {
+            return 0.0;
+        }
+    }
+    RATE / top
 }
 
 /// [`Interp::check_soft_limits`] over the interpreter's caches (fresh).
