@@ -95,13 +95,26 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
     if !s.soft_limits {
         return Ok(());
     }
-    let st = steps_cached(cache, s, t);
+    // X, Y, Z only, each checked as it is converted (no array of all four
+    // axes built and read back: ~250 cycles a streamed line on the AVR).
     for a in 0..3 {
-        if st[a] < 0 || st[a] > travel_steps[a] {
+        let st = step_cached(&mut cache[a], s.steps_per_mm[a], t[a]);
+        if st < 0 || st > travel_steps[a] {
             return Err(Error::SoftLimit);
         }
     }
     Ok(())
+}
+
+/// One axis of [`steps_cached`]: `mm` in steps through its cache entry.
+// speed: on every axis of every move (see steps_cached)
+#[inline(always)]
+fn step_cached(c: &mut (u32, i32), steps_per_mm: f32, mm: f32) -> i32 {
+    let bits = mm.to_bits();
+    if c.0 != bits {
+        *c = (bits, to_steps(mm, steps_per_mm));
+    }
+    c.1
 }
 
 /// [`Interp::steps_of`]'s conversion through `cache`.
@@ -110,11 +123,7 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
 fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
     let mut st = [0i32; N_AXES];
     for a in 0..N_AXES {
-        let c = &mut cache[a];
-        if c.0 != mm[a].to_bits() {
-            *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
-        }
-        st[a] = c.1;
+        st[a] = step_cached(&mut cache[a], s.steps_per_mm[a], mm[a]);
     }
     st
 }
