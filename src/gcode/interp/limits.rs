@@ -96,7 +96,7 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
         return Ok(());
     }
     // X, Y, Z only, each checked as it is converted (no array of all four
-    // axes built and read back: ~250 cycles a streamed line on the AVR).
+    // axes built and read back: ~330 cycles a streamed line on the AVR).
     for a in 0..3 {
         let st = step_cached(&mut cache[a], s.steps_per_mm[a], t[a]);
         if st < 0 || st > travel_steps[a] {

@@ -99,8 +99,9 @@ fn divide_f32(m: u32, scale: u16) -> f32 {
 /// usual number (`1 ≤ m < 2^24`, `1 ≤ s ≤ 9`); `None` otherwise and in the
 /// rare case where the fast route cannot decide the rounding (then
 /// [`Number::to_f32_by_division`] answers). Bit for bit what the division
-/// gives (`the_division_free_conversion_matches_the_division`): ~150
-/// cycles on the AVR instead of ~670 (`__floatunsisf` and `__divsf3`).
+/// gives (`the_division_free_conversion_matches_the_division`): ~350
+/// cycles on the AVR instead of ~670 (`__floatunsisf` and `__divsf3`;
+/// `profile --trace`: `parse_into` 4 142 → 3 618 cycles a streamed line).
 ///
 /// How: `m / 10^s = (m / 5^s) · 2^−s`. With `m` shifted left by `z` to
 /// fill 32 bits (`a`) and `R = ⌈2^(31+e) / 5^s⌉` (`e` = bit length of
