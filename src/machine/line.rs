@@ -169,11 +169,13 @@ impl Machine {
     /// ran already: syntax, modal state, feed, soft limits, keep-out zone;
     /// and here the alarm and the homing lock), and only for a feed move
     /// that cannot print the step-rate warning while it is queued,
-    /// so that a line's error still comes in place of its `ok`. What can
-    /// still end the line after its `ok` is not about the line: an alarm,
-    /// an e-stop or a soft reset while it waits for planner room, each
-    /// reported on its own (`ALARM:`, the banner), as grbl and Marlin
-    /// report them. The move is queued before any later line is read.
+    /// so that a line's error still comes in place of its `ok`, and only
+    /// when the planner has room for the move: queuing it then only takes
+    /// CPU time, and the main loop is back at the RX ring soon. What can
+    /// still end the line after its `ok` is not about the line (an alarm,
+    /// an e-stop, a soft reset), each reported on its own (`ALARM:`, the
+    /// banner), as grbl and Marlin report them. The move is queued before
+    /// any later line is read.
     // speed: on every streamed move (inlined into run_line)
     #[inline(always)]
     fn ack_early(&mut self, io: &mut impl Io, feed_mm_per_min: f32, rapid: bool) -> CmdResult {
@@ -185,8 +187,17 @@ impl Machine {
         // step-rate cap, the feed override on): that goes before the `ok`.
         // (A feed the planner refuses, not > 0, never gets here: the
         // interpreter refused it.)
+        // Nor when the move would wait for planner room: the firmware would
+        // stop reading the RX ring while the host sends its next line, and
+        // a line longer than the ring (up to 256 characters) would be lost.
+        // (2 slots: a backlash take-up needs one more.)
         let f = feed_mm_per_min.to_bits();
-        if rapid || f as i32 <= 0 || !self.interp.never_rate_capped(feed_mm_per_min) || self.planner.feed_override() != 100 {
+        if rapid
+            || f as i32 <= 0
+            || self.planner.free() < 2
+            || !self.interp.never_rate_capped(feed_mm_per_min)
+            || self.planner.feed_override() != 100
+        {
             return Ok(());
         }
         uwriteln!(io, "ok").ok();
