@@ -142,6 +142,10 @@ pub enum LineSource {
     /// A serial line during which a soft reset (0x18) happened: it ends
     /// without an `ok` or an error (grbl drops it).
     SerialReset,
+    /// A serial line whose `ok` already went out: its last command, a
+    /// move that passed every check, is only waiting for its planner slot
+    /// (see `Machine::ack_early`). Nothing more is printed for it.
+    SerialAcked,
     /// A line of the SD job: the only lines that may move while a job runs.
     Job,
     /// A line the menu runs, or a startup block: no host waits for it.

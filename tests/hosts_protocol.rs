@@ -441,6 +441,54 @@ fn m0_keeps_the_host_alive_until_resumed() {
     assert_keepalive_every_2s(&vm, c0, vm.seconds());
 }
 
+/// A checked feed move is acknowledged before it is queued only when the
+/// planner has room for it (docs/hosts.md, "When `ok` comes"): with the
+/// planner full its `ok` waits for room, so the firmware keeps reading the
+/// RX ring while the host sends its next line, and a 256-character line
+/// sent then arrives whole (the ring holds 255 bytes). An error still
+/// comes in place of an `ok`, and every line gets exactly one.
+#[test]
+fn a_move_that_waits_for_planner_room_is_acknowledged_once_it_is_queued() {
+    let mut vm = unlocked();
+    let p0 = steps(&vm);
+    ok(&mut vm, "G91");
+    // 16 moves of 2.5 s fill the planner, each acknowledged at once.
+    let f = vm.frequency() as f64;
+    let c0 = vm.cycles();
+    for n in 0..16 {
+        vm.send_line("G1 X1 F24");
+        vm.wait_line(|l| l == "ok", 1.0).unwrap_or_else(|e| panic!("ok {n}: {e}"));
+    }
+    assert!((vm.cycles() - c0) as f64 / f < 0.5);
+    // The 17th waits ~2.5 s for room: its ok with it.
+    let c1 = vm.cycles();
+    vm.send_line("G1 X1 F24");
+    vm.wait_line(|l| l == "ok", 5.0).expect("the 17th ok");
+    let t = (vm.cycles() - c1) as f64 / f;
+    assert!(t > 1.0, "the 17th ok after {t:.3} s, before the move had room");
+    // The longest line a host may send, right after that ok, while the
+    // planner is still full.
+    let mut long = String::from("G1 X1 F24 (");
+    while long.len() < 255 {
+        long.push('c');
+    }
+    long.push(')');
+    assert_eq!(long.len(), 256);
+    vm.send_line(&long);
+    let reply = vm.wait_line(|l| l == "ok", 5.0).expect("the long line's ok");
+    assert_eq!(reply, "ok");
+    let lines = vm.take_lines();
+    assert!(!lines.iter().any(|l| l.starts_with("Error")), "{lines:?}");
+    // A line that fails a check gets its error in place of an early ok.
+    vm.send_line("G1 X-500 F24");
+    vm.wait_line(|l| l == "ok", 5.0).expect("reply");
+    let lines = vm.take_lines();
+    assert!(lines.iter().any(|l| l.contains("soft limit")), "{lines:?}");
+    // One ok per line: an ok left over would end M400's wait early.
+    ok(&mut vm, "M400");
+    assert_eq!(moved(&vm, p0)[0], 1800);
+}
+
 #[test]
 fn a_line_waiting_for_room_in_the_planner_keeps_the_host_alive() {
     // 18 moves of 2.5 s each sent at once: the planner holds 16, so the

@@ -139,7 +139,11 @@ pub struct Interp {
     steps_cache: [(u32, i32); N_AXES],
     /// The travel of X, Y, Z in steps, rounded. Valid while `conv_fresh`.
     travel_steps: [i32; 3],
-    /// The two caches above match the settings; cleared by
+    /// Bits of the largest feed, mm/min, at which no move can reach the
+    /// step-rate cap (0: any may). Valid while `conv_fresh`. See
+    /// [`Interp::never_rate_capped`].
+    uncapped_feed_bits: u32,
+    /// The caches above match the settings; cleared by
     /// [`Interp::settings_changed`].
     conv_fresh: bool,
     /// The line in progress: where [`Interp::next`] is, and an arc's or a
@@ -176,6 +180,7 @@ impl Interp {
             pos_mm: [0.0; N_AXES],
             steps_cache: [(0, 0); N_AXES],
             travel_steps: [0; 3],
+            uncapped_feed_bits: 0,
             conv_fresh: false,
             run: LineRun::new(),
             comp: comp::State::OFF,

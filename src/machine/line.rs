@@ -132,9 +132,10 @@ impl Machine {
                 if self.sd_job && !was_running {
                     self.job_start_ms = io.millis();
                 }
-                if source == LineSource::SerialReset {
+                if matches!(source, LineSource::SerialReset | LineSource::SerialAcked) {
                     // A soft reset ended the line: grbl prints nothing more
-                    // for it (the banner already went out).
+                    // for it (the banner already went out). Or its `ok`
+                    // went out before its move was queued (`ack_early`).
                     return;
                 }
                 if let Err(e) = r {
@@ -159,6 +160,49 @@ impl Machine {
             }
         }
         uwriteln!(io, "ok").ok();
+    }
+
+    /// A serial line's `ok`, sent before its last command, a move, is
+    /// queued: a host that waits for each `ok` (send-response streaming)
+    /// sends its next line while this one is planned. Only once every
+    /// check that depends on the line has passed (the interpreter's, which
+    /// ran already: syntax, modal state, feed, soft limits, keep-out zone;
+    /// and here the alarm and the homing lock), and only for a feed move
+    /// that cannot print the step-rate warning while it is queued,
+    /// so that a line's error still comes in place of its `ok`, and only
+    /// when the planner has room for the move: queuing it then only takes
+    /// CPU time, and the main loop is back at the RX ring soon. What can
+    /// still end the line after its `ok` is not about the line (an alarm,
+    /// an e-stop, a soft reset), each reported on its own (`ALARM:`, the
+    /// banner), as grbl and Marlin report them. The move is queued before
+    /// any later line is read.
+    // speed: on every streamed move (inlined into run_line)
+    #[inline(always)]
+    fn ack_early(&mut self, io: &mut impl Io, feed_mm_per_min: f32, rapid: bool) -> CmdResult {
+        if self.source != LineSource::Serial || !self.interp.line_done() {
+            return Ok(());
+        }
+        self.may_move_to(self.interp.target())?;
+        // Not when queuing may print a warning (a rapid, a feed near the
+        // step-rate cap, the feed override on): that goes before the `ok`.
+        // (A feed the planner refuses, not > 0, never gets here: the
+        // interpreter refused it.)
+        // Nor when the move would wait for planner room: the firmware would
+        // stop reading the RX ring while the host sends its next line, and
+        // a line longer than the ring (up to 256 characters) would be lost.
+        // (2 slots: a backlash take-up needs one more.)
+        let f = feed_mm_per_min.to_bits();
+        if rapid
+            || f as i32 <= 0
+            || self.planner.free() < 2
+            || !self.interp.never_rate_capped(feed_mm_per_min)
+            || self.planner.feed_override() != 100
+        {
+            return Ok(());
+        }
+        uwriteln!(io, "ok").ok();
+        self.source = LineSource::SerialAcked;
+        Ok(())
     }
 
     /// Which host is talking, from what it sends (see
@@ -254,9 +298,11 @@ impl Machine {
         self.source == LineSource::Job
     }
 
-    /// A serial line is running (its host waits for the `ok`).
+    /// A serial line is running (its host waits for the `ok`, or, once
+    /// the `ok` went out early, for the next line's, which waits in the
+    /// ring behind this one).
     pub(super) fn in_serial_line(&self) -> bool {
-        matches!(self.source, LineSource::Serial | LineSource::SerialReset)
+        matches!(self.source, LineSource::Serial | LineSource::SerialReset | LineSource::SerialAcked)
     }
 
     /// Parse and run one command line (without N and checksum).
@@ -302,7 +348,10 @@ impl Machine {
                 Ok(Some(Command::Move { .. } | Command::CycleMove { .. })) if self.state == State::Check => {
                     self.interp.target_reached();
                 }
-                Ok(Some(Command::Move { feed_mm_per_min, rapid })) => self.move_interp(io, *feed_mm_per_min, *rapid)?,
+                Ok(Some(Command::Move { feed_mm_per_min, rapid })) => {
+                    self.ack_early(io, *feed_mm_per_min, *rapid)?;
+                    self.move_interp(io, *feed_mm_per_min, *rapid)?
+                }
                 // `$C`: only reports run; spindle, tool, probe, dwell,
                 // homing and EEPROM writes are checked and skipped.
                 Ok(Some(cmd)) if self.state == State::Check && !matches!(cmd, Command::Report(_)) => {

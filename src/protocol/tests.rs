@@ -554,6 +554,72 @@ fn a_star_inside_a_comment_is_not_a_checksum() {
     assert_eq!(checksum_star(b"G0 (*"), None);
 }
 
+/// `push` (the usual byte stored at once) against `push_slow` alone (the
+/// assembler as it was), over random streams of the bytes that matter:
+/// line ends, blanks, comments, bad bytes, the gap marker, a BOM, and
+/// lines long enough to overflow the buffer.
+#[test]
+fn the_assembler_fast_path_matches_the_slow_one() {
+    let mut rng = crate::test_util::XorShift(0xFA57);
+    let special = [b'\n', b'\r', b' ', b'\t', b'(', b')', b';', b'*', b'N', 0xFF, 0xEF, 0xBB, 0xBF, 0x80, 0x7F, 0x01, 0x20, 0x21, 0x7E];
+    for round in 0..400u32 {
+        let (mut fast, mut slow) = (LineAssembler::new(), LineAssembler::new());
+        // A third of the rounds with few line ends: lines past the buffer.
+        let long = round.is_multiple_of(3);
+        for _ in 0..4000 {
+            let r = rng.next();
+            let mut b = match r % 8 {
+                0 | 1 => special[(r >> 8) as usize % special.len()],
+                _ => (0x21 + (r >> 8) % 0x5E) as u8,
+            };
+            if long && matches!(b, b'\n' | b'\r') && !(r >> 20).is_multiple_of(16) {
+                b = b'G';
+            }
+            let (f, s) = (fast.push(b), slow.push_slow(b));
+            assert_eq!(f, s, "byte {b:#x}");
+            assert_eq!(fast.line(), slow.line(), "byte {b:#x}");
+            assert_eq!(fast.dropped_numbered(), slow.dropped_numbered());
+        }
+    }
+}
+
+/// The `*` finder as it was before its quick pass: every byte read with
+/// its comment state.
+fn plain_checksum_star(line: &[u8]) -> Option<usize> {
+    let mut paren = false;
+    let mut star = None;
+    for (i, &b) in line.iter().enumerate() {
+        match b {
+            b')' if paren => paren = false,
+            _ if paren => {}
+            b'(' => paren = true,
+            b';' => break,
+            b'*' => star = Some(i),
+            _ => {}
+        }
+    }
+    star
+}
+
+#[test]
+fn the_quick_star_scan_matches_the_plain_one() {
+    let mut rng = crate::test_util::XorShift(0x57A2);
+    // Lines of the bytes that matter, their neighbours, and G-code text.
+    let alphabet = b"()*;'+):<GX1.-N \t";
+    for n in 0..200_000u32 {
+        let len = (rng.next() % 24) as usize;
+        let line: Vec<u8> = (0..len)
+            .map(|_| if n % 2 == 0 { alphabet[(rng.next() as usize) % alphabet.len()] } else { (rng.next() & 0x7F) as u8 })
+            .collect();
+        assert_eq!(checksum_star(&line), plain_checksum_star(&line), "{:?}", String::from_utf8_lossy(&line));
+    }
+    for b in 0..=255u8 {
+        for line in [vec![b], vec![b, b'*'], vec![b'(', b, b'*'], vec![b'*', b, b'*', b')']] {
+            assert_eq!(checksum_star(&line), plain_checksum_star(&line), "{line:?}");
+        }
+    }
+}
+
 #[test]
 fn reset_forgets_the_line_in_progress() {
     let mut a = LineAssembler::new();

@@ -52,8 +52,42 @@ impl Interp {
         for a in 0..3 {
             self.travel_steps[a] = to_steps(s.travel_mm[a], s.steps_per_mm[a]);
         }
+        self.uncapped_feed_bits = uncapped_feed(s).to_bits();
         self.conv_fresh = true;
     }
+
+    /// True when a feed move at `feed_mm_per_min` (100 % override) can
+    /// never be slowed by the planner's step-rate cap, so that queuing it
+    /// prints no warning (the firmware then sends the line's `ok` before
+    /// queuing it). Conservative: false until the caches are fresh.
+    #[inline]
+    pub fn never_rate_capped(&self, feed_mm_per_min: f32) -> bool {
+        // Positive floats order as their bits.
+        self.conv_fresh && feed_mm_per_min.to_bits() <= self.uncapped_feed_bits
+    }
+}
+
+/// The largest feed, mm/min, at which no axis can step faster than
+/// `MAX_STEP_RATE_HZ` less 1 % (an axis never moves faster than the path,
+/// and the planner only slows a move below its feed), and 0 when a
+/// backlash take-up (a rapid, at the axis' maximum speed) could reach the
+/// cap.
+fn uncapped_feed(s: &Settings) -> f32 {
+    const RATE: f32 = crate::config::MAX_STEP_RATE_HZ * 60.0 / 1.01;
+    let mut top = 0.0f32;
+    for a in 0..N_AXES {
+        let spm = s.steps_per_mm[a];
+        if !(spm > 0.0) || !spm.is_finite() {
+            return 0.0;
+        }
+        if spm > top {
+            top = spm;
+        }
+        if a < 3 && s.backlash_mm[a] > 0.0 && !(s.max_feed_mm_per_min[a] * spm <= RATE) {
+            return 0.0;
+        }
+    }
+    RATE / top
 }
 
 /// [`Interp::check_soft_limits`] over the interpreter's caches (fresh).
@@ -61,13 +95,26 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
     if !s.soft_limits {
         return Ok(());
     }
-    let st = steps_cached(cache, s, t);
+    // X, Y, Z only, each checked as it is converted (no array of all four
+    // axes built and read back: ~330 cycles a streamed line on the AVR).
     for a in 0..3 {
-        if st[a] < 0 || st[a] > travel_steps[a] {
+        let st = step_cached(&mut cache[a], s.steps_per_mm[a], t[a]);
+        if st < 0 || st > travel_steps[a] {
             return Err(Error::SoftLimit);
         }
     }
     Ok(())
+}
+
+/// One axis of [`steps_cached`]: `mm` in steps through its cache entry.
+// speed: on every axis of every move (see steps_cached)
+#[inline(always)]
+fn step_cached(c: &mut (u32, i32), steps_per_mm: f32, mm: f32) -> i32 {
+    let bits = mm.to_bits();
+    if c.0 != bits {
+        *c = (bits, to_steps(mm, steps_per_mm));
+    }
+    c.1
 }
 
 /// [`Interp::steps_of`]'s conversion through `cache`.
@@ -76,11 +123,7 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
 fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
     let mut st = [0i32; N_AXES];
     for a in 0..N_AXES {
-        let c = &mut cache[a];
-        if c.0 != mm[a].to_bits() {
-            *c = (mm[a].to_bits(), to_steps(mm[a], s.steps_per_mm[a]));
-        }
-        st[a] = c.1;
+        st[a] = step_cached(&mut cache[a], s.steps_per_mm[a], mm[a]);
     }
     st
 }
