@@ -33,8 +33,8 @@ fn main() {
 
 /// Modules (v0-mangled path pieces) linked below the gap in the high-flash
 /// variant: the interpreter, the planner, the tool changer (its logic and
-/// its runner), the tool setter (likewise), the `$` settings, and the menu
-/// and screens (about 95 KB of ~160 KB).
+/// its runner), the tool setter (likewise), the `$` settings, the menu
+/// and screens, and the SD job (about 100 KB of ~165 KB).
 const HIGH_FLASH_LOW_MODULES: &[&str] = &[
     "4mill5gcode6interp",
     "4mill7planner",
@@ -46,6 +46,7 @@ const HIGH_FLASH_LOW_MODULES: &[&str] = &[
     "4mill2ui4menu",
     "4mill2ui4text",
     "4mill2ui6render",
+    "4mill2ui2sd",
 ];
 
 /// avr-ld's own atmega2560 (avr6) script with a gap before the code: after

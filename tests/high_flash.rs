@@ -6,7 +6,7 @@
 //! controller and every address-taken function start above 0x20000
 //! (`--features high-flash`: build.rs links it with avr-ld's own avr6 script
 //! plus a gap after `.progmem`, the trampolines and the interpreter, planner,
-//! changer, setter and menu code, which no longer fit above it; `tools/build-variants`
+//! changer, setter, menu and SD-job code, which no longer fit above it; `tools/build-variants`
 //! builds it into `target/variants/high-flash.elf`, `$MILL_ELF_HIGH`):
 //!
 //! 1. A function address is a 16-bit *word* address, so it reaches 128 KiB.
