@@ -14,7 +14,7 @@ mod motion_util;
 #[path = "common/panel.rs"]
 mod panel;
 use common::*;
-use panel::{golden, press, redraw, screen, turn};
+use panel::{golden, golden_masked, press, redraw, screen, turn};
 use sim::{Axis, CardKind, FatKind, SdCard, SdImage, Vm};
 
 /// The record's address and layout (src/ui/resume.rs).
@@ -328,8 +328,9 @@ fn after_a_card_pull_the_line_named_is_proposed_a_scan_stops_cleanly_on_a_pull_o
     press(&mut vm);
     vm.run_for(0.2).unwrap();
     let s = screen(&vm);
-    assert!(s[6].starts_with(&format!("Scan to {target}")), "{s:?}");
-    golden(&vm, "run_from_line_scanning");
+    assert!(s[6].starts_with(&format!("Scan to {target}")) && s[6].ends_with('%'), "{s:?}");
+    // The share scanned so far depends on the firmware's speed: not compared.
+    golden_masked(&vm, "run_from_line_scanning", 6, 16..21);
     // The record holds the line chosen from the start of the scan.
     assert_eq!(recorded_line(&vm, text.len()), Some(target));
     assert_ne!(vm.eeprom(), before);
