@@ -10,7 +10,7 @@ mod common;
 mod panel;
 use common::*;
 use panel::{golden, press, redraw, screen, turn};
-use sim::{AtcConfig, Axis, CardKind, FatKind, OpticalBeam, SdCard, SdImage, Tool, ToolSetter, Vm, VmConfig};
+use sim::{Axis, CardKind, FatKind, SdCard, SdImage, Vm};
 
 /// Back and forth along X with the spindle on, long enough to open menus
 /// while it runs.
@@ -24,15 +24,7 @@ fn job() -> String {
 
 /// T1 and T2 in the carousel, an optical setter, a card with one job.
 fn machine() -> Vm {
-    let mut cfg = VmConfig::default();
-    cfg.command_timeout_s = 120.0;
-    cfg.machine.tool_setter =
-        ToolSetter::Optical(OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.013, z_mm: 48.0047, width_mm: 0.52, steps_per_mm: 100.0 });
-    let mut atc = AtcConfig::default();
-    atc.pockets[0] = Some(Tool { id: 1, length_mm: 19.5, diameter_mm: 3.0 });
-    atc.pockets[1] = Some(Tool { id: 2, length_mm: 21.3371, diameter_mm: 3.175 });
-    cfg.machine.atc = atc;
-    let mut vm = boot_with(cfg);
+    let mut vm = boot_with(tools_and_setter());
     let img = SdImage::new(FatKind::Fat16).file("FACE_MILL.NC", job().as_bytes());
     vm.insert_sd(SdCard::new(img.build(), CardKind::Sdhc));
     redraw(&mut vm);

@@ -8,7 +8,7 @@ mod common;
 mod panel;
 use common::*;
 use panel::{golden, press, redraw, screen, turn};
-use sim::{AtcConfig, OpticalBeam, Tool, ToolSetter, Vm, VmConfig};
+use sim::{Vm, VmConfig};
 
 /// Where the setter record sits in EEPROM, and its length (version, six
 /// i32, checksum).
@@ -18,15 +18,7 @@ const SETTER_LEN: usize = 26;
 /// Homed, T1 (19.5 mm long, 3 mm thick: the reference) in the spindle, an
 /// optical setter whose beam is not where the firmware's defaults say.
 fn with_reference_tool() -> Vm {
-    let mut cfg = VmConfig::default();
-    cfg.command_timeout_s = 120.0;
-    cfg.machine.tool_setter =
-        ToolSetter::Optical(OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.013, z_mm: 48.0047, width_mm: 0.52, steps_per_mm: 100.0 });
-    let mut atc = AtcConfig::default();
-    atc.pockets[0] = Some(Tool { id: 1, length_mm: 19.5, diameter_mm: 3.0 });
-    atc.pockets[1] = Some(Tool { id: 2, length_mm: 21.3371, diameter_mm: 3.175 });
-    cfg.machine.atc = atc;
-    let mut vm = boot_with(cfg);
+    let mut vm = boot_with(tools_and_setter());
     ok(&mut vm, "G28");
     ok(&mut vm, "T1 M6");
     vm.take_lines();

@@ -13,7 +13,7 @@ mod motion_util;
 mod panel;
 use common::*;
 use panel::{golden, press, redraw, screen, turn};
-use sim::{AtcConfig, Axis, CardKind, FatKind, Flow, Input, OpticalBeam, SdCard, SdImage, StreamOptions, Tool, ToolSetter, Vm, VmConfig};
+use sim::{Axis, CardKind, FatKind, Flow, Input, SdCard, SdImage, StreamOptions, Vm, VmConfig};
 
 // ------------------------------------------------------------- helpers
 
@@ -1119,15 +1119,7 @@ fn tools_menu_confirms_the_spindle_after_a_chip_reset_mid_change() {
 
 #[test]
 fn tools_menu_shows_the_tool_table_and_measures_the_spindle_tool() {
-    let mut cfg = VmConfig::default();
-    cfg.command_timeout_s = 120.0;
-    cfg.machine.tool_setter =
-        ToolSetter::Optical(OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.013, z_mm: 48.0047, width_mm: 0.52, steps_per_mm: 100.0 });
-    let mut atc = AtcConfig::default();
-    atc.pockets[0] = Some(Tool { id: 1, length_mm: 19.5, diameter_mm: 3.0 });
-    atc.pockets[1] = Some(Tool { id: 2, length_mm: 21.3371, diameter_mm: 3.175 });
-    cfg.machine.atc = atc;
-    let mut vm = boot_with(cfg);
+    let mut vm = boot_with(tools_and_setter());
     ok(&mut vm, "G28");
     // The table by hand: T3 25 mm long, radius 1 mm.
     ok(&mut vm, "G10 L1 P3 Z25 R1");

@@ -27,6 +27,23 @@ pub fn board_as_sold() -> VmConfig {
     VmConfig { bootloader: Some(hex), ..VmConfig::default() }
 }
 
+/// The mill with T1 (19.5 mm long, 3 mm thick) and T2 (21.3371 mm,
+/// 3.175 mm) in the carousel and an optical tool setter whose beam is not
+/// where the firmware's defaults say; commands may take 120 s (a tool
+/// change, a measurement).
+pub fn tools_and_setter() -> VmConfig {
+    use sim::{AtcConfig, OpticalBeam, Tool, ToolSetter};
+    let mut cfg = VmConfig::default();
+    cfg.command_timeout_s = 120.0;
+    cfg.machine.tool_setter =
+        ToolSetter::Optical(OpticalBeam { x_mm: (3.0, 7.0), y_mm: 10.013, z_mm: 48.0047, width_mm: 0.52, steps_per_mm: 100.0 });
+    let mut atc = AtcConfig::default();
+    atc.pockets[0] = Some(Tool { id: 1, length_mm: 19.5, diameter_mm: 3.0 });
+    atc.pockets[1] = Some(Tool { id: 2, length_mm: 21.3371, diameter_mm: 3.175 });
+    cfg.machine.atc = atc;
+    cfg
+}
+
 /// Send a command and return its reply lines, asserting it ends with `ok`
 /// and carries no error.
 pub fn ok(vm: &mut Vm, line: &str) -> Vec<String> {
