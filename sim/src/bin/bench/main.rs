@@ -332,13 +332,17 @@ impl Bench {
             errors: rep.errors.len(),
             violations: vm.recorder().violation_count(),
         });
-        let a = max_accel_mm(&vm, &[100.0, 100.0, 100.0, 400.0]);
-        if a.0 > self.r.accel_mm_s2 {
-            self.r.accel_mm_s2 = a.0;
-            self.r.accel_axis = format!("{} (0.1 mm stream)", a.1);
-        }
+        self.note_accel(max_accel_mm(&vm, &[100.0, 100.0, 100.0, 400.0]), "0.1 mm stream");
         self.account(&vm);
         Ok(())
+    }
+
+    /// Keeps the highest acceleration measured so far, with its axis and the run.
+    fn note_accel(&mut self, (a, axis): (f64, &str), run: &str) {
+        if a > self.r.accel_mm_s2 {
+            self.r.accel_mm_s2 = a;
+            self.r.accel_axis = format!("{axis} ({run})");
+        }
     }
 
     /// Corners and reversals at factory settings: the first demo job (the
@@ -365,11 +369,7 @@ impl Bench {
             self.cmd(&mut vm, l)?;
         }
         vm.run_for(0.1).map_err(|e| e.to_string())?;
-        let a = max_accel_mm(&vm, &[100.0, 100.0, 100.0, 3200.0 / 18.0]);
-        if a.0 > self.r.accel_mm_s2 {
-            self.r.accel_mm_s2 = a.0;
-            self.r.accel_axis = format!("{} (corner job)", a.1);
-        }
+        self.note_accel(max_accel_mm(&vm, &[100.0, 100.0, 100.0, 3200.0 / 18.0]), "corner job");
         self.account(&vm);
         Ok(())
     }
