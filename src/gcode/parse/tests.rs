@@ -936,3 +936,32 @@ fn random_g_code_like_text_never_panics_and_values_stay_in_range() {
         }
     }
 }
+
+#[test]
+fn the_letter_table_matches_the_match() {
+    for c in 0..=255u8 {
+        assert_eq!(Word::from_letter(c), Word::from_letter_by_match(c), "{c:#x}");
+    }
+}
+
+#[test]
+fn plain_words_read_as_the_general_route_reads_them() {
+    // Where `plain_value` answers, the general route (the bare-axis test,
+    // then `lex_number`) gives the same number and end.
+    let alphabet = b"0123456789000.-+ \tXYEe#[;(";
+    let mut rng = XorShift(0x91A1);
+    let mut answered = 0;
+    for k in 0..400_000u32 {
+        let len = 1 + (rng.next() % 14) as usize;
+        let mut s = vec![b'X'];
+        s.extend((0..len).map(|_| if k % 4 == 0 { (rng.next() & 0x7F) as u8 } else { alphabet[(rng.next() as usize) % alphabet.len()] }));
+        let Some((n, used)) = super::plain_value(&s, 1) else {
+            continue;
+        };
+        answered += 1;
+        assert!(!super::no_number_follows(&s, 1), "{:?}", String::from_utf8_lossy(&s));
+        let (m, end) = lex_number(&s, 1, 1).unwrap_or_else(|e| panic!("{:?}: {e:?}", String::from_utf8_lossy(&s)));
+        assert_eq!((n.negative, n.mantissa, n.scale, 1 + used), (m.negative, m.mantissa, m.scale, end), "{:?}", String::from_utf8_lossy(&s));
+    }
+    assert!(answered > 50_000, "{answered}");
+}
