@@ -156,7 +156,11 @@ pub fn parse_into(s: &[u8], line: &mut Line) -> Result<(), ParseError> {
                 pos += 1;
                 match c.to_ascii_uppercase() {
                     b'G' => {
-                        let (n, next) = lex_number(s, pos, col)?;
+                        // `G1`: as for a value word below.
+                        let (n, next) = match plain_value(s, pos) {
+                            Some((n, len)) => (n, pos + len),
+                            None => lex_number(s, pos, col)?,
+                        };
                         pos = next;
                         let code = n.code_x10();
                         let code = code.ok_or(ParseError { kind: ParseErrorKind::UnsupportedCode, col })?;
