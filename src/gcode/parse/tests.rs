@@ -965,3 +965,42 @@ fn plain_words_read_as_the_general_route_reads_them() {
     }
     assert!(answered > 50_000, "{answered}");
 }
+
+#[test]
+fn words_behave_as_a_map_of_the_present_words() {
+    // Random inserts and removes against a plain map: the values, the
+    // set's equality (a set rebuilt from the map), emptiness.
+    let mut rng = XorShift(0x3030);
+    for _ in 0..2000 {
+        let mut words = Words::new();
+        let mut map: std::collections::BTreeMap<u8, f32> = Default::default();
+        for _ in 0..30 {
+            let w = Word::ALL[(rng.next() as usize) % Word::COUNT];
+            let v = (rng.next() % 2001) as f32 - 1000.0;
+            if rng.next() % 3 == 0 {
+                assert_eq!(words.remove(w), map.remove(&(w as u8)));
+            } else {
+                let fresh = !map.contains_key(&(w as u8));
+                assert_eq!(words.insert(w, v), fresh);
+                map.entry(w as u8).or_insert(v);
+            }
+            let mut rebuilt = Words::new();
+            for (&i, &v) in &map {
+                assert!(rebuilt.insert(Word::ALL[i as usize], v));
+            }
+            for w in Word::ALL {
+                assert_eq!(words.get(w), map.get(&(w as u8)).copied(), "{w:?}");
+            }
+            assert_eq!(words, rebuilt);
+            if let Some((&i, &v)) = map.iter().next() {
+                let w = Word::ALL[i as usize];
+                let mut changed = words;
+                changed.remove(w);
+                changed.insert(w, v + 0.5);
+                assert_ne!(changed, words);
+            }
+            assert_eq!(words.is_empty(), map.is_empty());
+            assert_eq!(words == Words::new(), map.is_empty());
+        }
+    }
+}
