@@ -641,8 +641,7 @@ fn checking_a_line_without_marks_skips_the_star_scan() {
     // and `check_marked` with that report answers as `check` does (also
     // on the checker's state).
     let mut rng = crate::test_util::XorShift(0xC4EC);
-    let pieces: [&[u8]; 14] =
-        [b"N", b"n", b"1", b"2", b"*", b"(", b")", b";", b" ", b"M110", b"G1 X1", b"\n", b"\n", b"$"];
+    let pieces: [&[u8]; 14] = [b"N", b"n", b"1", b"2", b"*", b"(", b")", b";", b" ", b"M110", b"G1 X1", b"\n", b"\n", b"$"];
     let (mut plain, mut marked) = (LineChecker::new(), LineChecker::new());
     let mut asm = LineAssembler::new();
     let mut lines = 0;

@@ -954,14 +954,19 @@ fn plain_words_read_as_the_general_route_reads_them() {
     for k in 0..400_000u32 {
         let len = 1 + (rng.next() % 14) as usize;
         let mut s = vec![b'X'];
-        s.extend((0..len).map(|_| if k % 4 == 0 { (rng.next() & 0x7F) as u8 } else { alphabet[(rng.next() as usize) % alphabet.len()] }));
+        s.extend((0..len).map(|_| if k.is_multiple_of(4) { (rng.next() & 0x7F) as u8 } else { alphabet[(rng.next() as usize) % alphabet.len()] }));
         let Some((n, used)) = super::plain_value(&s, 1) else {
             continue;
         };
         answered += 1;
         assert!(!super::no_number_follows(&s, 1), "{:?}", String::from_utf8_lossy(&s));
         let (m, end) = lex_number(&s, 1, 1).unwrap_or_else(|e| panic!("{:?}: {e:?}", String::from_utf8_lossy(&s)));
-        assert_eq!((n.negative, n.mantissa, n.scale, 1 + used), (m.negative, m.mantissa, m.scale, end), "{:?}", String::from_utf8_lossy(&s));
+        assert_eq!(
+            (n.negative, n.mantissa, n.scale, 1 + used),
+            (m.negative, m.mantissa, m.scale, end),
+            "{:?}",
+            String::from_utf8_lossy(&s)
+        );
     }
     assert!(answered > 50_000, "{answered}");
 }
@@ -977,7 +982,7 @@ fn words_behave_as_a_map_of_the_present_words() {
         for _ in 0..30 {
             let w = Word::ALL[(rng.next() as usize) % Word::COUNT];
             let v = (rng.next() % 2001) as f32 - 1000.0;
-            if rng.next() % 3 == 0 {
+            if rng.next().is_multiple_of(3) {
                 assert_eq!(words.remove(w), map.remove(&(w as u8)));
             } else {
                 let fresh = !map.contains_key(&(w as u8));
