@@ -170,15 +170,23 @@ pub fn set_tx_wait_hook(f: fn()) {
 // speed: ~47 cycles a byte as a call (see above); LLVM makes it one
 #[inline(always)]
 pub fn read() -> Option<u8> {
-    let tail = RX_TAIL.load(Ordering::Relaxed);
-    if tail == RX_HEAD.load(Ordering::Acquire) {
-        return None;
-    }
-    // SAFETY: slot `tail` was published by the ISR (it is before RX_HEAD),
+    // Volatile accesses instead of the atomics' loads and stores, as in
+    // `rx_store`: those bracket each access with `cli`/`out SREG` on AVR
+    // (~12 cycles a byte). A `u8` access is a single instruction, and
+    // volatile accesses stay in program order (head, slot, then tail).
+    let (head, tail) = (RX_HEAD.as_ptr(), RX_TAIL.as_ptr());
+    // SAFETY: the main loop is the only writer of RX_TAIL; slot `t` was
+    // published by the ISR (it is before RX_HEAD, read before the slot),
     // and the ISR does not write it again until RX_TAIL moves past it below.
-    let b = unsafe { (*addr_of_mut!(RX_BUF))[tail as usize] };
-    RX_TAIL.store(tail.wrapping_add(1), Ordering::Release);
-    Some(b)
+    unsafe {
+        let t = tail.read_volatile();
+        if t == head.read_volatile() {
+            return None;
+        }
+        let b = addr_of_mut!(RX_BUF).cast::<u8>().add(t as usize).read_volatile();
+        tail.write_volatile(t.wrapping_add(1));
+        Some(b)
+    }
 }
 
 /// Bytes waiting in the RX ring.

@@ -16,16 +16,14 @@ impl Machine {
     /// firmware passes the SD job's line buffer: the two are never in use
     /// at once, and a copy on the stack cost 256 bytes of stack high-water).
     ///
-    /// The per-byte path is only the assembler, in one loop (a call per
-    /// byte cost ~20 cycles on the AVR); the end of a line goes through
-    /// [`Machine::line_end`].
+    /// The per-byte path is only the assembler's loop
+    /// (`LineAssembler::push_from`; a call per byte cost ~20 cycles on the
+    /// AVR); the end of a line goes through [`Machine::line_end`].
     // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
     #[inline(never)]
-    pub fn push_bytes(&mut self, bytes: impl Iterator<Item = u8>, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
-        for b in bytes {
-            if let Some(done) = self.asm.push(b) {
-                self.line_end(done, io, scratch);
-            }
+    pub fn push_bytes(&mut self, mut bytes: impl Iterator<Item = u8>, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
+        while let Some(done) = self.asm.push_from(|| bytes.next()) {
+            self.line_end(done, io, scratch);
         }
     }
 
@@ -37,7 +35,7 @@ impl Machine {
             Assembled::Line => {
                 // The line is copied out of the assembler (running it needs
                 // `&mut self`).
-                let raw = self.asm.line();
+                let (raw, marks) = (self.asm.line(), self.asm.has_marks());
                 let n = raw.len().min(scratch.len());
                 let line = match (scratch.get_mut(..n), raw.get(..n)) {
                     (Some(d), Some(r)) => {
@@ -46,7 +44,7 @@ impl Machine {
                     }
                     _ => &[][..],
                 };
-                self.run_raw_line(line, io);
+                self.run_raw_line(line, marks, io);
             }
             other => {
                 let msg = match other {
@@ -93,13 +91,15 @@ impl Machine {
     }
 
     /// Check N/* and run one line; always ends with exactly one `ok`.
+    /// `marks`: the line may hold a `(`, `)`, `*` or `;`
+    /// (`LineAssembler::has_marks`).
     // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
     #[inline(never)]
-    pub(super) fn run_raw_line(&mut self, raw: &[u8], io: &mut impl Io) {
+    pub(super) fn run_raw_line(&mut self, raw: &[u8], marks: bool, io: &mut impl Io) {
         // Numbered for the resend protocol: N and a checksum (an N alone is a
         // file's block number, which the protocol does not track).
         self.numbered = matches!(raw.first(), Some(b'N' | b'n')) && raw.contains(&b'*');
-        match self.chk.check(raw) {
+        match self.chk.check_marked(raw, marks) {
             Err(crate::protocol::ProtoError::LineNumber) => {
                 // A line sent after one that failed (the host had several in
                 // flight): not a new try of the failed line.

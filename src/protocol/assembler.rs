@@ -38,6 +38,8 @@ const F_OVERRUN: u8 = 1 << 1;
 const F_BAD_BYTE: u8 = 1 << 2;
 /// The last push completed a line that `line()` may return.
 const F_READY: u8 = 1 << 3;
+/// A `(`, `)`, `*` or `;` arrived in this line (see [`LineAssembler::has_marks`]).
+const F_MARKS: u8 = 1 << 4;
 
 /// The UTF-8 byte-order mark that Windows editors write at the start of a
 /// file: text, not data. Skipped at the start of a line.
@@ -83,7 +85,7 @@ impl LineAssembler {
     /// `Some(Assembled::Line)`, [`line`](Self::line) holds its text until the
     /// next push.
     ///
-    /// The usual byte (printable but `(` and `;`, or a blank after the
+    /// The usual byte (printable but `(` `)` `*` `;`, or a blank after the
     /// first byte; in code, with room left) is stored at once; every other byte goes through
     /// [`push_slow`](Self::push_slow), which treats it (and would treat the
     /// usual one) the same way (`the_assembler_fast_path_matches_the_slow_one`):
@@ -96,9 +98,7 @@ impl LineAssembler {
             self.len = 0;
         }
         let len = self.len as usize;
-        // Printable but `(` `;`, or a blank after the first byte.
-        let usual = if b.wrapping_sub(0x21) < 0x7F - 0x21 { b != b'(' && b != b';' } else { (b == b' ' || b == b'\t') && len != 0 };
-        if usual && !self.cut.in_comment() {
+        if usual(b, len != 0) && !self.cut.in_comment() {
             if let Some(slot) = self.buf.get_mut(len) {
                 *slot = b;
                 self.len += 1;
@@ -106,6 +106,59 @@ impl LineAssembler {
             }
         }
         self.push_slow(b)
+    }
+
+    /// [`push`](Self::push) for each byte `next` gives, until it gives none
+    /// (`None`) or a line ends (what `push` returned for that byte; `next`
+    /// is not called again until the following call).
+    ///
+    /// The usual byte (as in `push`) is stored with the line's length held
+    /// in a register, written back once the run of usual bytes ends; the
+    /// others go through [`push_slow`](Self::push_slow). Byte for byte what
+    /// `push_slow` does (`pushing_a_stream_matches_pushing_byte_by_byte`):
+    /// on the AVR ~30 cycles a byte instead of ~63 through `push`, whose
+    /// length and flags went through memory on every byte (`profile
+    /// --trace`: `Machine::push_bytes`).
+    // speed: the per-byte loop of every serial line (doc above)
+    #[inline(always)]
+    pub fn push_from(&mut self, mut next: impl FnMut() -> Option<u8>) -> Option<Assembled> {
+        if self.flags & F_READY != 0 {
+            self.flags = 0;
+            self.len = 0;
+        }
+        // The free slots, none inside a comment (every byte goes slow
+        // there): one test for the room and the comment. One call of
+        // `next` in the loop, so that it is inlined.
+        let mut code = !self.cut.in_comment();
+        let mut free = self.free_slots(code);
+        loop {
+            let Some(b) = next() else {
+                if code {
+                    self.len = (MAX_LINE_LEN - free.len()) as u16;
+                }
+                return None;
+            };
+            if usual(b, free.len() != MAX_LINE_LEN) {
+                if let Some(slot) = free.next() {
+                    *slot = b;
+                    continue;
+                }
+            }
+            if code {
+                self.len = (MAX_LINE_LEN - free.len()) as u16;
+            }
+            if let Some(done) = self.push_slow(b) {
+                return Some(done);
+            }
+            code = !self.cut.in_comment();
+            free = self.free_slots(code);
+        }
+    }
+
+    /// The slots after the line's bytes, or none when `code` is false.
+    fn free_slots(&mut self, code: bool) -> core::slice::IterMut<'_, u8> {
+        let from = if code { self.len as usize } else { MAX_LINE_LEN };
+        self.buf.get_mut(from..).unwrap_or_default().iter_mut()
     }
 
     /// [`push`](Self::push) for any byte: line ends, blanks, comments,
@@ -142,6 +195,8 @@ impl LineAssembler {
                     }
                 } else if (b < 0x20 && b != b'\t') || b == 0x7f {
                     self.flags |= F_BAD_BYTE;
+                } else if is_mark(b) {
+                    self.flags |= F_MARKS;
                 }
                 match self.cut.keep(b, len) {
                     Keep::Store => {
@@ -189,6 +244,13 @@ impl LineAssembler {
         self.buf.get(..self.len as usize).unwrap_or(&[])
     }
 
+    /// False when no `(`, `)`, `*` or `;` arrived in the line that
+    /// [`line`](Self::line) holds: then it has no comment and no checksum
+    /// (`LineChecker::check_marked` need not look for its `*`).
+    pub fn has_marks(&self) -> bool {
+        self.flags & F_MARKS != 0
+    }
+
     /// End of line: classify it and set up `line()`.
     fn finish(&mut self) -> Option<Assembled> {
         let flags = self.flags;
@@ -213,12 +275,31 @@ impl LineAssembler {
             Some(Assembled::Line)
         };
         if result == Some(Assembled::Line) {
-            self.flags = F_READY;
+            self.flags = F_READY | (flags & F_MARKS);
         } else {
             self.dropped_n = self.len > 0 && matches!(self.buf.first(), Some(b'N' | b'n'));
             self.flags = 0;
             self.len = 0;
         }
         result
+    }
+}
+
+/// A `(`, `)`, `*` or `;`: the bytes of comments and checksums.
+pub(super) fn is_mark(b: u8) -> bool {
+    b.wrapping_sub(b'(') <= b'*' - b'(' || b == b';'
+}
+
+/// True for the byte that [`LineAssembler::push`] stores at once:
+/// printable but a mark ([`is_mark`]), or a blank once the line holds a
+/// byte (`started`). The digits and `+ , - . / :` are tested first (most of
+/// a G-code line), then the letters.
+// speed: on every byte of the assembler's loop
+#[inline(always)]
+fn usual(b: u8, started: bool) -> bool {
+    if b.wrapping_sub(b'+') < b';' - b'+' || b.wrapping_sub(b'<') < 0x7F - b'<' || b.wrapping_sub(0x21) < b'(' - 0x21 {
+        true
+    } else {
+        (b == b' ' || b == b'\t') && started
     }
 }

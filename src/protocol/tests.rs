@@ -579,8 +579,87 @@ fn the_assembler_fast_path_matches_the_slow_one() {
             assert_eq!(f, s, "byte {b:#x}");
             assert_eq!(fast.line(), slow.line(), "byte {b:#x}");
             assert_eq!(fast.dropped_numbered(), slow.dropped_numbered());
+            assert_eq!(fast.has_marks(), slow.has_marks());
         }
     }
+}
+
+#[test]
+fn pushing_a_stream_matches_pushing_byte_by_byte() {
+    // `push_from` (the usual bytes in a loop with the length in a
+    // register) against `push_slow` for every byte, over random streams
+    // handed over in random runs (a run ends when the ring is empty).
+    let mut rng = crate::test_util::XorShift(0x5EED);
+    let special = [b'\n', b'\r', b' ', b'\t', b'(', b')', b';', b'*', b'N', 0xFF, 0xEF, 0xBB, 0xBF, 0x80, 0x7F, 0x01, 0x20, 0x21, 0x7E];
+    for round in 0..300u32 {
+        let long = round.is_multiple_of(3);
+        let bytes: Vec<u8> = (0..4000)
+            .map(|_| {
+                let r = rng.next();
+                let b = match r % 8 {
+                    0 | 1 => special[(r >> 8) as usize % special.len()],
+                    _ => (0x21 + (r >> 8) % 0x5E) as u8,
+                };
+                if long && matches!(b, b'\n' | b'\r') && !(r >> 20).is_multiple_of(16) {
+                    b'G'
+                } else {
+                    b
+                }
+            })
+            .collect();
+        let mut slow = LineAssembler::new();
+        let mut want = Vec::new();
+        for (i, &b) in bytes.iter().enumerate() {
+            if let Some(done) = slow.push_slow(b) {
+                want.push((i, done, slow.line().to_vec(), slow.dropped_numbered(), slow.has_marks()));
+            }
+        }
+        let mut fast = LineAssembler::new();
+        let mut got = Vec::new();
+        let mut i = 0;
+        while i < bytes.len() {
+            // A run of 1..=64 bytes, as the RX ring may hold.
+            let end = (i + 1 + (rng.next() % 64) as usize).min(bytes.len());
+            let mut it = bytes[i..end].iter().copied();
+            let mut used = i;
+            while let Some(done) = fast.push_from(|| {
+                used += 1;
+                it.next()
+            }) {
+                got.push((used - 1, done, fast.line().to_vec(), fast.dropped_numbered(), fast.has_marks()));
+            }
+            i = end;
+        }
+        assert_eq!(got, want, "round {round}");
+    }
+}
+
+#[test]
+fn checking_a_line_without_marks_skips_the_star_scan() {
+    // Lines assembled from random streams rich in the marks, N words and
+    // checksums: a line the assembler reports without marks holds none,
+    // and `check_marked` with that report answers as `check` does (also
+    // on the checker's state).
+    let mut rng = crate::test_util::XorShift(0xC4EC);
+    let pieces: [&[u8]; 14] = [b"N", b"n", b"1", b"2", b"*", b"(", b")", b";", b" ", b"M110", b"G1 X1", b"\n", b"\n", b"$"];
+    let (mut plain, mut marked) = (LineChecker::new(), LineChecker::new());
+    let mut asm = LineAssembler::new();
+    let mut lines = 0;
+    for _ in 0..300_000 {
+        let piece = pieces[(rng.next() as usize) % pieces.len()];
+        for &b in piece {
+            if asm.push(b) != Some(Assembled::Line) {
+                continue;
+            }
+            lines += 1;
+            let line = asm.line();
+            let marks = asm.has_marks();
+            assert!(marks || !line.iter().any(|&b| b"()*;".contains(&b)), "{line:?}");
+            assert_eq!(marked.check_marked(line, marks), plain.check(line), "{:?}", String::from_utf8_lossy(line));
+            assert_eq!(marked, plain);
+        }
+    }
+    assert!(lines > 10_000);
 }
 
 /// The `*` finder as it was before its quick pass: every byte read with

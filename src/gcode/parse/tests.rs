@@ -936,3 +936,76 @@ fn random_g_code_like_text_never_panics_and_values_stay_in_range() {
         }
     }
 }
+
+#[test]
+fn the_letter_table_matches_the_match() {
+    for c in 0..=255u8 {
+        assert_eq!(Word::from_letter(c), Word::from_letter_by_match(c), "{c:#x}");
+    }
+}
+
+#[test]
+fn plain_words_read_as_the_general_route_reads_them() {
+    // Where `plain_value` answers, the general route (the bare-axis test,
+    // then `lex_number`) gives the same number and end.
+    let alphabet = b"0123456789000.-+ \tXYEe#[;(";
+    let mut rng = XorShift(0x91A1);
+    let mut answered = 0;
+    for k in 0..400_000u32 {
+        let len = 1 + (rng.next() % 14) as usize;
+        let mut s = vec![b'X'];
+        s.extend((0..len).map(|_| if k.is_multiple_of(4) { (rng.next() & 0x7F) as u8 } else { alphabet[(rng.next() as usize) % alphabet.len()] }));
+        let Some((n, used)) = super::plain_value(&s, 1) else {
+            continue;
+        };
+        answered += 1;
+        assert!(!super::no_number_follows(&s, 1), "{:?}", String::from_utf8_lossy(&s));
+        let (m, end) = lex_number(&s, 1, 1).unwrap_or_else(|e| panic!("{:?}: {e:?}", String::from_utf8_lossy(&s)));
+        assert_eq!(
+            (n.negative, n.mantissa, n.scale, 1 + used),
+            (m.negative, m.mantissa, m.scale, end),
+            "{:?}",
+            String::from_utf8_lossy(&s)
+        );
+    }
+    assert!(answered > 50_000, "{answered}");
+}
+
+#[test]
+fn words_behave_as_a_map_of_the_present_words() {
+    // Random inserts and removes against a plain map: the values, the
+    // set's equality (a set rebuilt from the map), emptiness.
+    let mut rng = XorShift(0x3030);
+    for _ in 0..2000 {
+        let mut words = Words::new();
+        let mut map: std::collections::BTreeMap<u8, f32> = Default::default();
+        for _ in 0..30 {
+            let w = Word::ALL[(rng.next() as usize) % Word::COUNT];
+            let v = (rng.next() % 2001) as f32 - 1000.0;
+            if rng.next().is_multiple_of(3) {
+                assert_eq!(words.remove(w), map.remove(&(w as u8)));
+            } else {
+                let fresh = !map.contains_key(&(w as u8));
+                assert_eq!(words.insert(w, v), fresh);
+                map.entry(w as u8).or_insert(v);
+            }
+            let mut rebuilt = Words::new();
+            for (&i, &v) in &map {
+                assert!(rebuilt.insert(Word::ALL[i as usize], v));
+            }
+            for w in Word::ALL {
+                assert_eq!(words.get(w), map.get(&(w as u8)).copied(), "{w:?}");
+            }
+            assert_eq!(words, rebuilt);
+            if let Some((&i, &v)) = map.iter().next() {
+                let w = Word::ALL[i as usize];
+                let mut changed = words;
+                changed.remove(w);
+                changed.insert(w, v + 0.5);
+                assert_ne!(changed, words);
+            }
+            assert_eq!(words.is_empty(), map.is_empty());
+            assert_eq!(words == Words::new(), map.is_empty());
+        }
+    }
+}
