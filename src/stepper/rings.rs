@@ -118,6 +118,9 @@ pub trait RingMem {
     fn chunk(&self, i: u8) -> &Chunk;
     /// Write chunk slot `i`; the caller guarantees the ISR does not use it.
     fn set_chunk(&mut self, i: u8, c: &Chunk);
+    /// Chunk slot `i` to write in place; the caller guarantees the ISR does
+    /// not use it.
+    fn chunk_mut(&mut self, i: u8) -> &mut Chunk;
     /// Write segment slot `i` (free: between head and tail).
     fn set_seg(&mut self, i: u8, s: &Seg);
     /// Hand the segments before `head` to the ISR (after their slots are written).
@@ -169,6 +172,14 @@ impl<M: RingMem> Sink for SlotSink<'_, M> {
     fn chunk(&mut self, c: &Chunk) {
         // The slot at chunk_head is free (checked by `space`).
         self.mem.set_chunk(self.w.chunk_head, c);
+        self.w.chunk_head = (self.w.chunk_head + 1) & CHUNK_MASK;
+    }
+
+    // speed: per block queued (see `chunk`)
+    #[inline(always)]
+    fn chunk_in_place(&mut self, fill: impl FnOnce(&mut Chunk)) {
+        // The slot at chunk_head is free (checked by `space`).
+        fill(self.mem.chunk_mut(self.w.chunk_head));
         self.w.chunk_head = (self.w.chunk_head + 1) & CHUNK_MASK;
     }
 
