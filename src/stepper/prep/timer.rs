@@ -95,7 +95,18 @@ mod tests {
             let (got, want) = (half(x), 0.5 * x);
             assert!(got.to_bits() == want.to_bits() || (x.is_nan() && got.is_nan()), "{x:e}: {got:e} vs {want:e}");
         }
-        for x in [0.0f32, -0.0, f32::MIN_POSITIVE, 2.0 * f32::MIN_POSITIVE, 3.0 * f32::MIN_POSITIVE, 1e-45, f32::MAX, -f32::MAX, f32::INFINITY, -f32::INFINITY] {
+        for x in [
+            0.0f32,
+            -0.0,
+            f32::MIN_POSITIVE,
+            2.0 * f32::MIN_POSITIVE,
+            3.0 * f32::MIN_POSITIVE,
+            1e-45,
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            -f32::INFINITY,
+        ] {
             assert_eq!(half(x).to_bits(), (0.5 * x).to_bits(), "{x:e}");
         }
     }
