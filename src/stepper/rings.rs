@@ -244,18 +244,15 @@ impl Rings {
         while self.retire != cur {
             let c = mem.chunk(self.retire);
             if !c.take_up {
-                // The axis bit shifted along (`1 << i` is a shift loop on the AVR).
-                let mut bit = 1u8;
                 for i in 0..N_AXES {
                     let d = c.steps[i] as i32;
                     if d != 0 {
-                        if c.axis_dir & bit != 0 {
+                        if c.axis_dir & (1 << i) != 0 {
                             self.base[i] -= d;
                         } else {
                             self.base[i] += d;
                         }
                     }
-                    bit <<= 1;
                 }
             }
             self.retire = (self.retire + 1) & CHUNK_MASK;
