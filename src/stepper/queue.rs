@@ -76,6 +76,14 @@ pub trait Sink {
     fn chunk(&mut self, c: &Chunk);
     /// Append a segment.
     fn seg(&mut self, s: &Seg);
+    /// Append a chunk written in place by `fill`, which must set every
+    /// field (the slot holds a stale chunk). By default it is built aside
+    /// and handed to [`Sink::chunk`]; the board's rings write the free slot.
+    fn chunk_in_place(&mut self, fill: impl FnOnce(&mut Chunk)) {
+        let mut c = Chunk::EMPTY;
+        fill(&mut c);
+        self.chunk(&c);
+    }
 }
 
 /// What the ISR should watch on the chunks it is given (from the machine's
@@ -152,19 +160,28 @@ impl Splitter {
     pub fn push(&mut self, cmd: &StepperCmd, map: &StepMap, w: &ChunkWatch, sink: &mut impl Sink) {
         match cmd {
             StepperCmd::Block(b) => {
-                self.block = *b;
-                self.k = 0;
-                let n = b.step_event_count;
-                // Equal pieces of at most MAX_CHUNK_EVENTS (no division in the
-                // usual case of a short block).
-                self.chunk_len = if n <= MAX_CHUNK_EVENTS { n } else { n.div_ceil(n.div_ceil(MAX_CHUNK_EVENTS)) };
-                self.chunk_end = 0;
-                if n > MAX_CHUNK_EVENTS {
-                    self.f_end = [0; N_AXES];
+                self.begin(b);
+                if b.step_event_count <= MAX_CHUNK_EVENTS {
+                    self.whole_chunk(map, w, sink);
+                } else {
+                    self.next_chunk(map, w, sink);
                 }
-                self.next_chunk(map, w, sink);
             }
             StepperCmd::Run(s) => self.run(s, map, w, sink),
+        }
+    }
+
+    /// Take `b` as the block being cut, none of it emitted yet.
+    fn begin(&mut self, b: &StBlock) {
+        self.block = *b;
+        self.k = 0;
+        let n = b.step_event_count;
+        // Equal pieces of at most MAX_CHUNK_EVENTS (no division in the
+        // usual case of a short block).
+        self.chunk_len = if n <= MAX_CHUNK_EVENTS { n } else { n.div_ceil(n.div_ceil(MAX_CHUNK_EVENTS)) };
+        self.chunk_end = 0;
+        if n > MAX_CHUNK_EVENTS {
+            self.f_end = [0; N_AXES];
         }
     }
 
@@ -192,6 +209,83 @@ impl Splitter {
             });
             self.new_chunk = false;
         }
+    }
+
+    /// [`Splitter::next_chunk`] for a block of one chunk (at most
+    /// [`MAX_CHUNK_EVENTS`] events, the usual case), written in place into
+    /// the sink's free slot: no F(k) arithmetic, no chunk built on the stack
+    /// and copied (~1 100 instead of ~1 700 cycles a block on the AVR).
+    /// `next_chunk` is its plain twin (the test
+    /// `a_whole_chunk_written_in_place_is_the_plain_one`).
+    // speed: one call per block, inlined into `push`'s one caller
+    #[inline(always)]
+    fn whole_chunk(&mut self, map: &StepMap, w: &ChunkWatch, sink: &mut impl Sink) {
+        let n = self.block.step_event_count;
+        let events = n as i16;
+        let dir = self.block.direction_bits & 0x0F;
+        let take_up = self.block.take_up;
+        let steps = &self.block.steps;
+        let plan_pos = &mut self.plan_pos;
+        let held = &mut self.held;
+        sink.chunk_in_place(|c| {
+            let error0 = (events >> 1) - events;
+            let (mut every, mut partial, mut dir_out, mut ends_at_zero) = (0u8, 0u8, [0u8; 3], 0u8);
+            let mut h = *held;
+            let high = !dir ^ w.invert_dir;
+            // One axis (`i` and `bit` constants: unrolled, ~40 % fewer
+            // cycles than the loop on the AVR).
+            macro_rules! axis {
+                ($i:literal, $release:expr) => {{
+                    let bit = 1u8 << $i;
+                    let p = plan_pos[$i];
+                    if p == 0 {
+                        h |= bit;
+                    } else if p < 0 || p > $release {
+                        h &= !bit;
+                    }
+                    let s = steps[$i] as i16;
+                    c.steps[$i] = s;
+                    c.error[$i] = error0;
+                    let mut q = p;
+                    if s != 0 {
+                        if s == events {
+                            every |= map.step[$i];
+                        } else {
+                            partial |= bit;
+                        }
+                        if !take_up {
+                            q = if dir & bit != 0 { p - s as i32 } else { p + s as i32 };
+                            plan_pos[$i] = q;
+                        }
+                    }
+                    if q == 0 {
+                        ends_at_zero |= bit;
+                    }
+                    if high & bit != 0 {
+                        let (port, mask) = map.dir[$i];
+                        dir_out[port as usize] |= mask;
+                    }
+                }};
+            }
+            const _: () = assert!(N_AXES == 4);
+            axis!(0, w.release[0] as i32);
+            axis!(1, w.release[1] as i32);
+            axis!(2, w.release[2] as i32);
+            axis!(3, 0);
+            *held = h;
+            c.events = events;
+            c.every = every;
+            c.partial = partial;
+            c.dir_out = dir_out;
+            // See `next_chunk` (an axis' held bit, once updated, is its
+            // "starts at zero").
+            c.limit = w.limits & !(w.homed & (h | ends_at_zero));
+            c.axis_dir = dir;
+            c.take_up = take_up;
+        });
+        self.chunk_start = 0;
+        self.chunk_end = n;
+        self.new_chunk = true;
     }
 
     /// Emit the chunk that starts at the current chunk end.
@@ -506,6 +600,69 @@ mod tests {
         let mut rec = Rec::default();
         sp.push(&StepperCmd::Block(block([0, 0, 0, 10], 0)), &MAP, &w, &mut rec);
         assert_eq!(rec.chunks[0].dir_out, [0x82, 0x02, 0x00]);
+    }
+
+    /// A sink whose free slot holds a stale chunk (random fields), as the
+    /// board's ring slots do: a field the in-place writer forgets shows.
+    struct Stale {
+        slot: Chunk,
+        chunks: Vec<Chunk>,
+    }
+
+    impl Sink for Stale {
+        fn chunk(&mut self, c: &Chunk) {
+            self.chunks.push(*c);
+        }
+        fn seg(&mut self, _s: &Seg) {}
+        fn chunk_in_place(&mut self, fill: impl FnOnce(&mut Chunk)) {
+            let mut c = self.slot;
+            fill(&mut c);
+            self.chunks.push(c);
+        }
+    }
+
+    #[test]
+    fn a_whole_chunk_written_in_place_is_the_plain_one() {
+        let mut rng = XorShift(0x1DEA);
+        let mut r = move |m: u32| rng.next() % m;
+        for _ in 0..50_000 {
+            let n = if r(4) == 0 { MAX_CHUNK_EVENTS - r(3) } else { r(40) };
+            let mut steps = [0u32; N_AXES];
+            for v in steps.iter_mut() {
+                *v = match r(4) {
+                    0 => 0,
+                    1 => n,
+                    _ => r(n + 1),
+                };
+            }
+            let b = StBlock { steps, step_event_count: n, direction_bits: r(256) as u8, take_up: r(5) == 0 };
+            // Positions at, near and far from the switches; any held bits.
+            let pos: [i32; N_AXES] = core::array::from_fn(|_| match r(3) {
+                0 => r(12) as i32 - 4,
+                1 => -(r(40) as i32),
+                _ => r(1 << 20) as i32 - (1 << 19),
+            });
+            let w = ChunkWatch {
+                limits: r(16) as u8,
+                homed: r(16) as u8,
+                invert_dir: r(16) as u8,
+                release: [r(6) as u16, r(6) as u16, r(6) as u16],
+            };
+            let mut fast = Splitter::new();
+            fast.reset(pos);
+            fast.held = r(16) as u8;
+            let mut plain = fast;
+            let mut stale = Chunk::with_steps([r(999) as i16, -7, 3, 0], r(999) as i16 + 1);
+            (stale.limit, stale.dir_out, stale.axis_dir, stale.take_up) = (r(256) as u8, [0x5A; 3], 0xC3, r(2) == 0);
+            let mut got = Stale { slot: stale, chunks: Vec::new() };
+            fast.push(&StepperCmd::Block(b), &MAP, &w, &mut got);
+            let mut want = Rec::default();
+            plain.begin(&b);
+            plain.next_chunk(&MAP, &w, &mut want);
+            assert_eq!(got.chunks, want.chunks, "{b:?} from {pos:?}, {w:?}");
+            let state = |s: &Splitter| (s.plan_pos, s.held, s.k, s.chunk_len, s.chunk_start, s.chunk_end, s.new_chunk);
+            assert_eq!(state(&fast), state(&plain), "{b:?} from {pos:?}, {w:?}");
+        }
     }
 
     #[test]

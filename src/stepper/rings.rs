@@ -118,6 +118,9 @@ pub trait RingMem {
     fn chunk(&self, i: u8) -> &Chunk;
     /// Write chunk slot `i`; the caller guarantees the ISR does not use it.
     fn set_chunk(&mut self, i: u8, c: &Chunk);
+    /// Chunk slot `i` to write in place; the caller guarantees the ISR does
+    /// not use it.
+    fn chunk_mut(&mut self, i: u8) -> &mut Chunk;
     /// Write segment slot `i` (free: between head and tail).
     fn set_seg(&mut self, i: u8, s: &Seg);
     /// Hand the segments before `head` to the ISR (after their slots are written).
@@ -136,7 +139,12 @@ pub struct Rings {
     /// What the sink writes.
     w: Writer,
     split: Splitter,
-    watch: Watch,
+    /// What the ISR watches: the part the splitter bakes into each chunk,
+    /// kept as it reads it (no copy per command queued), and the rest.
+    chunk_watch: ChunkWatch,
+    homing: u8,
+    probe: bool,
+    invert_inputs: u8,
     /// Position latched at the last homing or probe trip, steps.
     trip: [i32; N_AXES],
     /// The current trip has been latched into `trip`.
@@ -169,6 +177,14 @@ impl<M: RingMem> Sink for SlotSink<'_, M> {
     fn chunk(&mut self, c: &Chunk) {
         // The slot at chunk_head is free (checked by `space`).
         self.mem.set_chunk(self.w.chunk_head, c);
+        self.w.chunk_head = (self.w.chunk_head + 1) & CHUNK_MASK;
+    }
+
+    // speed: per block queued (see `chunk`)
+    #[inline(always)]
+    fn chunk_in_place(&mut self, fill: impl FnOnce(&mut Chunk)) {
+        // The slot at chunk_head is free (checked by `space`).
+        fill(self.mem.chunk_mut(self.w.chunk_head));
         self.w.chunk_head = (self.w.chunk_head + 1) & CHUNK_MASK;
     }
 
@@ -214,7 +230,10 @@ impl Rings {
             retire: 0,
             w: Writer { chunk_head: 1, seg_done: 0, seg_queued: 0, seg_cycles: [0; SEG_RING_LEN] },
             split: Splitter::new(),
-            watch: Watch::NONE,
+            chunk_watch: ChunkWatch { limits: 0, homed: 0, invert_dir: 0, release: [0; 3] },
+            homing: 0,
+            probe: false,
+            invert_inputs: 0,
             trip: [0; N_AXES],
             trip_latched: false,
         }
@@ -272,6 +291,14 @@ impl Rings {
         if self.queued_cycles(mem) >= MAX_QUEUED_CYCLES {
             return 0;
         }
+        self.slot_space(mem)
+    }
+
+    /// [`Rings::space`] by the free slots alone (the queued motion is
+    /// known to be below [`MAX_QUEUED_CYCLES`]).
+    // flash: see `free_slots`
+    #[inline(always)]
+    fn slot_space(&mut self, mem: &impl RingMem) -> usize {
         let (s, c) = self.free_slots(mem);
         if s >= 2 && c >= 1 {
             (s / 2).min(c) as usize
@@ -287,8 +314,7 @@ impl Rings {
         if self.space(mem) == 0 {
             return false;
         }
-        let cw = self.watch.chunk_watch();
-        self.split.push(cmd, map, &cw, &mut SlotSink { w: &mut self.w, mem });
+        self.split.push(cmd, map, &self.chunk_watch, &mut SlotSink { w: &mut self.w, mem });
         true
     }
 
@@ -299,9 +325,14 @@ impl Rings {
     // flash: see `free_slots`
     #[inline(always)]
     pub fn push_fitting(&mut self, cmd: &StepperCmd, map: &StepMap, mem: &mut impl RingMem) -> usize {
-        let cw = self.watch.chunk_watch();
-        self.split.push(cmd, map, &cw, &mut SlotSink { w: &mut self.w, mem });
-        self.space(mem)
+        self.split.push(cmd, map, &self.chunk_watch, &mut SlotSink { w: &mut self.w, mem });
+        if matches!(cmd, StepperCmd::Block(_)) {
+            // A chunk adds no queued motion: below the cap before (space
+            // was > 0), below it still.
+            self.slot_space(mem)
+        } else {
+            self.space(mem)
+        }
     }
 
     /// Machine position in steps: what has been output on the pins.
@@ -372,12 +403,22 @@ impl Rings {
 
     /// Replace what the ISR watches (the caller also updates the ISR's copy).
     pub fn set_watch(&mut self, w: Watch) {
-        self.watch = w;
+        self.chunk_watch = w.chunk_watch();
+        (self.homing, self.probe, self.invert_inputs) = (w.homing, w.probe, w.invert_inputs);
     }
 
     /// What the ISR watches now.
     pub fn watch(&self) -> Watch {
-        self.watch
+        let c = &self.chunk_watch;
+        Watch {
+            homing: self.homing,
+            probe: self.probe,
+            limits: c.limits,
+            homed: c.homed,
+            invert_dir: c.invert_dir,
+            invert_inputs: self.invert_inputs,
+            release: c.release,
+        }
     }
 }
 

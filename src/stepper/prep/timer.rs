@@ -22,6 +22,18 @@ pub(super) fn times2(x: f32) -> f32 {
     }
 }
 
+/// x / 2 exactly, by taking one from the exponent of a normal x whose half
+/// is normal too (a soft-float multiply on the AVR otherwise); other values
+/// take the multiply.
+pub(super) fn half(x: f32) -> f32 {
+    let e = x.to_bits() & 0x7F80_0000;
+    if e > 0x0080_0000 && e != 0x7F80_0000 {
+        f32::from_bits(x.to_bits() - 0x0080_0000)
+    } else {
+        0.5 * x
+    }
+}
+
 /// ⌈x⌉ for 0 ≤ x < 2³².
 #[inline]
 pub(super) fn ceil_u32(x: f32) -> u32 {
@@ -72,7 +84,32 @@ pub(super) fn timer_for(cycles: f32) -> (u16, Prescale) {
 
 #[cfg(test)]
 mod tests {
-    use super::{per_tick, times2};
+    use super::{half, per_tick, times2};
+
+    #[test]
+    fn half_is_the_multiply_bit_for_bit() {
+        let mut b = 7u32;
+        for _ in 0..200_000 {
+            b = b.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let x = f32::from_bits(b);
+            let (got, want) = (half(x), 0.5 * x);
+            assert!(got.to_bits() == want.to_bits() || (x.is_nan() && got.is_nan()), "{x:e}: {got:e} vs {want:e}");
+        }
+        for x in [
+            0.0f32,
+            -0.0,
+            f32::MIN_POSITIVE,
+            2.0 * f32::MIN_POSITIVE,
+            3.0 * f32::MIN_POSITIVE,
+            1e-45,
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            -f32::INFINITY,
+        ] {
+            assert_eq!(half(x).to_bits(), (0.5 * x).to_bits(), "{x:e}");
+        }
+    }
 
     #[test]
     fn times2_is_the_multiply_bit_for_bit() {

@@ -119,6 +119,10 @@ impl RingMem for Statics {
         assert!(i != self.cur || self.ticks_left == 0 && self.pending == 0, "writing the running chunk");
         self.chunks[i as usize] = *c;
     }
+    fn chunk_mut(&mut self, i: u8) -> &mut Chunk {
+        assert!(i != self.cur || self.ticks_left == 0 && self.pending == 0, "writing the running chunk");
+        &mut self.chunks[i as usize]
+    }
     fn set_seg(&mut self, i: u8, s: &Seg) {
         assert_eq!(i, self.seg_head);
         assert!(self.queued_segs() < SEG_MASK, "segment ring overrun");
