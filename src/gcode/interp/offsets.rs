@@ -106,3 +106,20 @@ pub(super) fn work_to_machine(i: &Interp, g: &ModalCopy, a: usize, v: f32) -> f3
     let tlo = if a == 2 { g.tlo } else { 0.0 };
     add_nz(add_nz(add_nz(v, i.wcs_mm[g.wcs as usize][a]), g.g92[a]), tlo)
 }
+
+/// [`work_to_machine`] for an axis word of a move, inlined with `a` a
+/// constant: an axis without offsets (the work offset, G92 and, on Z, the
+/// tool length all +0.0, as in most jobs) is `v` after one test of the
+/// offsets' bit patterns, instead of a call and three `add_nz` calls (~240
+/// cycles on the AVR). The reference, plain float additions:
+/// `work_to_machine_fast_matches_the_plain_sum`.
+// speed: inlined per axis at a streamed move's axis words (see above)
+#[inline(always)]
+pub(super) fn work_to_machine_fast(i: &Interp, g: &ModalCopy, a: usize, v: f32) -> f32 {
+    let tlo = if a == 2 { g.tlo.to_bits() } else { 0 };
+    if i.wcs_mm[g.wcs as usize][a].to_bits() | g.g92[a].to_bits() | tlo == 0 {
+        v
+    } else {
+        work_to_machine(i, g, a, v)
+    }
+}
