@@ -174,12 +174,19 @@ impl Station {
     // speed: inlined, the test is a few instructions and no arrays are built
     #[inline(always)]
     pub fn keep_out_entry(&self, a: [f32; 3], b: [f32; 3]) -> Option<f32> {
-        // `w > 0.0`: positive (sign clear, not ±0) and not a NaN.
-        let w = self.keep_out_half_width.to_bits();
-        if !(w as i32 > 0 && w <= 0x7F80_0000) {
+        if !self.keep_out_on() {
             return None;
         }
         self.keep_out_crossing(a, b)
+    }
+
+    /// The zone is on: `keep_out_half_width > 0.0`, on the bit pattern
+    /// (positive, not ±0, not a NaN). Callers test it before they build
+    /// the points for [`Station::keep_out_entry`].
+    #[inline(always)]
+    pub fn keep_out_on(&self) -> bool {
+        let w = self.keep_out_half_width.to_bits();
+        w as i32 > 0 && w <= 0x7F80_0000
     }
 
     /// [`Station::keep_out_entry`] with the zone on. The slabs are taken Z

@@ -4,13 +4,13 @@
 //! compensation.
 
 use super::command::Command;
-use super::comp_line::CompOutcome;
+use super::comp_line::{self, CompOutcome};
 use super::error::Error;
 use super::limits::{keep_out, soft_limits};
 use super::line_run::Phase;
 use super::modal::ModalCopy;
 use super::offsets::{work_to_machine, work_to_machine_fast};
-use super::units::word_mm;
+use super::units::{positive, word_mm};
 use super::{axis_words_are_settings, has_axis_words, Ctx, Interp};
 use crate::gcode::{Line, Motion, NonModal, Word};
 
@@ -59,9 +59,16 @@ impl Interp {
             }
             self.run.target[3] = if g.incremental { self.pos_mm[3] + v } else { v };
         }
-        let mode = match self.comp_line(cx, g, l, motion, any_axis, e_word.is_some())? {
-            CompOutcome::Done(r) => return r,
-            CompOutcome::Ordinary(mode) => mode,
+        // Without compensation, on or turned on by this line, there is
+        // nothing for `comp_line` to do (its test, made here, spares a call
+        // and the copy of its result).
+        let mode = if self.comp.side.is_none() && !comp_line::turns_on(l) {
+            None
+        } else {
+            match self.comp_line(cx, g, l, motion, any_axis, e_word.is_some())? {
+                CompOutcome::Done(r) => return r,
+                CompOutcome::Ordinary(mode) => mode,
+            }
         };
         if let Motion::Cycle(kind) = g.motion {
             if any_axis || l.motion.is_some() {
@@ -78,7 +85,7 @@ impl Interp {
                 }
                 Motion::Rapid => {}
                 _ => {
-                    if !(g.feed > 0.0) {
+                    if !positive(g.feed) {
                         return Err(Error::BadFeed);
                     }
                 }
