@@ -273,7 +273,7 @@ mod tests {
             for (k, w) in WORDS.iter().enumerate() {
                 // Move words often, the others seldom.
                 let p = if k < 13 { 3 } else { 14 };
-                if (x >> (k % 24)).wrapping_mul(2_654_435_761) % p == 0 {
+                if (x >> (k % 24)).wrapping_mul(2_654_435_761).is_multiple_of(p) {
                     text.push_str(w);
                     text.push(' ');
                 }
