@@ -25,10 +25,21 @@
 /// Index of Z in a position array.
 pub const Z: usize = 2;
 
-/// `-v`, with zero always `+0.0` (never `-0.0`): a flip of the sign bit.
+/// `-v`, with zero always `+0.0` (never `-0.0`): a flip of the sign bit,
+/// on the bit pattern. Written as `v == ±0.0 ? 0.0 : -v` (`flip_plain`, the
+/// reference: `flip_matches_its_float_reference`), LLVM-AVR made the zero
+/// test a soft-float compare (~50 cycles, on every Z word and report).
 #[inline]
 fn flip(v: f32) -> f32 {
-    if v.to_bits() & 0x7FFF_FFFF == 0 {
+    let b = v.to_bits() ^ 0x8000_0000;
+    // Only +0.0 flips to the pattern 0x8000_0000 (−0.0 flips to +0.0).
+    f32::from_bits(if b == 0x8000_0000 { 0 } else { b })
+}
+
+/// [`flip`] by a float test and negation: its reference.
+#[cfg(test)]
+fn flip_plain(v: f32) -> f32 {
+    if v == 0.0 {
         0.0
     } else {
         -v
@@ -102,6 +113,26 @@ mod tests {
         assert_eq!(steps_user_from_internal([100, 200, 300, 7]), [100, 200, -300, 7]);
         for v in [0.0f32, 1.0, -1.0, 45.0, 0.01, -123.456] {
             assert_eq!(internal_from_user(user_from_internal([0.0, 0.0, v]))[Z], v);
+        }
+    }
+
+    #[test]
+    fn flip_matches_its_float_reference() {
+        let check = |b: u32| {
+            let v = f32::from_bits(b);
+            let (f, p) = (flip(v), flip_plain(v));
+            // NaN: any NaN (no G-code word is one); else the same bits.
+            assert!(f.to_bits() == p.to_bits() || (f.is_nan() && p.is_nan()), "{v:e} ({b:#x})");
+        };
+        for b in [0, 0x8000_0000, 1, 0x8000_0001, 0x7F80_0000, 0xFF80_0000, 0x3F80_0000, 0xBF80_0000, 0x7FFF_FFFF, 0xFFFF_FFFF] {
+            check(b);
+        }
+        let mut x = 0x2545_F491_u32;
+        for _ in 0..1_000_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            check(x);
         }
     }
 

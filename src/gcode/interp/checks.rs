@@ -31,6 +31,9 @@ pub(super) fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Opti
             return Some(Err(Error::JobRunning));
         }
     }
+    if only_a_move(l) {
+        return move_checks(cx, l, extras);
+    }
     // Commands that work in any state first.
     if let Some(code) = l.other_m {
         let c = match code {
@@ -57,9 +60,62 @@ pub(super) fn early(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Opti
     early_checks(cx, l, extras)
 }
 
+/// The words of a line that is only a move: a point (X, Y, Z, `@`, `^`),
+/// E, F.
+const MOVE_WORDS: u32 = Word::mask(&[Word::X, Word::Y, Word::Z, Word::At, Word::Caret, Word::E, Word::F]);
+
+/// True when `l` has nothing but a move: no M code, no non-modal code, no
+/// spindle, coolant, tool change or stop, and only [`MOVE_WORDS`] (a
+/// streamed `G1 X.. Y..`).
+#[inline(always)]
+fn only_a_move(l: &Line) -> bool {
+    l.other_m.is_none()
+        && l.non_modal.is_none()
+        && l.spindle.is_none()
+        && l.coolant.is_none()
+        && !l.tool_change
+        && l.stopping.is_none()
+        && l.words.within(MOVE_WORDS)
+}
+
+/// [`early_checks`] for a line that is [`only_a_move`], with the tests that
+/// cannot refuse it left out (no M code, no spindle, no T or S: ~250
+/// cycles a streamed line on the AVR). The reference, every line through
+/// `early_checks`: `early_on_a_move_matches_the_full_checks`.
+#[inline(always)]
+fn move_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
+    let moves = l.motion.is_some() || has_axis_words(l) || l.words.contains(Word::E);
+    if moves && cx.alarm {
+        return Some(Err(Error::Alarm));
+    }
+    if moves && cx.atc.interrupted.is_some() {
+        return Some(Err(Error::Atc(crate::atc::Fault::Interrupted)));
+    }
+    if let Some(f) = l.word(Word::F) {
+        if let Some(e) = feed_error(f) {
+            return Some(Err(e));
+        }
+    }
+    *extras = false;
+    None
+}
+
+/// The F word's check: not negative, not zero.
+// flash: one copy for both paths of `early`
+#[inline(never)]
+fn feed_error(f: f32) -> Option<Error> {
+    if f < 0.0 {
+        return Some(Error::Coded(grbl::NEGATIVE, F!("F must not be negative")));
+    }
+    if !(f > 0.0) {
+        return Some(Error::BadFeed);
+    }
+    None
+}
+
 /// The locks and the validation of [`early`]; `extras`: the line has more
 /// than its motion (T, M6, S, M3/M5, M7–M9), from the lookups made here.
-fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
+pub(super) fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<Command>, Error>> {
     let moves = l.motion.is_some()
         || has_axis_words(l)
         || l.words.contains(Word::E)
@@ -102,11 +158,8 @@ fn early_checks(cx: &Ctx, l: &Line, extras: &mut bool) -> Option<Result<Option<C
         }
     }
     if let Some(f) = l.word(Word::F) {
-        if f < 0.0 {
-            return Some(Err(Error::Coded(grbl::NEGATIVE, F!("F must not be negative"))));
-        }
-        if !(f > 0.0) {
-            return Some(Err(Error::BadFeed));
+        if let Some(e) = feed_error(f) {
+            return Some(Err(e));
         }
     }
     let s_word = spindle_speed(l);
@@ -191,5 +244,54 @@ pub(super) fn unused_word(l: &Line, g: &ModalCopy) -> Result<(), Error> {
     match l.words.first_outside(used) {
         Some(w) => Err(Error::UnusedWord(w)),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Settings;
+
+    #[test]
+    fn early_on_a_move_matches_the_full_checks() {
+        // Lines of words drawn from moves and from everything else a line
+        // may carry, in every lock state: a move takes the short path, and
+        // it and the full checks give the same answer and the same `extras`.
+        const WORDS: [&str; 24] = [
+            "G0", "G1", "G2", "G38.2", "X1", "Y-2", "Z.5", "@3", "^45", "E2", "F100", "F0", "F-5", "S1000", "S-1", "T2", "T99", "M3", "M4",
+            "M5", "M6", "M8", "G4 P1", "M114",
+        ];
+        let mut x = 0x2545_F491_u32;
+        let mut atc = crate::atc::Atc::new();
+        let mut settings = Settings::DEFAULT;
+        let (mut short, mut total) = (0, 0);
+        for i in 0..40_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let mut text = String::new();
+            for (k, w) in WORDS.iter().enumerate() {
+                // Move words often, the others seldom.
+                let p = if k < 13 { 3 } else { 14 };
+                if (x >> (k % 24)).wrapping_mul(2_654_435_761).is_multiple_of(p) {
+                    text.push_str(w);
+                    text.push(' ');
+                }
+            }
+            let Ok(l) = crate::gcode::parse(text.as_bytes()) else { continue };
+            atc.interrupted = (i % 5 == 1).then_some(crate::atc::Journal { from: 1, to: 2 });
+            settings.immediate_tool_change = i % 7 == 3;
+            let cx = Ctx { settings: &settings, atc: &atc, alarm: i % 3 == 2, estop: i % 6 == 5, status_only: false };
+            let (mut e1, mut e2) = (true, true);
+            let fast = early(&cx, &l, &mut e1);
+            let plain = early_checks(&cx, &l, &mut e2);
+            total += 1;
+            if only_a_move(&l) {
+                short += 1;
+                assert_eq!(fast, plain, "{text}");
+                assert_eq!(e1, e2, "{text}");
+            }
+        }
+        assert!(short > 5_000 && total - short > 5_000, "{short} of {total}");
     }
 }

@@ -53,7 +53,7 @@ impl Interp {
         let mut pos = [0.0f32; 3];
         for a in 0..3 {
             let tlo = if a == 2 { g.tlo } else { 0.0 };
-            off[a] = self.wcs_mm[g.wcs as usize][a] + g.g92[a] + tlo;
+            off[a] = self.wcs_mm[g.wcs as usize][a] + self.g92_mm[a] + tlo;
             pos[a] = frame::axis_user_from_internal(a, self.pos_mm[a] - off[a]);
         }
         let prev = match self.motion {

@@ -95,13 +95,21 @@ pub(super) fn soft_limits(cache: &mut [(u32, i32); N_AXES], travel_steps: &[i32;
     if !s.soft_limits {
         return Ok(());
     }
-    // X, Y, Z only, each checked as it is converted (no array of all four
-    // axes built and read back: ~330 cycles a streamed line on the AVR).
-    for a in 0..3 {
-        let st = step_cached(&mut cache[a], s.steps_per_mm[a], t[a]);
-        if st < 0 || st > travel_steps[a] {
-            return Err(Error::SoftLimit);
-        }
+    // X, Y, Z only, each checked as it is converted through its cache
+    // entry (no array of all four axes built and read back: ~330 cycles a
+    // streamed line on the AVR), written out per axis: as a loop the
+    // indexing cost ~250 cycles more.
+    let x = step_cached(&mut cache[0], s.steps_per_mm[0], t[0]);
+    if x < 0 || x > travel_steps[0] {
+        return Err(Error::SoftLimit);
+    }
+    let y = step_cached(&mut cache[1], s.steps_per_mm[1], t[1]);
+    if y < 0 || y > travel_steps[1] {
+        return Err(Error::SoftLimit);
+    }
+    let z = step_cached(&mut cache[2], s.steps_per_mm[2], t[2]);
+    if z < 0 || z > travel_steps[2] {
+        return Err(Error::SoftLimit);
     }
     Ok(())
 }
@@ -132,7 +140,8 @@ fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXE
 /// keep-out zone (only the tool change, which does not come through here,
 /// goes in).
 pub(super) fn keep_out(s: &Settings, a: &[f32; N_AXES], b: &[f32; N_AXES]) -> Result<(), Error> {
-    if s.station.enters_keep_out([a[0], a[1], a[2]], [b[0], b[1], b[2]]) {
+    // Tested first: the points below are built before the call, zone or not.
+    if s.station.keep_out_on() && s.station.enters_keep_out([a[0], a[1], a[2]], [b[0], b[1], b[2]]) {
         return Err(Error::KeepOut);
     }
     Ok(())

@@ -9,7 +9,10 @@ use super::{Ctx, Interp};
 use crate::gcode::cycles::Retract;
 use crate::gcode::{Distance, Line, Motion, Plane, ToolLength, Units, Word};
 
-/// The modal fields a line may change, copied so an invalid line changes nothing.
+/// The modal fields a line may change, copied so an invalid line changes
+/// nothing. The G92 offset is not among them: only a G92 line sets it, and
+/// that line moves nothing, so it is read from the [`Interp`] itself (a
+/// copy was a 12-byte `memcpy` call on every line).
 pub(super) struct ModalCopy {
     pub(super) inches: bool,
     pub(super) incremental: bool,
@@ -21,7 +24,6 @@ pub(super) struct ModalCopy {
     pub(super) feed: f32,
     pub(super) wcs: u8,
     pub(super) tlo: f32,
-    pub(super) g92: [f32; 3],
 }
 
 impl ModalCopy {
@@ -37,7 +39,6 @@ impl ModalCopy {
             feed: i.feed_mm_per_min,
             wcs: i.wcs,
             tlo: i.tlo_mm,
-            g92: i.g92_mm,
         }
     }
 

@@ -4,14 +4,14 @@
 //! compensation.
 
 use super::command::Command;
-use super::comp_line::CompOutcome;
+use super::comp_line::{self, CompOutcome};
 use super::error::Error;
 use super::limits::{keep_out, soft_limits};
 use super::line_run::Phase;
 use super::modal::ModalCopy;
-use super::offsets::work_to_machine;
-use super::units::word_mm;
-use super::{axis_words_are_settings, has_axis_words, Ctx, Interp, AXIS_WORDS};
+use super::offsets::{work_to_machine, work_to_machine_fast};
+use super::units::{positive, word_mm};
+use super::{axis_words_are_settings, has_axis_words, Ctx, Interp};
 use crate::gcode::{Line, Motion, NonModal, Word};
 
 impl Interp {
@@ -23,27 +23,18 @@ impl Interp {
     pub(super) fn motion_line(&mut self, cx: &Ctx, g: &ModalCopy, l: &Line) -> Result<Option<Command>, Error> {
         let machine_coords = l.non_modal == Some(NonModal::MachineCoords);
         // The target is worked out in place (`run.target` means nothing
-        // until the line commits): no copy on the way to the move.
-        self.run.target = self.pos_mm;
-        if self.comp.side.is_some() {
-            // Under compensation the programmed position, not the tool's.
-            for a in 0..3 {
-                self.run.target[a] = self.prog_pos(a);
-            }
-        }
+        // until the line commits): no copy on the way to the move. An axis
+        // the line does not name stays where it is (under compensation X, Y
+        // and Z at the programmed position, not the tool's), each set by
+        // `axis_target` (an array copy first was a 16-byte `memcpy` call).
+        self.run.target[3] = self.pos_mm[3];
         let any_axis = has_axis_words(l) && !axis_words_are_settings(l);
-        for (a, &w) in AXIS_WORDS.iter().enumerate() {
-            if let Some(v) = l.word(w) {
-                let v = word_mm(g.inches, a, v);
-                self.run.target[a] = if machine_coords {
-                    v
-                } else if g.incremental {
-                    self.prog_pos(a) + v
-                } else {
-                    work_to_machine(self, g, a, v)
-                };
-            }
-        }
+        // One call per axis with the axis a constant: each word's presence
+        // is a bit test, its Z flip and offsets fold (a loop over the axes
+        // made them calls, ~700 cycles a streamed XY line on the AVR).
+        self.axis_target(g, l, machine_coords, 0, Word::X);
+        self.axis_target(g, l, machine_coords, 1, Word::Y);
+        self.axis_target(g, l, machine_coords, 2, Word::Z);
         if machine_coords && matches!(g.motion, Motion::Cycle(_)) {
             return Err(Error::BadWord(F!("G53 not allowed with a canned cycle (G80 first)")));
         }
@@ -68,9 +59,16 @@ impl Interp {
             }
             self.run.target[3] = if g.incremental { self.pos_mm[3] + v } else { v };
         }
-        let mode = match self.comp_line(cx, g, l, motion, any_axis, e_word.is_some())? {
-            CompOutcome::Done(r) => return r,
-            CompOutcome::Ordinary(mode) => mode,
+        // Without compensation, on or turned on by this line, there is
+        // nothing for `comp_line` to do (its test, made here, spares a call
+        // and the copy of its result).
+        let mode = if self.comp.side.is_none() && !comp_line::turns_on(l) {
+            None
+        } else {
+            match self.comp_line(cx, g, l, motion, any_axis, e_word.is_some())? {
+                CompOutcome::Done(r) => return r,
+                CompOutcome::Ordinary(mode) => mode,
+            }
         };
         if let Motion::Cycle(kind) = g.motion {
             if any_axis || l.motion.is_some() {
@@ -87,7 +85,7 @@ impl Interp {
                 }
                 Motion::Rapid => {}
                 _ => {
-                    if !(g.feed > 0.0) {
+                    if !positive(g.feed) {
                         return Err(Error::BadFeed);
                     }
                 }
@@ -120,5 +118,27 @@ impl Interp {
                 Ok(None)
             }
         }
+    }
+
+    /// The target of axis `a` (word `w`) in `run.target`, if the line names
+    /// it: G53 machine coordinates, G91 increments, or G90 work coordinates.
+    // speed: inlined with `a` and `w` constants (see motion_line)
+    #[inline(always)]
+    fn axis_target(&mut self, g: &ModalCopy, l: &Line, machine_coords: bool, a: usize, w: Word) {
+        self.run.target[a] = match l.word(w) {
+            Some(v) => {
+                let v = word_mm(g.inches, a, v);
+                if machine_coords {
+                    v
+                } else if g.incremental {
+                    self.prog_pos(a) + v
+                } else {
+                    work_to_machine_fast(self, g, a, v)
+                }
+            }
+            // `prog_pos` is `pos_mm` without compensation: no call then.
+            None if self.comp.side.is_some() => self.prog_pos(a),
+            None => self.pos_mm[a],
+        };
     }
 }

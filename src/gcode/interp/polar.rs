@@ -35,7 +35,10 @@ impl Interp {
     pub(super) fn polar_point(&self, g: &ModalCopy, l: &Line) -> Result<[f32; 2], Error> {
         let at = l.word(Word::At).map(|v| to_mm(g.inches, v));
         let angle = l.word(Word::Caret).map(deg_to_rad);
-        let cur = [self.pos_mm[0] - self.wcs_mm[g.wcs as usize][0] - g.g92[0], self.pos_mm[1] - self.wcs_mm[g.wcs as usize][1] - g.g92[1]];
+        let cur = [
+            self.pos_mm[0] - self.wcs_mm[g.wcs as usize][0] - self.g92_mm[0],
+            self.pos_mm[1] - self.wcs_mm[g.wcs as usize][1] - self.g92_mm[1],
+        ];
         let at_origin = cur[0] == 0.0 && cur[1] == 0.0;
         let r0 = crate::math::sqrtf(cur[0] * cur[0] + cur[1] * cur[1]);
         let a0 = crate::math::atan2f(cur[1], cur[0]);
