@@ -239,7 +239,7 @@ impl Default for Machine {
 impl Machine {
     /// A machine with default settings (the EEPROM is read in [`Machine::boot`]).
     pub const fn new() -> Machine {
-        Machine::with_settings(Settings::DEFAULT)
+        Machine::with_settings(Settings::DEFAULT, crate::toolsetter::Setter::DEFAULT)
     }
 
     /// Build the machine in `slot` with the factory settings read from flash.
@@ -254,20 +254,31 @@ impl Machine {
         // defaults copied in from flash: with the defaults' call in the
         // initialiser the whole machine was built in a 1.5 KB temporary,
         // the deepest stack of a run.
-        let m = slot.write(Machine::with_settings(Settings::ZEROED));
+        // The same for the tool setter's record (its default as a value was
+        // a 24-byte template in RAM that LLVM copied from).
+        let zeroed_setter = crate::toolsetter::Setter {
+            x_um: 0,
+            y_um: 0,
+            beam_z_um: 0,
+            beam_width_um: 0,
+            ref_length_um: 0,
+            ref_diameter_um: 0,
+        };
+        let m = slot.write(Machine::with_settings(Settings::ZEROED, zeroed_setter));
         m.settings.reset_to_defaults();
+        m.setter = crate::toolsetter::Setter::factory();
         m
     }
 
-    /// A machine with `settings`.
-    pub const fn with_settings(settings: Settings) -> Machine {
+    /// A machine with `settings` and the tool setter's record `setter`.
+    pub const fn with_settings(settings: Settings, setter: crate::toolsetter::Setter) -> Machine {
         Machine {
             settings,
             planner: Planner::new(),
             prep: Prep::new(),
             interp: Interp::new(),
             atc: crate::atc::Atc::new(),
-            setter: crate::toolsetter::Setter::DEFAULT,
+            setter,
             asm: LineAssembler::new(),
             chk: LineChecker::new(),
             state: State::Idle,
