@@ -17,20 +17,10 @@ pub fn position(m: &Machine, io: &mut (impl Stepper + ufmt::uWrite)) {
     // Count: the step counters in the user's sense (Z counts up), so that
     // Count = position × steps/mm as in Marlin.
     let st = frame::steps_user_from_internal(internal);
-    uwriteln!(
-        io,
-        "X:{} Y:{} Z:{} E:{}{}{} Y:{} Z:{} E:{}",
-        Micros::from_mm(w[0]),
-        Micros::from_mm(w[1]),
-        Micros::from_mm(w[2]),
-        Micros::from_mm(w[3]),
-        F!(" Count X:"),
-        st[0],
-        st[1],
-        st[2],
-        st[3]
-    )
-    .ok();
+    // The field names through F!: as format text they were RAM strings.
+    let (y, z, e) = (F!(" Y:"), F!(" Z:"), F!(" E:"));
+    uwrite!(io, "{}{}{}{}{}{}{}{}", F!("X:"), Micros::from_mm(w[0]), y, Micros::from_mm(w[1]), z, Micros::from_mm(w[2]), e, Micros::from_mm(w[3])).ok();
+    uwriteln!(io, "{}{}{}{}{}{}{}{}", F!(" Count X:"), st[0], y, st[1], z, st[2], e, st[3]).ok();
 }
 
 /// M119: the switches.
