@@ -256,14 +256,8 @@ impl Machine {
         // the deepest stack of a run.
         // The same for the tool setter's record (its default as a value was
         // a 24-byte template in RAM that LLVM copied from).
-        let zeroed_setter = crate::toolsetter::Setter {
-            x_um: 0,
-            y_um: 0,
-            beam_z_um: 0,
-            beam_width_um: 0,
-            ref_length_um: 0,
-            ref_diameter_um: 0,
-        };
+        let zeroed_setter =
+            crate::toolsetter::Setter { x_um: 0, y_um: 0, beam_z_um: 0, beam_width_um: 0, ref_length_um: 0, ref_diameter_um: 0 };
         let m = slot.write(Machine::with_settings(Settings::ZEROED, zeroed_setter));
         m.settings.reset_to_defaults();
         m.setter = crate::toolsetter::Setter::factory();

@@ -19,7 +19,19 @@ pub fn position(m: &Machine, io: &mut (impl Stepper + ufmt::uWrite)) {
     let st = frame::steps_user_from_internal(internal);
     // The field names through F!: as format text they were RAM strings.
     let (y, z, e) = (F!(" Y:"), F!(" Z:"), F!(" E:"));
-    uwrite!(io, "{}{}{}{}{}{}{}{}", F!("X:"), Micros::from_mm(w[0]), y, Micros::from_mm(w[1]), z, Micros::from_mm(w[2]), e, Micros::from_mm(w[3])).ok();
+    uwrite!(
+        io,
+        "{}{}{}{}{}{}{}{}",
+        F!("X:"),
+        Micros::from_mm(w[0]),
+        y,
+        Micros::from_mm(w[1]),
+        z,
+        Micros::from_mm(w[2]),
+        e,
+        Micros::from_mm(w[3])
+    )
+    .ok();
     uwriteln!(io, "{}{}{}{}{}{}{}{}", F!(" Count X:"), st[0], y, st[1], z, st[2], e, st[3]).ok();
 }
 
