@@ -239,7 +239,9 @@ impl Default for Machine {
 impl Machine {
     /// A machine with default settings (the EEPROM is read in [`Machine::boot`]).
     pub const fn new() -> Machine {
-        Machine::with_settings(Settings::DEFAULT)
+        let mut m = Machine::with_settings(Settings::DEFAULT);
+        m.setter = crate::toolsetter::Setter::DEFAULT;
+        m
     }
 
     /// Build the machine in `slot` with the factory settings read from flash.
@@ -254,12 +256,17 @@ impl Machine {
         // defaults copied in from flash: with the defaults' call in the
         // initialiser the whole machine was built in a 1.5 KB temporary,
         // the deepest stack of a run.
+        // The tool setter's record stays zero: `boot` loads it (or its
+        // default, from flash). As a value its default was a 24-byte
+        // template in RAM (`.data`), and read here a 24-byte temporary in
+        // this frame, the deepest of the boot.
         let m = slot.write(Machine::with_settings(Settings::ZEROED));
         m.settings.reset_to_defaults();
         m
     }
 
-    /// A machine with `settings`.
+    /// A machine with `settings`, the tool setter's record all zero (the
+    /// callers set it).
     pub const fn with_settings(settings: Settings) -> Machine {
         Machine {
             settings,
@@ -267,7 +274,7 @@ impl Machine {
             prep: Prep::new(),
             interp: Interp::new(),
             atc: crate::atc::Atc::new(),
-            setter: crate::toolsetter::Setter::DEFAULT,
+            setter: crate::toolsetter::Setter { x_um: 0, y_um: 0, beam_z_um: 0, beam_width_um: 0, ref_length_um: 0, ref_diameter_um: 0 },
             asm: LineAssembler::new(),
             chk: LineChecker::new(),
             state: State::Idle,

@@ -9,6 +9,7 @@ mod common;
 #[path = "common/panel.rs"]
 mod panel;
 use common::*;
+use mill::planner::BLOCK_BUFFER_LEN;
 use panel::screen;
 use sim::{Axis, Vm};
 
@@ -452,20 +453,20 @@ fn a_move_that_waits_for_planner_room_is_acknowledged_once_it_is_queued() {
     let mut vm = unlocked();
     let p0 = steps(&vm);
     ok(&mut vm, "G91");
-    // 16 moves of 2.5 s fill the planner, each acknowledged at once.
+    // A planner's worth of moves of 2.5 s fill it, each acknowledged at once.
     let f = vm.frequency() as f64;
     let c0 = vm.cycles();
-    for n in 0..16 {
+    for n in 0..BLOCK_BUFFER_LEN {
         vm.send_line("G1 X1 F24");
         vm.wait_line(|l| l == "ok", 1.0).unwrap_or_else(|e| panic!("ok {n}: {e}"));
     }
     assert!((vm.cycles() - c0) as f64 / f < 0.5);
-    // The 17th waits ~2.5 s for room: its ok with it.
+    // The next waits ~2.5 s for room: its ok with it.
     let c1 = vm.cycles();
     vm.send_line("G1 X1 F24");
-    vm.wait_line(|l| l == "ok", 5.0).expect("the 17th ok");
+    vm.wait_line(|l| l == "ok", 5.0).expect("the ok of the move past a full planner");
     let t = (vm.cycles() - c1) as f64 / f;
-    assert!(t > 1.0, "the 17th ok after {t:.3} s, before the move had room");
+    assert!(t > 1.0, "the ok of the move past a full planner after {t:.3} s, before the move had room");
     // The longest line a host may send, right after that ok, while the
     // planner is still full.
     let mut long = String::from("G1 X1 F24 (");
@@ -486,25 +487,26 @@ fn a_move_that_waits_for_planner_room_is_acknowledged_once_it_is_queued() {
     assert!(lines.iter().any(|l| l.contains("soft limit")), "{lines:?}");
     // One ok per line: an ok left over would end M400's wait early.
     ok(&mut vm, "M400");
-    assert_eq!(moved(&vm, p0)[0], 1800);
+    assert_eq!(moved(&vm, p0)[0], (BLOCK_BUFFER_LEN as i64 + 2) * 100);
 }
 
 #[test]
 fn a_line_waiting_for_room_in_the_planner_keeps_the_host_alive() {
-    // 18 moves of 2.5 s each sent at once: the planner holds 16, so the
-    // 17th line's `ok` waits ~2.5 s for room, the 18th ~5 s: busy lines
+    // Two moves of 2.5 s more than the planner holds, sent at once: the
+    // first past it waits ~2.5 s for room, the second ~5 s: busy lines
     // must fill the silence (OctoPrint's busy timeout is 3 s).
     let mut vm = unlocked();
     let p0 = steps(&vm);
     ok(&mut vm, "G91");
     let c0 = vm.cycles();
-    for _ in 0..18 {
+    let n = BLOCK_BUFFER_LEN + 2;
+    for _ in 0..n {
         vm.send_line("G1 X1 F24");
     }
     let mut oks = 0;
     let f = vm.frequency() as f64;
     let mut last = c0 as f64 / f;
-    while oks < 18 {
+    while oks < n {
         let l = vm.wait_line(|_| true, 3.0).unwrap_or_else(|e| panic!("silence: {e} after {oks} oks"));
         let t = vm.seconds();
         assert!(t - last <= 2.1, "{:.3} s of silence before {l:?}", t - last);
@@ -513,5 +515,5 @@ fn a_line_waiting_for_room_in_the_planner_keeps_the_host_alive() {
     }
     assert!(!busy_times(&vm, c0).is_empty());
     ok(&mut vm, "M400");
-    assert_eq!(moved(&vm, p0)[0], 1800);
+    assert_eq!(moved(&vm, p0)[0], n as i64 * 100);
 }

@@ -90,7 +90,7 @@ pub fn emergency_stop() {
         // SAFETY: RMW of PORTH inside the critical section; coolant off.
         unsafe {
             let p = pins::COOLANT;
-            core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
+            core::ptr::write_volatile(p.port().port, core::ptr::read_volatile(p.port().port) & !p.mask);
         }
     });
     REALTIME.fetch_or(realtime::ESTOP, Ordering::AcqRel);
@@ -106,7 +106,7 @@ pub(crate) fn emergency_stop_in_isr() {
     /// Drive pin `p` high (enable is active low: driver off).
     fn set_high(p: pins::Pin) {
         // SAFETY: RMW of PORTx with interrupts off (inside an ISR).
-        unsafe { core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) | p.mask) }
+        unsafe { core::ptr::write_volatile(p.port().port, core::ptr::read_volatile(p.port().port) | p.mask) }
     }
     set_high(pins::X_ENABLE);
     set_high(pins::Y_ENABLE);
@@ -116,12 +116,12 @@ pub(crate) fn emergency_stop_in_isr() {
     unsafe {
         (*TC2::ptr()).tccr2a().modify(|_, w| w.com2a().disconnected());
         let p = pins::SPINDLE_PWM;
-        core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
+        core::ptr::write_volatile(p.port().port, core::ptr::read_volatile(p.port().port) & !p.mask);
     }
     // SAFETY: RMW of PORTH with interrupts off (inside an ISR).
     unsafe {
         let p = pins::COOLANT;
-        core::ptr::write_volatile(p.port.port, core::ptr::read_volatile(p.port.port) & !p.mask);
+        core::ptr::write_volatile(p.port().port, core::ptr::read_volatile(p.port().port) & !p.mask);
     }
     raise_in_isr(realtime::ESTOP);
 }
@@ -132,10 +132,9 @@ pub(crate) fn emergency_stop_in_isr() {
 pub fn drivers_enable(on: bool) {
     // Every queued move asks for the drivers on: when all four already are,
     // skip the critical section and the read-modify-writes.
-    let all_on = [pins::X_ENABLE, pins::Y_ENABLE, pins::Z_ENABLE, pins::E_ENABLE]
-        .iter()
-        // SAFETY: reading PORTx has no side effects.
-        .all(|p| unsafe { core::ptr::read_volatile(p.port.port) } & p.mask == 0);
+    // SAFETY: reading PORTx has no side effects.
+    let on_now = |p: pins::Pin| unsafe { core::ptr::read_volatile(p.port().port) } & p.mask == 0;
+    let all_on = on_now(pins::X_ENABLE) && on_now(pins::Y_ENABLE) && on_now(pins::Z_ENABLE) && on_now(pins::E_ENABLE);
     if on && all_on {
         return;
     }
@@ -150,13 +149,17 @@ pub fn drivers_enable(on: bool) {
 // speed: see above (LLVM inlines it otherwise)
 #[inline(never)]
 fn drivers_enable_raw(on: bool) {
-    for p in pins::ENABLE {
+    let set = |p: pins::Pin| {
         // SAFETY: RMW of PORTx; callers hold a critical section.
         unsafe {
-            let v = core::ptr::read_volatile(p.port.port);
-            core::ptr::write_volatile(p.port.port, if on { v & !p.mask } else { v | p.mask });
+            let v = core::ptr::read_volatile(p.port().port);
+            core::ptr::write_volatile(p.port().port, if on { v & !p.mask } else { v | p.mask });
         }
-    }
+    };
+    set(pins::X_ENABLE);
+    set(pins::Y_ENABLE);
+    set(pins::Z_ENABLE);
+    set(pins::E_ENABLE);
 }
 
 /// Enable (`true`) or disable the carousel (E0) driver alone (G204).
@@ -165,15 +168,15 @@ pub fn carousel_driver_enable(on: bool) {
     // SAFETY: RMW of PORTA inside a critical section (the step ISR writes
     // PORTA only through PINA toggles, which cannot interleave here).
     avr_device::interrupt::free(|_| unsafe {
-        let v = core::ptr::read_volatile(p.port.port);
-        core::ptr::write_volatile(p.port.port, if on { v & !p.mask } else { v | p.mask });
+        let v = core::ptr::read_volatile(p.port().port);
+        core::ptr::write_volatile(p.port().port, if on { v & !p.mask } else { v | p.mask });
     });
 }
 
 /// True when the drivers are enabled (X's enable pin is low).
 pub fn drivers_enabled() -> bool {
     // SAFETY: reading PORTD has no side effects.
-    unsafe { core::ptr::read_volatile(pins::X_ENABLE.port.port) & pins::X_ENABLE.mask == 0 }
+    unsafe { core::ptr::read_volatile(pins::X_ENABLE.port().port) & pins::X_ENABLE.mask == 0 }
 }
 
 // ---- Millisecond clock (Timer0, CTC at 1 kHz) ---------------------------
@@ -206,7 +209,7 @@ fn TIMER0_COMPA() {
         let c = MILLIS.borrow(cs);
         c.set(c.get().wrapping_add(1));
         // SAFETY: reading PINC has no side effects.
-        let pinc = unsafe { core::ptr::read_volatile(pins::ENC_A.port.pin) };
+        let pinc = unsafe { core::ptr::read_volatile(pins::ENC_A.port().pin) };
         let e = ENCODER.borrow(cs);
         let mut d = e.get();
         d.sample(pinc & pins::ENC_A.mask == 0, pinc & pins::ENC_B.mask == 0, pinc & pins::ENC_BUTTON.mask == 0);
@@ -268,8 +271,8 @@ pub(crate) fn spindle_off_raw() {
     // SAFETY: RMW of PORTB in a critical section; pin forced low.
     unsafe {
         let p = pins::SPINDLE_PWM;
-        let v = core::ptr::read_volatile(p.port.port);
-        core::ptr::write_volatile(p.port.port, v & !p.mask);
+        let v = core::ptr::read_volatile(p.port().port);
+        core::ptr::write_volatile(p.port().port, v & !p.mask);
     }
 }
 
@@ -290,14 +293,8 @@ pub struct Inputs {
 /// each inverted where `$5` says so (as the stepper ISR reads them).
 pub fn inputs() -> Inputs {
     let invert = stepper::input_invert();
-    let mut home = 0;
-    for (i, p) in pins::HOME.iter().enumerate() {
-        if !p.is_high() {
-            home |= 1 << i;
-        }
-    }
     Inputs {
-        home: (home ^ invert) & 0b111,
+        home: (pins::home_closed() ^ invert) & 0b111,
         carousel_home: !pins::CAROUSEL_HOME.is_high() != (invert & (1 << 3) != 0),
         tool_setter: pins::TOOL_SETTER.is_high() != (invert & (1 << 4) != 0),
     }
@@ -346,21 +343,31 @@ pub fn free_ram() -> u16 {
 
 /// Bring up every peripheral the firmware uses. Interrupts stay disabled.
 pub fn init(dp: &Peripherals) {
-    for p in pins::STEP.iter().chain(pins::DIR.iter()) {
-        p.make_output(false);
-    }
-    for p in pins::ENABLE {
-        p.make_output(true); // drivers disabled
-    }
-    for p in pins::HOME {
-        p.make_input_pullup();
-    }
-    pins::CAROUSEL_HOME.make_input_pullup();
-    pins::TOOL_SETTER.make_input_pullup();
-    pins::ENC_A.make_input_pullup();
-    pins::ENC_B.make_input_pullup();
-    pins::ENC_BUTTON.make_input_pullup();
-    pins::SD_DETECT.make_input_pullup();
+    // One call per pin, not a loop over a table of pins (a RAM copy on AVR).
+    use pins::*;
+    let (low, off) = (|p: Pin| p.make_output(false), |p: Pin| p.make_output(true));
+    low(X_STEP);
+    low(Y_STEP);
+    low(Z_STEP);
+    low(E_STEP);
+    low(X_DIR);
+    low(Y_DIR);
+    low(Z_DIR);
+    low(E_DIR);
+    // Drivers disabled (enable is active low).
+    off(X_ENABLE);
+    off(Y_ENABLE);
+    off(Z_ENABLE);
+    off(E_ENABLE);
+    X_HOME.make_input_pullup();
+    Y_HOME.make_input_pullup();
+    Z_HOME.make_input_pullup();
+    CAROUSEL_HOME.make_input_pullup();
+    TOOL_SETTER.make_input_pullup();
+    ENC_A.make_input_pullup();
+    ENC_B.make_input_pullup();
+    ENC_BUTTON.make_input_pullup();
+    SD_DETECT.make_input_pullup();
     serial::init(&dp.USART0, serial::BUILD_BAUD);
     clock_init(&dp.TC0);
     spindle_init(&dp.TC2);

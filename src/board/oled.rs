@@ -115,6 +115,15 @@ impl Sh1106<super::twi::Twi> {
         self.i2c.write_async(ADDRESS, &buf[..=n])
     }
 
+    /// [`Sh1106::write_async`] of the slice that follows the last one on
+    /// its page: no position commands, as the controller's column address
+    /// has moved past the last byte written. Only when that write went out
+    /// whole (nothing failed or was aborted since).
+    pub fn write_next_async(&mut self, data: &[u8]) -> Result<(), super::twi::Error> {
+        let (buf, n) = data_frame(data);
+        self.i2c.write_async(ADDRESS, &buf[..=n])
+    }
+
     /// A background write is still on the bus.
     pub fn busy(&self) -> bool {
         self.i2c.async_busy()

@@ -24,93 +24,99 @@ pub struct Port {
 // contexts is coordinated by the functions that access them.
 unsafe impl Sync for Port {}
 
-/// A port pin: the port and the bit mask.
+/// A port pin: its port's PINx address and the bit mask. Three bytes, so
+/// that a `Pin` passes in registers: a 7-byte one (the [`Port`] itself) went
+/// by reference to a copy in RAM (`.data`), one for each pin and pin table used.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct Pin {
-    pub port: Port,
+    pin_addr: u16,
     pub mask: u8,
 }
 
-const fn port(pin_addr: usize) -> Port {
-    Port { pin: pin_addr as *mut u8, ddr: (pin_addr + 1) as *mut u8, port: (pin_addr + 2) as *mut u8 }
+const fn port(pin_addr: u16) -> Port {
+    let a = pin_addr as usize;
+    Port { pin: a as *mut u8, ddr: (a + 1) as *mut u8, port: (a + 2) as *mut u8 }
 }
 
-pub const PA: Port = port(0x20);
-pub const PB: Port = port(0x23);
-pub const PC: Port = port(0x26);
-pub const PD: Port = port(0x29);
-pub const PE: Port = port(0x2C);
-pub const PF: Port = port(0x2F);
-pub const PH: Port = port(0x100);
-pub const PJ: Port = port(0x103);
-pub const PK: Port = port(0x106);
-pub const PL: Port = port(0x109);
+/// The PINx address of each port in data space (DDRx and PORTx follow it).
+mod addr {
+    pub const A: u16 = 0x20;
+    pub const B: u16 = 0x23;
+    pub const C: u16 = 0x26;
+    pub const D: u16 = 0x29;
+    pub const E: u16 = 0x2C;
+    pub const F: u16 = 0x2F;
+    pub const H: u16 = 0x100;
+    pub const J: u16 = 0x103;
+    pub const K: u16 = 0x106;
+    pub const L: u16 = 0x109;
+}
 
-const fn pin(port: Port, bit: u8) -> Pin {
-    Pin { port, mask: 1 << bit }
+pub const PA: Port = port(addr::A);
+pub const PF: Port = port(addr::F);
+pub const PL: Port = port(addr::L);
+
+const fn pin(pin_addr: u16, bit: u8) -> Pin {
+    Pin { pin_addr, mask: 1 << bit }
 }
 
 // ---- Steppers (thesis Table 7) -------------------------------------------
 /// D54, PF0
-pub const X_STEP: Pin = pin(PF, 0);
+pub const X_STEP: Pin = pin(addr::F, 0);
 /// D55, PF1
-pub const X_DIR: Pin = pin(PF, 1);
+pub const X_DIR: Pin = pin(addr::F, 1);
 /// D38, PD7, active low
-pub const X_ENABLE: Pin = pin(PD, 7);
+pub const X_ENABLE: Pin = pin(addr::D, 7);
 /// D60, PF6
-pub const Y_STEP: Pin = pin(PF, 6);
+pub const Y_STEP: Pin = pin(addr::F, 6);
 /// D61, PF7
-pub const Y_DIR: Pin = pin(PF, 7);
+pub const Y_DIR: Pin = pin(addr::F, 7);
 /// D56, PF2, active low
-pub const Y_ENABLE: Pin = pin(PF, 2);
+pub const Y_ENABLE: Pin = pin(addr::F, 2);
 /// D46, PL3
-pub const Z_STEP: Pin = pin(PL, 3);
+pub const Z_STEP: Pin = pin(addr::L, 3);
 /// D48, PL1
-pub const Z_DIR: Pin = pin(PL, 1);
+pub const Z_DIR: Pin = pin(addr::L, 1);
 /// D62, PK0, active low
-pub const Z_ENABLE: Pin = pin(PK, 0);
+pub const Z_ENABLE: Pin = pin(addr::K, 0);
 /// D26, PA4 (E0, the carousel)
-pub const E_STEP: Pin = pin(PA, 4);
+pub const E_STEP: Pin = pin(addr::A, 4);
 /// D28, PA6
-pub const E_DIR: Pin = pin(PA, 6);
+pub const E_DIR: Pin = pin(addr::A, 6);
 /// D24, PA2, active low
-pub const E_ENABLE: Pin = pin(PA, 2);
+pub const E_ENABLE: Pin = pin(addr::A, 2);
 
-/// Step, dir and enable pins per axis, in axis order X, Y, Z, E0.
-pub const STEP: [Pin; 4] = [X_STEP, Y_STEP, Z_STEP, E_STEP];
-pub const DIR: [Pin; 4] = [X_DIR, Y_DIR, Z_DIR, E_DIR];
-pub const ENABLE: [Pin; 4] = [X_ENABLE, Y_ENABLE, Z_ENABLE, E_ENABLE];
+// The pins are written out where they are used, not walked as tables
+// (`[X_ENABLE, Y_ENABLE, …]`): a table of pins is a copy in RAM on AVR.
 
 // ---- Switches and sensors ------------------------------------------------
 /// D3, PE5: X min. Closed switch pulls low.
-pub const X_HOME: Pin = pin(PE, 5);
+pub const X_HOME: Pin = pin(addr::E, 5);
 /// D14, PJ1: Y min.
-pub const Y_HOME: Pin = pin(PJ, 1);
+pub const Y_HOME: Pin = pin(addr::J, 1);
 /// D18, PD3: Z min (top; Z grows downward).
-pub const Z_HOME: Pin = pin(PD, 3);
+pub const Z_HOME: Pin = pin(addr::D, 3);
 /// D2, PE4: carousel home (X_MAX header), closed at 0°.
-pub const CAROUSEL_HOME: Pin = pin(PE, 4);
+pub const CAROUSEL_HOME: Pin = pin(addr::E, 4);
 /// D19, PD2: optical tool setter (Z_MAX header); high = beam interrupted.
-pub const TOOL_SETTER: Pin = pin(PD, 2);
-/// Home switches in axis order X, Y, Z.
-pub const HOME: [Pin; 3] = [X_HOME, Y_HOME, Z_HOME];
+pub const TOOL_SETTER: Pin = pin(addr::D, 2);
 
 // ---- Spindle, UI, buses --------------------------------------------------
 /// D10, PB4 = OC2A: spindle PWM (thesis: DC spindle on D10).
-pub const SPINDLE_PWM: Pin = pin(PB, 4);
+pub const SPINDLE_PWM: Pin = pin(addr::B, 4);
 /// D9, PH6: coolant (M7/M8 on, M9 off), the RAMPS D9 MOSFET output
 /// (the fan/second-extruder-heater output); high = on.
-pub const COOLANT: Pin = pin(PH, 6);
+pub const COOLANT: Pin = pin(addr::H, 6);
 /// D31, PC6: encoder A (AUX-4).
-pub const ENC_A: Pin = pin(PC, 6);
+pub const ENC_A: Pin = pin(addr::C, 6);
 /// D33, PC4: encoder B.
-pub const ENC_B: Pin = pin(PC, 4);
+pub const ENC_B: Pin = pin(addr::C, 4);
 /// D35, PC2: encoder button.
-pub const ENC_BUTTON: Pin = pin(PC, 2);
+pub const ENC_BUTTON: Pin = pin(addr::C, 2);
 /// D53, PB0: SD card chip select (SPI SS).
-pub const SD_SS: Pin = pin(PB, 0);
+pub const SD_SS: Pin = pin(addr::B, 0);
 /// D49, PL0: SD card detect.
-pub const SD_DETECT: Pin = pin(PL, 0);
+pub const SD_DETECT: Pin = pin(addr::L, 0);
 // SDA D20 = PD1, SCL D21 = PD0 (TWI), SCK D52 = PB1, MOSI D51 = PB2,
 // MISO D50 = PB3 (SPI): owned by the TWI and SPI drivers.
 // Host serial: USART0 on D0 = PE0 (RX), D1 = PE1 (TX).
@@ -142,6 +148,8 @@ const _: () = {
 
 /// Home switches closed now, as axis bits (bit 0 = X … bit 2 = Z). A closed
 /// switch pulls its pin low.
+// speed: the step ISR reads it; out of line it became a call there
+#[inline(always)]
 pub fn home_closed() -> u8 {
     let mut b = 0;
     if !X_HOME.is_high() {
@@ -157,10 +165,15 @@ pub fn home_closed() -> u8 {
 }
 
 impl Pin {
+    /// The pin's port registers.
+    pub const fn port(self) -> Port {
+        port(self.pin_addr)
+    }
+
     /// Read the pin level.
     pub fn is_high(self) -> bool {
         // SAFETY: reading a PINx register has no side effects.
-        unsafe { core::ptr::read_volatile(self.port.pin) & self.mask != 0 }
+        unsafe { core::ptr::read_volatile(self.port().pin) & self.mask != 0 }
     }
 
     /// Make the pin an output at `high`. Read-modify-write: call with
@@ -170,8 +183,8 @@ impl Pin {
         avr_device::interrupt::free(|_| {
             // SAFETY: RMW of DDRx inside a critical section.
             unsafe {
-                let v = core::ptr::read_volatile(self.port.ddr);
-                core::ptr::write_volatile(self.port.ddr, v | self.mask);
+                let v = core::ptr::read_volatile(self.port().ddr);
+                core::ptr::write_volatile(self.port().ddr, v | self.mask);
             }
         });
     }
@@ -181,10 +194,10 @@ impl Pin {
         avr_device::interrupt::free(|_| {
             // SAFETY: RMW of DDRx/PORTx inside a critical section.
             unsafe {
-                let d = core::ptr::read_volatile(self.port.ddr);
-                core::ptr::write_volatile(self.port.ddr, d & !self.mask);
-                let p = core::ptr::read_volatile(self.port.port);
-                core::ptr::write_volatile(self.port.port, p | self.mask);
+                let d = core::ptr::read_volatile(self.port().ddr);
+                core::ptr::write_volatile(self.port().ddr, d & !self.mask);
+                let p = core::ptr::read_volatile(self.port().port);
+                core::ptr::write_volatile(self.port().port, p | self.mask);
             }
         });
     }
@@ -197,9 +210,9 @@ impl Pin {
         avr_device::interrupt::free(|_| {
             // SAFETY: RMW of PORTx inside a critical section.
             unsafe {
-                let v = core::ptr::read_volatile(self.port.port);
+                let v = core::ptr::read_volatile(self.port().port);
                 let v = if high { v | self.mask } else { v & !self.mask };
-                core::ptr::write_volatile(self.port.port, v);
+                core::ptr::write_volatile(self.port().port, v);
             }
         });
     }

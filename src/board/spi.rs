@@ -418,7 +418,13 @@ impl SdDevice {
     pub fn wake_card(&mut self) -> Result<(), Error> {
         use digital::OutputPin;
         let _ = self.cs.set_high();
-        spi::SpiBus::write(&mut self.bus, &[FILL_BYTE; 10])
+        // Ten bytes of fill clocked out one by one: `&[FILL_BYTE; 10]` was a
+        // 10-byte array in RAM (`.data`) on AVR.
+        self.bus.check_master()?;
+        for _ in 0..10 {
+            self.bus.exchange(FILL_BYTE)?;
+        }
+        Ok(())
     }
 }
 

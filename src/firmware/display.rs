@@ -32,6 +32,11 @@ pub(super) struct Display {
     /// Page and start time of the slice last sent in the background.
     sent_page: u8,
     sent_ms: u32,
+    /// The controller's column address is where the next slice of the
+    /// page starts: the last slice was started, and did not fail and was
+    /// not aborted. The position commands then stay out (a blocking
+    /// transfer of ~0.1 ms, 2 000 cycles with the bus wait).
+    follows: bool,
 }
 
 impl Display {
@@ -49,6 +54,7 @@ impl Display {
             frame_start_ms: 0,
             sent_page: 0,
             sent_ms: 0,
+            follows: false,
         }
     }
 
@@ -114,9 +120,11 @@ impl Hw {
                 return;
             }
             o.abort();
+            d.follows = false;
         }
         if o.take_failed() {
             d.valid &= !(1 << d.sent_page);
+            d.follows = false;
         }
         if !self.display.drawing {
             let now = board::millis();
@@ -151,9 +159,11 @@ impl Hw {
         let n = SLICE.min(WIDTH - x0);
         d.line.render(x0, &mut buf[..n]);
         let ok = match d.oled.as_mut() {
+            Some(o) if d.follows && d.slice != 0 => o.write_next_async(&buf[..n]).is_ok(),
             Some(o) => o.write_async(page, x0 as u8, &buf[..n]).is_ok(),
             None => false,
         };
+        d.follows = ok;
         d.sent_page = page;
         d.sent_ms = board::millis();
         d.slice += 1;

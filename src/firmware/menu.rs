@@ -72,11 +72,22 @@ fn spindle_cmd(m: &mut Machine, hw: &mut Hw, cmd: Cmd) -> mill::machine::CmdResu
         }
         _ => return Ok(()),
     };
+    // The words byte by byte: `b"M3 S"` and `b"M5"` were RAM strings on AVR.
     let mut l = Line::blank();
+    let ch = &mut l.chars;
     let c = match (on, set) {
-        (false, false) => l.put(0, b"M5"),
-        (false, true) => l.put(0, b"S"),
-        (true, _) => l.put(0, b"M3 S"),
+        (false, false) => {
+            (ch[0], ch[1]) = (b'M', b'5');
+            2
+        }
+        (false, true) => {
+            ch[0] = b'S';
+            1
+        }
+        (true, _) => {
+            (ch[0], ch[1], ch[2], ch[3]) = (b'M', b'3', b' ', b'S');
+            4
+        }
     };
     let c = if on || set { l.uint(c, rpm as u32) } else { c };
     m.run_menu_line(&l.chars[..c], hw)

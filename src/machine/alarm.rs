@@ -79,7 +79,7 @@ impl Machine {
             let (code, why) = (alarm.grbl_code(), alarm.message());
             uwriteln!(io, "{}{}{}{}{}", F!("ALARM:"), code, F!("\n[MSG:"), why, F!("; $H or $X to continue]")).ok();
         } else {
-            uwriteln!(io, "ALARM:{}", alarm.message()).ok();
+            uwriteln!(io, "{}{}", F!("ALARM:"), alarm.message()).ok();
             uwriteln!(io, "{}", F!("echo:home (G28) or M999 to continue")).ok();
         }
     }

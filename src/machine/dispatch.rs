@@ -7,6 +7,7 @@
 use super::{after_eq, carousel, homing, report, setter, startup, toolchange, Alarm, CmdResult, Io, Machine, State};
 use crate::config::Settings;
 use crate::dollar;
+use crate::flash::FStr;
 use crate::gcode::interp::{self, Command};
 use crate::planner::Speed;
 use ufmt::uwriteln;
@@ -238,12 +239,25 @@ impl Machine {
             }
             dollar::Command::Restore(what) => self.restore(io, what)?,
             dollar::Command::Check => self.toggle_check(io)?,
-            dollar::Command::Home => return self.execute(b"G28", io),
-            dollar::Command::Unlock => return self.execute(b"M999", io),
+            dollar::Command::Home => return self.execute_flash(F!("G28"), io),
+            dollar::Command::Unlock => return self.execute_flash(F!("M999"), io),
             dollar::Command::Jog => return self.jog_line(text, io),
             dollar::Command::Set(n, v) => self.set_setting(io, n, v)?,
         }
         Ok(())
+    }
+
+    /// Run a short line kept in flash (`$H`, `$X`): as a `b"…"` literal it
+    /// was a RAM string on AVR.
+    // stack: the copy's frame only while it runs, not in `dollar`'s
+    #[inline(never)]
+    fn execute_flash(&mut self, line: FStr, io: &mut impl Io) -> CmdResult {
+        let mut buf = [0u8; 8];
+        let n = line.len().min(buf.len());
+        for (i, b) in buf[..n].iter_mut().enumerate() {
+            *b = line.get(i).unwrap_or(b' ');
+        }
+        self.execute(&buf[..n], io)
     }
 
     /// `$C`: check mode on (from Idle) or off. Leaving it puts the commanded

@@ -17,20 +17,22 @@ pub fn position(m: &Machine, io: &mut (impl Stepper + ufmt::uWrite)) {
     // Count: the step counters in the user's sense (Z counts up), so that
     // Count = position × steps/mm as in Marlin.
     let st = frame::steps_user_from_internal(internal);
-    uwriteln!(
+    // The field names through F!: as format text they were RAM strings.
+    let (y, z, e) = (F!(" Y:"), F!(" Z:"), F!(" E:"));
+    uwrite!(
         io,
-        "X:{} Y:{} Z:{} E:{}{}{} Y:{} Z:{} E:{}",
+        "{}{}{}{}{}{}{}{}",
+        F!("X:"),
         Micros::from_mm(w[0]),
+        y,
         Micros::from_mm(w[1]),
+        z,
         Micros::from_mm(w[2]),
-        Micros::from_mm(w[3]),
-        F!(" Count X:"),
-        st[0],
-        st[1],
-        st[2],
-        st[3]
+        e,
+        Micros::from_mm(w[3])
     )
     .ok();
+    uwriteln!(io, "{}{}{}{}{}{}{}{}", F!(" Count X:"), st[0], y, st[1], z, st[2], e, st[3]).ok();
 }
 
 /// M119: the switches.
@@ -58,8 +60,8 @@ pub fn settings(m: &Machine, io: &mut impl ufmt::uWrite) {
     let s = &m.settings;
     let line = |io: &mut dyn DynOut, code: FStr, v: &[f32; N_AXES], scale: f32| {
         io.out(code);
-        for (a, &n) in AXIS_NAMES.iter().enumerate() {
-            io.text(n);
+        for a in 0..N_AXES {
+            axis_name(io, a);
             io.num(v[a] * scale);
         }
         io.text("\n");
@@ -75,15 +77,15 @@ pub fn settings(m: &Machine, io: &mut impl ufmt::uWrite) {
     for (i, o) in m.interp.wcs_mm.iter().enumerate() {
         d.out(F!("G10 L2 P"));
         d.int(i as i32 + 1);
-        for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
-            d.text(n);
+        for a in 0..3 {
+            axis_name(&mut d, a);
             d.num(frame::axis_user_from_internal(a, o[a]));
         }
         d.text("\n");
     }
     d.out(F!("echo:Travel (mm):"));
-    for (a, &n) in AXIS_NAMES[..3].iter().enumerate() {
-        d.text(n);
+    for a in 0..3 {
+        axis_name(&mut d, a);
         d.num(s.travel_mm[a]);
     }
     let on_off = |on: bool| if on { F!("on") } else { F!("off") };
@@ -146,8 +148,14 @@ pub fn print_time(m: &Machine, io: &mut (impl Inputs + ufmt::uWrite)) {
     d.text("\n");
 }
 
-/// ` X` … ` E`: short, so plain RAM strings.
-const AXIS_NAMES: [&str; N_AXES] = [" X", " Y", " Z", " E"];
+/// Write ` X`, ` Y`, ` Z` or ` E` for axis `a` (0…3), computed: a table of
+/// the four names was 24 bytes of RAM (`.data`) on AVR.
+fn axis_name(d: &mut dyn DynOut, a: usize) {
+    let letter = if a == 3 { b'E' } else { b'X' + a as u8 };
+    let mut buf = [0u8; 4];
+    d.text(" ");
+    d.text(char::from(letter).encode_utf8(&mut buf));
+}
 
 /// Small object-safe writer used by the settings report.
 trait DynOut {

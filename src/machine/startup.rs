@@ -109,7 +109,7 @@ pub fn run(m: &mut Machine, io: &mut impl Io) {
                 uwriteln!(io, "ok").ok();
             }
             Err(e) if m.grbl_replies => {
-                uwriteln!(io, "error:{}", e.grbl_code()).ok();
+                uwriteln!(io, "{}{}", F!("error:"), e.grbl_code()).ok();
             }
             Err(e) => m.report_error(io, e),
         }

@@ -4,6 +4,7 @@
 
 use super::{Io, Machine, State};
 use crate::dollar;
+use crate::flash::FStr;
 use ufmt::{uwrite, uwriteln};
 
 /// A status-report field of letters (`|Pn:XZ`, `|A:SF`), left out when
@@ -15,10 +16,12 @@ struct Letters {
 }
 
 impl Letters {
-    fn new(head: &[u8]) -> Letters {
+    fn new(head: FStr) -> Letters {
         let mut buf = [0; 12];
         let n = head.len().min(6);
-        buf[..n].copy_from_slice(&head[..n]);
+        for (i, b) in buf[..n].iter_mut().enumerate() {
+            *b = head.get(i).unwrap_or(b' ');
+        }
         Letters { buf, len: n as u8, head: n as u8 }
     }
 
@@ -51,14 +54,15 @@ impl Machine {
         let wpos = self.interp.work_user(mpos);
         let inches = self.settings.report_inches;
         if mask & 1 != 0 {
-            uwrite!(io, "<{}{}", state.name(), F!("|MPos:")).ok();
+            uwrite!(io, "{}{}{}", F!("<"), state.name(), F!("|MPos:")).ok();
             dollar::coords(io, &crate::frame::user_from_internal(mpos), inches);
         } else {
-            uwrite!(io, "<{}{}", state.name(), F!("|WPos:")).ok();
+            uwrite!(io, "{}{}{}", F!("<"), state.name(), F!("|WPos:")).ok();
             dollar::coords(io, &wpos, inches);
         }
         if mask & 2 != 0 {
-            uwrite!(io, "|Bf:{},{}", self.planner.free() as u16, (255 - io.rx_pending().min(255)) as u16).ok();
+            let rx_free = (255 - io.rx_pending().min(255)) as u16;
+            uwrite!(io, "{}{}{}{}", F!("|Bf:"), self.planner.free() as u16, F!(","), rx_free).ok();
         }
         let (feed, rpm) = self.feed_and_speed();
         // Ln: the block number of the move being prepared (grbl with line
@@ -72,12 +76,12 @@ impl Machine {
         } else {
             uwrite!(io, "{}", feed as i32).ok();
         }
-        uwrite!(io, ",{}", rpm as i32).ok();
+        uwrite!(io, "{}{}", F!(","), rpm as i32).ok();
         // Pn: the inputs that read triggered (grbl's letters; C is the
         // carousel's home switch, P the tool setter, G38's probe input).
         // Letters are built as bytes: a `&str` per letter would sit in RAM.
         let sw = io.switches();
-        let mut pn = Letters::new(b"|Pn:");
+        let mut pn = Letters::new(F!("|Pn:"));
         pn.push(sw.home & 1 != 0, b'X');
         pn.push(sw.home & 2 != 0, b'Y');
         pn.push(sw.home & 4 != 0, b'Z');
@@ -106,11 +110,11 @@ impl Machine {
             }
             _ => {}
         }
-        let mut acc = Letters::new(b"|A:");
+        let mut acc = Letters::new(F!("|A:"));
         acc.push(self.interp.spindle_on, b'S');
         acc.push(self.interp.coolant_m == 8, b'F');
         acc.push(self.interp.coolant_m == 7, b'M');
         acc.write(io);
-        uwriteln!(io, "|T:{}>", self.atc.spindle_tool()).ok();
+        uwriteln!(io, "{}{}{}", F!("|T:"), self.atc.spindle_tool(), F!(">")).ok();
     }
 }

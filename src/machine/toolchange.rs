@@ -61,7 +61,7 @@ pub fn boot(m: &mut Machine, io: &mut (impl Storage + ufmt::uWrite)) {
     m.atc.interrupted = Journal::from_bytes(&jb);
     let mut sb = [0u8; Setter::IMAGE_LEN];
     io.eeprom_read(EEPROM_SETTER_ADDR, &mut sb);
-    m.setter = Setter::from_bytes(&sb).unwrap_or(Setter::DEFAULT);
+    m.setter = Setter::from_bytes(&sb).unwrap_or_else(Setter::factory);
     apply_offset(m);
     uwriteln!(io, "{}{}", F!("echo:tool in spindle: T"), m.atc.spindle_tool()).ok();
     report_interrupted(m, io);

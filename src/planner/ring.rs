@@ -9,13 +9,16 @@ use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
-/// Blocks in the ring. RAM: 16 × 48 B = 768 B (host layout; 46 B per block on
-/// AVR, 736 B). grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md §11). 16 blocks
-/// of 0.1 mm hold 1.6 mm of look-ahead, more than the 1.25 mm needed to stop from
-/// 50 mm/s at 1000 mm/s², so a stream of short moves can still run at full feed.
-/// 32 blocks overflowed the stack: every string literal is copied to RAM on AVR
-/// (about 3.5 KB here), which leaves too little room; see docs/ARCHITECTURE.md "RAM".
-pub const BLOCK_BUFFER_LEN: usize = 16;
+/// Blocks in the ring. RAM: 50 B a block on AVR (21 × 50 = 1 050 B).
+/// grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md §11). The newest
+/// block must be able to stop, so with n blocks of 0.1 mm behind the
+/// executing one at 1000 mm/s² it runs at most √(2 · 1000 · n · 0.1) mm/s:
+/// 20 blocks ahead allow 63 mm/s, 630 lines/s (15 allowed 548). 21 is what
+/// the RAM freed by keeping tables and texts in flash pays for: the deepest
+/// stack path (`tests/ui.rs`, `after_a_hard_limit`) stays within what it
+/// was with 16 (docs/ARCHITECTURE.md "RAM"). Any length works: indices
+/// wrap by compares ([`next_index`], [`prev_index`]), not masks.
+pub const BLOCK_BUFFER_LEN: usize = 21;
 
 /// RAM budget of the whole planner (ring + state), bytes.
 pub const PLANNER_RAM_BUDGET: usize = 1700;

@@ -100,6 +100,12 @@ impl Setter {
     /// Image: version, 6 × i32, checksum.
     pub const IMAGE_LEN: usize = 1 + 6 * 4 + 1;
 
+    /// [`Setter::DEFAULT`], read from flash: used as a value at run time,
+    /// the constant is a 24-byte copy in RAM (`.data`) on AVR.
+    pub fn factory() -> Setter {
+        DEFAULT_IN_FLASH.get()
+    }
+
     /// True once a calibration stored the beam height.
     pub fn calibrated(&self) -> bool {
         self.beam_z_um != Setter::UNCALIBRATED
@@ -228,6 +234,11 @@ pub const TABLE: [Row; 12] = [
     row(State::SeekMinusY, When::Diameter, Do::Seek(1, -1)),
     row(State::LiftPlus, When::Diameter, Do::ZSafe),
 ];
+
+in_flash! {
+    /// [`Setter::DEFAULT`] kept in flash ([`Setter::factory`]).
+    static DEFAULT_IN_FLASH: Setter = Setter::DEFAULT;
+}
 
 in_flash! {
     /// [`TABLE`] kept in flash (a run-time `const` table would sit in RAM on AVR).

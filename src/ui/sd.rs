@@ -133,7 +133,7 @@ pub struct SdJob {
     /// recorded (seconds, wrapping), and a record due now (a start, a
     /// pause, the end).
     reached: u32,
-    saved_s: u16,
+    saved_ms: u16,
     record_now: u8,
 }
 
@@ -173,7 +173,7 @@ impl SdJob {
             requests: 0,
             seen_aborts: 0,
             reached: 1,
-            saved_s: 0,
+            saved_ms: 0,
             record_now: NO_RECORD,
         }
     }
@@ -430,17 +430,18 @@ impl SdJob {
     /// A record of the line reached is due (run from line, `ui::resume`):
     /// when the job pauses or ends, and every [`RECORD_EVERY_S`] seconds
     /// while it cuts; when a job starts (from the menu or M24), the whole
-    /// record. `now_s`: a clock in seconds (wrapping). Called from every
+    /// record. `now_ms`: a clock in milliseconds, its low 16 bits (wrapping:
+    /// the 30 s fit, and no division by 1000 on every call). Called from every
     /// wait (the main loop sits in a line's wait for the last part of a
     /// job: M5 waits for the moves queued before it), it follows the line
     /// reached while the job cuts; not while a scan reads lines (they are
     /// not reached), nor after it.
     ///
     /// [`RECORD_EVERY_S`]: crate::ui::resume::RECORD_EVERY_S
-    pub fn record_due(&mut self, m: &Machine, now_s: u16) -> Option<Due> {
+    pub fn record_due(&mut self, m: &Machine, now_ms: u16) -> Option<Due> {
         if matches!(self.phase, Phase::Running | Phase::Draining(Outcome::Done)) && self.line > 0 {
             self.reached = self.cut_line(m).max(1);
-            if now_s.wrapping_sub(self.saved_s) >= crate::ui::resume::RECORD_EVERY_S {
+            if now_ms.wrapping_sub(self.saved_ms) >= crate::ui::resume::RECORD_EVERY_S * 1000 {
                 self.record_now = self.record_now.max(RECORD_LINE);
             }
         }
@@ -448,7 +449,7 @@ impl SdJob {
         if due == NO_RECORD {
             return None;
         }
-        self.saved_s = now_s;
+        self.saved_ms = now_ms;
         Some(if due == RECORD_START {
             Due::Start(self.reached)
         } else if matches!(self.phase, Phase::Ended(Outcome::Done)) {
@@ -957,6 +958,49 @@ pub(crate) mod tests {
         fn write_str(&mut self, s: &str) -> Result<(), Self::Error> {
             self.0.push_str(s);
             Ok(())
+        }
+    }
+
+    /// The 30-second record of a running job on the clock's low 16 bits of
+    /// milliseconds against the plain rule it replaces (seconds, `ms / 1000`,
+    /// on the whole clock): over a run whose clock passes several 16-bit
+    /// wraps, with irregular main-loop passes, both make as many records,
+    /// 30 s apart (the plain rule: 29 to 30, whole seconds).
+    #[test]
+    fn running_job_records_every_30_s_on_the_wrapping_ms_clock_as_the_plain_seconds_rule() {
+        let m = Machine::new();
+        let mut job = SdJob::new();
+        job.phase = Phase::Running;
+        job.line = 7;
+        let (mut fast, mut plain) = (Vec::new(), Vec::new());
+        // The job's start writes the whole record: both clocks start there.
+        let mut ms: u32 = 1_000_000 - 12_345;
+        job.record_now = RECORD_START;
+        assert_eq!(job.record_due(&m, ms as u16), Some(Due::Start(7)));
+        let mut saved_s = (ms / 1000) as u16;
+        let mut seed = 12_345u32;
+        while ms < 1_000_000 + 400_000 {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            ms += 1 + (seed >> 24) % 150;
+            if let Some(d) = job.record_due(&m, ms as u16) {
+                assert_eq!(d, Due::Reached(7));
+                fast.push(ms);
+            }
+            let now_s = (ms / 1000) as u16;
+            if now_s.wrapping_sub(saved_s) >= crate::ui::resume::RECORD_EVERY_S {
+                saved_s = now_s;
+                plain.push(ms);
+            }
+        }
+        assert!(fast.len() >= 12, "{fast:?}");
+        assert!(fast.len().abs_diff(plain.len()) <= 1, "{fast:?} {plain:?}");
+        // The plain rule: 29 to 30 s apart (whole seconds), plus at most one
+        // main-loop pass; the wrapping one: 30 s, plus at most one pass.
+        for w in plain.windows(2) {
+            assert!((29_000..30_150).contains(&(w[1] - w[0])), "{plain:?}");
+        }
+        for w in fast.windows(2) {
+            assert!((30_000..30_150).contains(&(w[1] - w[0])), "{fast:?}");
         }
     }
 
