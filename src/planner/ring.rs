@@ -29,6 +29,7 @@ const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
 pub(super) const ROOTS_LEN: usize = 8;
 
 /// The block ring and the look-ahead state.
+#[cfg_attr(test, derive(Clone))]
 pub struct Planner {
     /// The ring; valid blocks are `tail`, tail+1, … (`len` of them).
     pub(super) blocks: [Block; BLOCK_BUFFER_LEN],
