@@ -77,15 +77,18 @@ impl Planner {
         let mut delta = [0i32; N_AXES];
         let mut moving = 0u8;
         let mut dir = 0u8;
+        // Axis i's bit, shifted along (a shift by i is a loop on the AVR).
+        let mut bit = 1u8;
         for i in 0..N_AXES {
             let d = target[i].wrapping_sub(self.position[i]);
             delta[i] = d;
             if d != 0 {
-                moving |= 1 << i;
+                moving |= bit;
             }
             if d < 0 {
-                dir |= 1 << i;
+                dir |= bit;
             }
+            bit <<= 1;
         }
         if moving == 0 {
             return Ok(Push::default());
@@ -188,30 +191,35 @@ impl Planner {
         let b = &mut self.blocks[self.head as usize];
         b.flags = flags;
         b.feed = feed;
-        b.step_event_count = 0;
-        b.direction_bits = 0;
         b.entry_speed_sqr = 0.0;
         let mut unit = [0f32; N_AXES];
+        // Counted in registers, stored once.
         let mut moving = 0u8;
+        let mut dir = 0u8;
+        let mut step_event_count = 0u32;
+        let mut bit = 1u8;
         for i in 0..N_AXES {
             let d = delta[i];
             let n = d.unsigned_abs();
             b.steps[i] = n;
-            if n > b.step_event_count {
-                b.step_event_count = n;
+            if n > step_event_count {
+                step_event_count = n;
             }
             if d != 0 {
-                moving |= 1 << i;
+                moving |= bit;
                 if d < 0 {
-                    b.direction_bits |= 1 << i;
+                    dir |= bit;
                 }
             }
+            bit <<= 1;
         }
+        b.step_event_count = step_event_count;
+        b.direction_bits = dir;
         // Path length and unit vector.
         let (mm, inv_mm);
         // (√S, 1/√S) of a cached root: see below.
         let mut roots = None;
-        if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
+        if moving & 0b1000 == 0 && ax.xyz_same_steps && step_event_count < 0x8000 {
             // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
             // of short moves repeats a few dozen values of the integer Σd²,
             // whose root and inverse root are cached: no square root and no
@@ -230,10 +238,12 @@ impl Planner {
             mm = root * ax.mm_per_step[0];
             // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
             inv_mm = inv_root;
+            let mut bit = 1u8;
             for i in 0..3 {
-                if moving & (1 << i) != 0 {
+                if moving & bit != 0 {
                     unit[i] = delta[i] as f32 * inv_root;
                 }
+                bit <<= 1;
             }
         } else {
             // Path length: XYZ distance, or the E distance for an E-only move.
@@ -271,28 +281,22 @@ impl Planner {
         } else if moving & !ax.uniform == 0 {
             // Every moving axis has axis 0's limits: the largest |u| decides
             // (exactly: rounding keeps the order of the products).
-            let (u_max, accel) = match roots {
-                // From a cached root: |u| is largest on the dominant axis,
-                // n = step_event_count steps of the √S: |u|max = n/√S, and
-                // the acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
+            // The largest |u|: on a cached root that of the dominant axis,
+            // n = step_event_count steps of the √S, |u|max = n·(1/√S), is
+            // the very product its unit component took (the twin test
+            // `the_largest_unit_component_is_the_dominant_axis_share`).
+            let mut u_max = 0.0f32;
+            for u in &unit {
+                u_max = max_nn(u_max, abs_f32(*u));
+            }
+            let accel = match roots {
+                // The acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
                 // table for short moves (two multiplies, not a division).
-                Some((root, inv_root)) => {
-                    let n = b.step_event_count;
-                    let u_max = n as f32 * inv_root;
-                    match crate::math::recip_small(n) {
-                        Some(r) => (u_max, s.accel_mm_per_s2[0] * root * r),
-                        None => (u_max, 1.0 / (u_max * ax.inv_accel[0])),
-                    }
-                }
-                None => {
-                    let mut u_max = 0.0f32;
-                    for i in 0..N_AXES {
-                        if moving & (1 << i) != 0 {
-                            u_max = max_nn(u_max, abs_f32(unit[i]));
-                        }
-                    }
-                    (u_max, 1.0 / (u_max * ax.inv_accel[0]))
-                }
+                Some((root, _)) => match crate::math::recip_small(step_event_count) {
+                    Some(r) => s.accel_mm_per_s2[0] * root * r,
+                    None => 1.0 / (u_max * ax.inv_accel[0]),
+                },
+                None => 1.0 / (u_max * ax.inv_accel[0]),
             };
             (accel, u_max * ax.inv_max_speed[0])
         } else {
@@ -326,7 +330,7 @@ impl Planner {
         let mut floored = false;
         let (t_lo, t_hi) = ax.rate_free_inv_feed;
         if moving & 0b1000 != 0 || lt_nn(t, t_lo) || lt_nn(t_hi, t) {
-            let mut steps_per_mm = b.step_event_count as f32 * inv_mm;
+            let mut steps_per_mm = step_event_count as f32 * inv_mm;
             if roots.is_some() {
                 steps_per_mm *= s.steps_per_mm[0];
             }
