@@ -85,9 +85,11 @@ pub struct Planner {
     /// Settings-derived per-axis values.
     pub(super) axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
-    /// steps, time per mm (s/mm) and programmed feed ([`Block::feed`]). It
-    /// holds a ring slot.
-    pub(super) pending: Option<([i32; N_AXES], f32, u16)>,
+    /// time per mm (s/mm) and programmed feed ([`Block::feed`]); its steps
+    /// are `delta`. It holds a ring slot.
+    pub(super) pending: Option<(f32, u16)>,
+    /// Steps of the move being queued, or of the pending one, X Y Z E.
+    pub(super) delta: [i32; N_AXES],
     /// `axis` matches the settings [`Planner::accept_line`] is given, until
     /// [`Planner::settings_changed`] (saves comparing 12 settings per move).
     pub(super) axis_fresh: bool,
@@ -140,6 +142,7 @@ impl Planner {
             roots: [(0, 0.0, 0.0); ROOTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,
+            delta: [0; N_AXES],
             axis_fresh: false,
         }
     }
