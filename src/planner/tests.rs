@@ -702,3 +702,44 @@ fn the_look_ahead_without_an_idle_forward_pass_plans_as_both_passes_do() {
     }
     assert!(passes > 5000 && longest == BLOCK_BUFFER_LEN - 1, "{passes} passes, at most {longest} blocks after `planned`");
 }
+
+#[test]
+fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
+    use super::junction::{cos_theta, cos_theta_plain};
+    let mut seed = 12_345u32;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed
+    };
+    let (mut nonzero, mut zero) = (0, 0);
+    for k in 0..200_000 {
+        // Components from a few steps (exact repeats, opposite and zero
+        // ones) and from random floats, on random axes.
+        let mut comp = |r: u32| -> f32 {
+            match r % 4 {
+                0 => 0.0,
+                1 => ((r >> 4) % 9) as f32 / 8.0 - 0.5,
+                _ => f32::from_bits(0x3C00_0000 + (r >> 8) % 0x0380_0000) * if r & 0x80 != 0 { -1.0 } else { 1.0 },
+            }
+        };
+        let p = [comp(next()), comp(next()), comp(next()), comp(next())];
+        let mut u = [comp(next()), comp(next()), comp(next()), comp(next())];
+        if k % 5 == 0 {
+            // Perpendicular: the products cancel exactly.
+            u = [p[1], -p[0], 0.0, 0.0];
+        }
+        let moving = (next() % 16) as u8;
+        let (fast, plain) = (cos_theta(&p, &u, moving), cos_theta_plain(&p, &u, moving));
+        if plain == 0.0 {
+            // Only the sign of an exact zero may differ.
+            assert_eq!(fast, 0.0, "{p:?} · {u:?} on {moving:#b}");
+            zero += 1;
+        } else {
+            assert_eq!(fast.to_bits(), plain.to_bits(), "{p:?} · {u:?} on {moving:#b}");
+            nonzero += 1;
+        }
+    }
+    assert!(zero > 1000 && nonzero > 100_000, "{zero} zero, {nonzero} not");
+}
