@@ -193,8 +193,8 @@ impl Planner {
 
     /// Exit speed² of the executing block, (mm/s)²: the next block's entry speed,
     /// or 0 when it is the last one.
-    // speed: as `current_block`
-    #[inline]
+    // speed: as `current_block` (LLVM keeps it a call with a mere hint)
+    #[inline(always)]
     pub fn exec_exit_speed_sqr(&self) -> f32 {
         match self.blocks.get(next_index(self.tail) as usize) {
             Some(b) if self.len > 1 => b.entry_speed_sqr,
