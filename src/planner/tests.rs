@@ -684,7 +684,7 @@ fn the_look_ahead_without_an_idle_forward_pass_plans_as_both_passes_do() {
         // whole ring is a deceleration ramp.
         let feed = [3300.0, 600.0, 5000.0, 1800.0, 20.0][(i / 700) % 5];
         drive_ring(&mut p, &mut pos, seed, feed, &st);
-        if (seed >> 24) % 3 != 0 {
+        if !(seed >> 24).is_multiple_of(3) {
             continue;
         }
         let span = (p.head as usize + BLOCK_BUFFER_LEN - 1 - p.planned as usize) % BLOCK_BUFFER_LEN;
@@ -717,7 +717,7 @@ fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
     for k in 0..200_000 {
         // Components from a few steps (exact repeats, opposite and zero
         // ones) and from random floats, on random axes.
-        let mut comp = |r: u32| -> f32 {
+        let comp = |r: u32| -> f32 {
             match r % 4 {
                 0 => 0.0,
                 1 => ((r >> 4) % 9) as f32 / 8.0 - 0.5,
