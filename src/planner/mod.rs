@@ -19,6 +19,9 @@
 //! what acceleration allows. `planned` marks the newest block whose entry speed
 //! can no longer improve, so both passes stop there: with a stream of short
 //! collinear moves only the blocks in the final deceleration ramp are visited.
+//! The forward pass also ends at the first block it leaves unchanged once past
+//! the newest block the backward pass left faster than the one before it: in
+//! a ring that is one deceleration ramp it visits a block or two.
 //!
 //! **The executing block** is shared with prep: prep writes its remaining
 //! distance (`millimeters`) and current speed (`entry_speed_sqr`) into it after

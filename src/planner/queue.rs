@@ -23,6 +23,25 @@ fn root_entry(n: u32) -> (u32, f32, f32) {
     (n, r, 1.0 / r)
 }
 
+/// The backlash take-up of the `reversing` axes (bits; `dir`: the new
+/// directions, bit set = negative) into `out`, steps; false if none has a
+/// backlash of a step or more.
+// speed: inlined, so that the common path (no reversal) does not clear an array
+#[inline(always)]
+fn take_up_steps(reversing: u8, dir: u8, s: &Settings, out: &mut [i32; N_AXES]) -> bool {
+    let mut any = false;
+    for i in 0..3 {
+        if reversing & (1 << i) != 0 && s.backlash_mm[i] > 0.0 {
+            let n = round_i32(s.backlash_mm[i] * s.steps_per_mm[i]);
+            if n > 0 {
+                out[i] = if dir & (1 << i) != 0 { -n } else { n };
+                any = true;
+            }
+        }
+    }
+    any
+}
+
 impl Planner {
     /// Queue a straight move to `target` (absolute steps, X Y Z E) at
     /// `feed_mm_per_min` (mm/min along the path, ignored when `rapid`: then each
@@ -74,40 +93,33 @@ impl Planner {
             self.feed_cache.1
         };
 
-        let mut delta = [0i32; N_AXES];
+        // The move accepted before this one is planned first (it holds
+        // `self.delta`).
+        self.flush(s);
+        // The steps go straight into `self.delta`, where the block is built
+        // from, now or when it is flushed: no copy.
         let mut moving = 0u8;
         let mut dir = 0u8;
+        // Axis i's bit, shifted along (a shift by i is a loop on the AVR).
+        let mut bit = 1u8;
         for i in 0..N_AXES {
             let d = target[i].wrapping_sub(self.position[i]);
-            delta[i] = d;
+            self.delta[i] = d;
             if d != 0 {
-                moving |= 1 << i;
+                moving |= bit;
             }
             if d < 0 {
-                dir |= 1 << i;
+                dir |= bit;
             }
+            bit <<= 1;
         }
         if moving == 0 {
             return Ok(Push::default());
         }
 
         // Backlash: axes that reverse with a known previous direction.
-        let mut take_up = [0i32; N_AXES];
-        let mut take_up_any = false;
         let reversing = moving & self.dir_known & (dir ^ self.last_dir);
-        if reversing != 0 {
-            for i in 0..3 {
-                if reversing & (1 << i) != 0 && s.backlash_mm[i] > 0.0 {
-                    let n = round_i32(s.backlash_mm[i] * s.steps_per_mm[i]);
-                    if n > 0 {
-                        take_up[i] = if dir & (1 << i) != 0 { -n } else { n };
-                        take_up_any = true;
-                    }
-                }
-            }
-        }
-        // The move accepted before this one is planned first.
-        self.flush(s);
+        let take_up_any = reversing != 0 && take_up_steps(reversing, dir, s, &mut [0; N_AXES]);
         let need = 1 + take_up_any as usize;
         if BLOCK_BUFFER_LEN - (self.len as usize) < need {
             return Err(PlanError::Full);
@@ -129,11 +141,15 @@ impl Planner {
         if may_defer && !take_up_any && !rapid && moving & 0b1000 == 0 && lt_nn(self.axis.defer_min_inv_feed, inv_feed) {
             // Never capped (see `AxisCache::defer_min_inv_feed`); floored or
             // not, which is not reported, prep runs it the same.
-            self.pending = Some((delta, inv_feed, programmed));
+            self.pending = Some((inv_feed, programmed));
             push.queued = 1;
         } else {
             if take_up_any {
-                let (capped, floored) = self.queue_block(&take_up, 0.0, Block::TAKE_UP, 0, s);
+                let mut take_up = [0; N_AXES];
+                take_up_steps(reversing, dir, s, &mut take_up);
+                let delta = core::mem::replace(&mut self.delta, take_up);
+                let (capped, floored) = self.queue_block(0.0, Block::TAKE_UP, 0, s);
+                self.delta = delta;
                 for i in 0..3 {
                     self.backlash_offset[i] += take_up[i];
                 }
@@ -142,7 +158,7 @@ impl Planner {
                 push.rate_floored |= floored;
             }
             let flags = if rapid { Block::RAPID } else { 0 };
-            let (capped, floored) = self.queue_block(&delta, inv_feed, flags, programmed, s);
+            let (capped, floored) = self.queue_block(inv_feed, flags, programmed, s);
             push.queued += 1;
             push.rate_capped |= capped;
             push.rate_floored |= floored;
@@ -166,18 +182,19 @@ impl Planner {
     /// Plan the move [`Planner::accept_line`] left pending, if any (with the
     /// settings it was accepted under: the per-axis cache is as it was then).
     pub fn flush(&mut self, s: &Settings) {
-        if let Some((delta, inv_feed, programmed)) = self.pending.take() {
-            self.queue_block(&delta, inv_feed, 0, programmed, s);
+        if let Some((inv_feed, programmed)) = self.pending.take() {
+            self.queue_block(inv_feed, 0, programmed, s);
         }
     }
 
-    /// Build a block for `delta` (steps, not all zero) at `inv_feed` s/mm (0 =
+    /// Build a block for `self.delta` (steps, not all zero) at `inv_feed` s/mm (0 =
     /// rapid), link it to the previous one and re-plan. Returns (rate capped,
     /// rate floored). The caller has checked there is room.
     ///
     /// AVR cost (simavr, 16 MHz, see the module doc): ~9–13 k cycles including
     /// the re-plan; every f32 multiply is ~170 cycles, a divide or sqrt ~500.
-    fn queue_block(&mut self, delta: &[i32; N_AXES], inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
+    fn queue_block(&mut self, inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
+        let delta = &self.delta;
         let prev_nominal_sqr = self.previous_nominal_speed_sqr;
         let prev_accel = self.previous_acceleration;
         let prev_t_axes = self.previous_t_axes;
@@ -188,30 +205,35 @@ impl Planner {
         let b = &mut self.blocks[self.head as usize];
         b.flags = flags;
         b.feed = feed;
-        b.step_event_count = 0;
-        b.direction_bits = 0;
         b.entry_speed_sqr = 0.0;
         let mut unit = [0f32; N_AXES];
+        // Counted in registers, stored once.
         let mut moving = 0u8;
+        let mut dir = 0u8;
+        let mut step_event_count = 0u32;
+        let mut bit = 1u8;
         for i in 0..N_AXES {
             let d = delta[i];
             let n = d.unsigned_abs();
             b.steps[i] = n;
-            if n > b.step_event_count {
-                b.step_event_count = n;
+            if n > step_event_count {
+                step_event_count = n;
             }
             if d != 0 {
-                moving |= 1 << i;
+                moving |= bit;
                 if d < 0 {
-                    b.direction_bits |= 1 << i;
+                    dir |= bit;
                 }
             }
+            bit <<= 1;
         }
+        b.step_event_count = step_event_count;
+        b.direction_bits = dir;
         // Path length and unit vector.
         let (mm, inv_mm);
         // (√S, 1/√S) of a cached root: see below.
         let mut roots = None;
-        if moving & 0b1000 == 0 && ax.xyz_same_steps && b.step_event_count < 0x8000 {
+        if moving & 0b1000 == 0 && ax.xyz_same_steps && step_event_count < 0x8000 {
             // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
             // of short moves repeats a few dozen values of the integer Σd²,
             // whose root and inverse root are cached: no square root and no
@@ -230,10 +252,12 @@ impl Planner {
             mm = root * ax.mm_per_step[0];
             // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
             inv_mm = inv_root;
+            let mut bit = 1u8;
             for i in 0..3 {
-                if moving & (1 << i) != 0 {
+                if moving & bit != 0 {
                     unit[i] = delta[i] as f32 * inv_root;
                 }
+                bit <<= 1;
             }
         } else {
             // Path length: XYZ distance, or the E distance for an E-only move.
@@ -271,28 +295,22 @@ impl Planner {
         } else if moving & !ax.uniform == 0 {
             // Every moving axis has axis 0's limits: the largest |u| decides
             // (exactly: rounding keeps the order of the products).
-            let (u_max, accel) = match roots {
-                // From a cached root: |u| is largest on the dominant axis,
-                // n = step_event_count steps of the √S: |u|max = n/√S, and
-                // the acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
+            // The largest |u|: on a cached root that of the dominant axis,
+            // n = step_event_count steps of the √S, |u|max = n·(1/√S), is
+            // the very product its unit component took (the twin test
+            // `the_largest_unit_component_is_the_dominant_axis_share`).
+            let mut u_max = 0.0f32;
+            for u in &unit {
+                u_max = max_nn(u_max, abs_f32(*u));
+            }
+            let accel = match roots {
+                // The acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
                 // table for short moves (two multiplies, not a division).
-                Some((root, inv_root)) => {
-                    let n = b.step_event_count;
-                    let u_max = n as f32 * inv_root;
-                    match crate::math::recip_small(n) {
-                        Some(r) => (u_max, s.accel_mm_per_s2[0] * root * r),
-                        None => (u_max, 1.0 / (u_max * ax.inv_accel[0])),
-                    }
-                }
-                None => {
-                    let mut u_max = 0.0f32;
-                    for i in 0..N_AXES {
-                        if moving & (1 << i) != 0 {
-                            u_max = max_nn(u_max, abs_f32(unit[i]));
-                        }
-                    }
-                    (u_max, 1.0 / (u_max * ax.inv_accel[0]))
-                }
+                Some((root, _)) => match crate::math::recip_small(step_event_count) {
+                    Some(r) => s.accel_mm_per_s2[0] * root * r,
+                    None => 1.0 / (u_max * ax.inv_accel[0]),
+                },
+                None => 1.0 / (u_max * ax.inv_accel[0]),
             };
             (accel, u_max * ax.inv_max_speed[0])
         } else {
@@ -326,7 +344,7 @@ impl Planner {
         let mut floored = false;
         let (t_lo, t_hi) = ax.rate_free_inv_feed;
         if moving & 0b1000 != 0 || lt_nn(t, t_lo) || lt_nn(t_hi, t) {
-            let mut steps_per_mm = b.step_event_count as f32 * inv_mm;
+            let mut steps_per_mm = step_event_count as f32 * inv_mm;
             if roots.is_some() {
                 steps_per_mm *= s.steps_per_mm[0];
             }

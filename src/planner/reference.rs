@@ -309,6 +309,36 @@ fn a_short_moves_acceleration_from_the_reciprocal_table_is_the_plain_division() 
 }
 
 #[test]
+fn the_largest_unit_component_is_the_dominant_axis_share() {
+    // The cached-root path at a feed above the axes' limit, so that the
+    // per-axis limit sets the nominal speed: the plain way takes |u|max as
+    // n·(1/√S) (n the dominant axis' steps), the planner as the largest
+    // unit component; bit for bit the same.
+    let st = Settings::DEFAULT;
+    for dx in -40i32..=40 {
+        for dy in -40i32..=40 {
+            for dz in [-7i32, 0, 3] {
+                if (dx, dy, dz) == (0, 0, 0) {
+                    continue;
+                }
+                let mut p = Planner::new();
+                p.push_line([dx, dy, dz, 0], 1.0e5, false, &st).unwrap();
+                let b = p.block(0).unwrap();
+                let n = dx.abs().max(dy.abs()).max(dz.abs()) as f32;
+                let inv_root = 1.0 / ((dx * dx + dy * dy + dz * dz) as f32).sqrt();
+                let u_max = n * inv_root;
+                let v = 1.0 / (u_max * (60.0 / st.max_feed_mm_per_min[0]));
+                assert_eq!(b.nominal_speed_sqr.to_bits(), (v * v).to_bits(), "({dx}, {dy}, {dz})");
+                if crate::math::recip_small(n as u32).is_none() {
+                    let a = 1.0 / (u_max * (1.0 / st.accel_mm_per_s2[0]));
+                    assert_eq!(b.acceleration.to_bits(), a.to_bits(), "({dx}, {dy}, {dz})");
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn the_reciprocal_table_is_one_over_n() {
     assert_eq!(crate::math::recip_small(0), None);
     for n in 1..=16u32 {

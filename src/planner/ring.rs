@@ -32,6 +32,7 @@ const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
 pub(super) const ROOTS_LEN: usize = 8;
 
 /// The block ring and the look-ahead state.
+#[cfg_attr(test, derive(Clone))]
 pub struct Planner {
     /// The ring; valid blocks are `tail`, tail+1, … (`len` of them).
     pub(super) blocks: [Block; BLOCK_BUFFER_LEN],
@@ -87,9 +88,11 @@ pub struct Planner {
     /// Settings-derived per-axis values.
     pub(super) axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
-    /// steps, time per mm (s/mm) and programmed feed ([`Block::feed`]). It
-    /// holds a ring slot.
-    pub(super) pending: Option<([i32; N_AXES], f32, u16)>,
+    /// time per mm (s/mm) and programmed feed ([`Block::feed`]); its steps
+    /// are `delta`. It holds a ring slot.
+    pub(super) pending: Option<(f32, u16)>,
+    /// Steps of the move being queued, or of the pending one, X Y Z E.
+    pub(super) delta: [i32; N_AXES],
     /// `axis` matches the settings [`Planner::accept_line`] is given, until
     /// [`Planner::settings_changed`] (saves comparing 12 settings per move).
     pub(super) axis_fresh: bool,
@@ -142,25 +145,31 @@ impl Planner {
             roots: [(0, 0.0, 0.0); ROOTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,
+            delta: [0; N_AXES],
             axis_fresh: false,
         }
     }
 
-    /// The executing (oldest) block, if any.
+    /// The executing (oldest) block, if any. (`get`: `tail` is always in
+    /// the ring, and this way there is no bounds-check panic to branch to.)
+    // speed: prep asks for it several times a segment; inlined it is a few loads
+    #[inline]
     pub fn current_block(&self) -> Option<&Block> {
         if self.len == 0 {
             None
         } else {
-            Some(&self.blocks[self.tail as usize])
+            self.blocks.get(self.tail as usize)
         }
     }
 
     /// The executing block, for prep to record progress in.
+    // speed: as `current_block`
+    #[inline]
     pub fn current_block_mut(&mut self) -> Option<&mut Block> {
         if self.len == 0 {
             None
         } else {
-            Some(&mut self.blocks[self.tail as usize])
+            self.blocks.get_mut(self.tail as usize)
         }
     }
 
@@ -187,11 +196,12 @@ impl Planner {
 
     /// Exit speed² of the executing block, (mm/s)²: the next block's entry speed,
     /// or 0 when it is the last one.
+    // speed: as `current_block` (LLVM keeps it a call with a mere hint)
+    #[inline(always)]
     pub fn exec_exit_speed_sqr(&self) -> f32 {
-        if self.len <= 1 {
-            0.0
-        } else {
-            self.blocks[next_index(self.tail) as usize].entry_speed_sqr
+        match self.blocks.get(next_index(self.tail) as usize) {
+            Some(b) if self.len > 1 => b.entry_speed_sqr,
+            _ => 0.0,
         }
     }
 

@@ -632,3 +632,115 @@ fn the_feed_override_scales_feeds_the_rapid_override_rapids_and_fixed_feeds_stay
     assert_close(b[0].nominal_speed_sqr, (2500.0f32 / 120.0).powi(2), 1e-4);
     assert_close(b[1].nominal_speed_sqr, 625.0, 1e-5);
 }
+
+/// A ring as a stream leaves it before a look-ahead pass: moves accepted
+/// (not yet planned) at `feed`, the executing block part done at some
+/// speed or dropped, as the random number `r` picks.
+fn drive_ring(p: &mut Planner, pos: &mut [i32; N_AXES], r: u32, feed: f32, st: &Settings) {
+    match r % 16 {
+        // Prep finished the executing block.
+        0..=2 if p.len() > 1 => p.discard_current_block(),
+        // Prep is part way through it, at some speed (a feed hold or a
+        // slow start leaves it below what the plan had).
+        3 => {
+            if let Some(b) = p.current_block_mut() {
+                b.entry_speed_sqr = b.nominal_speed_sqr * ((r >> 8) % 101) as f32 / 100.0;
+                b.millimeters *= ((r >> 16) % 100) as f32 / 100.0;
+                b.max_delta_speed_sqr = 2.0 * b.acceleration * b.millimeters;
+            }
+        }
+        _ if !p.is_full() => {
+            // Mostly 0.1 mm chords of a circle (a deceleration ramp over
+            // the whole ring), some longer or turning moves.
+            let k = (r >> 4) % 8;
+            let (dx, dy) = match k {
+                0 => (((r >> 8) % 2001) as i32 - 1000, ((r >> 12) % 2001) as i32 - 1000),
+                1 => (-(pos[0] % 40), 8),
+                _ => (8 - (pos[1] / 50) % 3, 3 + (pos[0] / 70) % 3),
+            };
+            pos[0] += dx;
+            pos[1] += dy;
+            p.accept_line(*pos, Speed::Feed(feed), st).unwrap();
+            p.flush(st);
+        }
+        _ => {}
+    }
+}
+
+#[test]
+fn the_look_ahead_without_an_idle_forward_pass_plans_as_both_passes_do() {
+    let st = s();
+    let mut p = Planner::new();
+    let mut pos = [0i32; N_AXES];
+    let mut seed = 99u32;
+    let mut passes = 0;
+    let mut longest = 0;
+    for i in 0..20_000 {
+        // xorshift32
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        // Runs of a few hundred moves at one feed: at the higher ones the
+        // whole ring is a deceleration ramp.
+        let feed = [3300.0, 600.0, 5000.0, 1800.0, 20.0][(i / 700) % 5];
+        drive_ring(&mut p, &mut pos, seed, feed, &st);
+        if !(seed >> 24).is_multiple_of(3) {
+            continue;
+        }
+        let span = (p.head as usize + BLOCK_BUFFER_LEN - 1 - p.planned as usize) % BLOCK_BUFFER_LEN;
+        longest = longest.max(span);
+        let mut plain = p.clone();
+        plain.recalculate_plain();
+        p.recalculate();
+        passes += 1;
+        assert_eq!(p.planned, plain.planned, "step {i}: planned");
+        assert_eq!(p.exec_replanned, plain.exec_replanned, "step {i}: replanned flag");
+        for k in 0..p.len() {
+            let (a, b) = (p.block(k).unwrap(), plain.block(k).unwrap());
+            assert_eq!(a.entry_speed_sqr.to_bits(), b.entry_speed_sqr.to_bits(), "step {i} block {k}: {a:?} vs {b:?}");
+        }
+    }
+    // Long deceleration ramps were covered (the ring is at least 16).
+    assert!(passes > 5000 && longest >= 14, "{passes} passes, at most {longest} blocks after `planned`");
+}
+
+#[test]
+fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
+    use super::junction::{cos_theta, cos_theta_plain};
+    let mut seed = 12_345u32;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed
+    };
+    let (mut nonzero, mut zero) = (0, 0);
+    for k in 0..200_000 {
+        // Components from a few steps (exact repeats, opposite and zero
+        // ones) and from random floats, on random axes.
+        let comp = |r: u32| -> f32 {
+            match r % 4 {
+                0 => 0.0,
+                1 => ((r >> 4) % 9) as f32 / 8.0 - 0.5,
+                _ => f32::from_bits(0x3C00_0000 + (r >> 8) % 0x0380_0000) * if r & 0x80 != 0 { -1.0 } else { 1.0 },
+            }
+        };
+        let p = [comp(next()), comp(next()), comp(next()), comp(next())];
+        let mut u = [comp(next()), comp(next()), comp(next()), comp(next())];
+        if k % 5 == 0 {
+            // Perpendicular: the products cancel exactly.
+            u = [p[1], -p[0], 0.0, 0.0];
+        }
+        let moving = (next() % 16) as u8;
+        let (fast, plain) = (cos_theta(&p, &u, moving), cos_theta_plain(&p, &u, moving));
+        if plain == 0.0 {
+            // Only the sign of an exact zero may differ.
+            assert_eq!(fast, 0.0, "{p:?} · {u:?} on {moving:#b}");
+            zero += 1;
+        } else {
+            assert_eq!(fast.to_bits(), plain.to_bits(), "{p:?} · {u:?} on {moving:#b}");
+            nonzero += 1;
+        }
+    }
+    assert!(zero > 1000 && nonzero > 100_000, "{zero} zero, {nonzero} not");
+}
