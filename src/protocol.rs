@@ -30,7 +30,7 @@ mod rx_store;
 
 pub use assembler::{Assembled, LineAssembler, BOM};
 pub use checker::{block_number, checksum_star, LineChecker, Retry, MAX_TRIES};
-pub use line_cut::{folded_len, Keep, LineCut};
+pub use line_cut::{code_run, folded_len, Keep, LineCut};
 pub use mcode_scanner::{MCodeScanner, Urgent};
 pub use realtime::{is_realtime, RxText, SOFT_RESET};
 pub use rx_store::{rx_fast_mode, RxStore, RX_ALL_SLOW, RX_FAST, RX_GAP, RX_LINE_START};

@@ -107,6 +107,22 @@ impl LineCut {
     }
 }
 
+/// Copies the bytes of `src` up to the first that [`LineCut`] would have
+/// to classify (a line end, a comment's `(` or `;`, a control or non-ASCII
+/// byte) into `dst`, as far as `dst` has room; returns how many. Outside a
+/// comment, with room, [`LineCut::keep`] stores each of them.
+pub fn code_run(src: &[u8], dst: &mut [u8]) -> usize {
+    let mut k = 0;
+    for (d, &b) in dst.iter_mut().zip(src) {
+        if !matches!(b, b'\t' | 0x20..=0x7E) || b == b'(' || b == b';' {
+            break;
+        }
+        *d = b;
+        k += 1;
+    }
+    k
+}
+
 /// The length a line keeps after [`Keep::Fold`]: up to and with the last
 /// `(` stored (the comment's own, or a `(` inside its text, which leaves a
 /// comment that reads the same).

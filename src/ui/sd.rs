@@ -23,7 +23,7 @@
 //!   before it finish, then the spindle is turned off and line n is reported.
 
 use crate::machine::{CmdResult, Machine, SdJobFlags};
-use crate::protocol::{folded_len, Keep, LineCut, BOM, MAX_LINE_LEN};
+use crate::protocol::{code_run, folded_len, Keep, LineCut, BOM, MAX_LINE_LEN};
 use crate::ui::text::Text;
 use ufmt::{uWrite, uwriteln};
 
@@ -607,22 +607,6 @@ impl SdJob {
             uwriteln!(out, "{}", Text::NotSdPrinting).ok();
         }
     }
-}
-
-/// Copies the bytes of `src` up to the first that [`LineCut`] would have
-/// to classify (a line end, a comment's `(` or `;`, a control or non-ASCII
-/// byte) into `dst`, as far as `dst` has room; returns how many. Outside a
-/// comment, with room, [`LineCut::keep`] stores each of them.
-fn code_run(src: &[u8], dst: &mut [u8]) -> usize {
-    let mut k = 0;
-    for (d, &b) in dst.iter_mut().zip(src) {
-        if !matches!(b, b'\t' | 0x20..=0x7E) || b == b'(' || b == b';' {
-            break;
-        }
-        *d = b;
-        k += 1;
-    }
-    k
 }
 
 /// `part × of / whole`, in u32 only (a u64 division costs 2.8 KB of flash on

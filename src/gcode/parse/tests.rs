@@ -954,7 +954,13 @@ fn plain_words_read_as_the_general_route_reads_them() {
     for k in 0..400_000u32 {
         let len = 1 + (rng.next() % 14) as usize;
         let mut s = vec![b'X'];
-        s.extend((0..len).map(|_| if k.is_multiple_of(4) { (rng.next() & 0x7F) as u8 } else { alphabet[(rng.next() as usize) % alphabet.len()] }));
+        s.extend((0..len).map(|_| {
+            if k.is_multiple_of(4) {
+                (rng.next() & 0x7F) as u8
+            } else {
+                alphabet[(rng.next() as usize) % alphabet.len()]
+            }
+        }));
         let Some((n, used)) = super::plain_value(&s, 1) else {
             continue;
         };
