@@ -33,8 +33,9 @@ fn main() {
 
 /// Modules (v0-mangled path pieces) linked below the gap in the high-flash
 /// variant: the interpreter, the planner, the tool changer (its logic and
-/// its runner), the tool setter (likewise), the `$` settings, the menu
-/// and screens, and the SD job (about 100 KB of ~165 KB).
+/// its runner, the carousel's runner), the tool setter (likewise), homing,
+/// the `$` settings, the menu and screens, and the SD job (about 105 KB of
+/// ~170 KB).
 const HIGH_FLASH_LOW_MODULES: &[&str] = &[
     "4mill5gcode6interp",
     "4mill7planner",
@@ -42,6 +43,8 @@ const HIGH_FLASH_LOW_MODULES: &[&str] = &[
     "4mill10toolsetter",
     "4mill7machine10toolchange",
     "4mill7machine6setter",
+    "4mill7machine8carousel",
+    "4mill7machine6homing",
     "4mill6dollar",
     "4mill2ui4menu",
     "4mill2ui4text",
