@@ -32,8 +32,8 @@ use std::path::{Path, PathBuf};
 pub const FEED: f64 = 6000.0;
 /// Feed and acceleration of the CPU row: beyond what either firmware's
 /// CPU allows on 0.1 mm lines. F12000 is 2,000 lines/s; at 5000 mm/s² the
-/// 1.5 mm of 0.1 mm lines a 16-block planner holds ahead stop the tool
-/// from 122 mm/s (1,225 lines/s, 13.1k cycles a line), grbl-Mega's 36
+/// 2.0 mm of 0.1 mm lines the 21-block planner holds ahead stop the tool
+/// from 141 mm/s (1,414 lines/s, 11.3k cycles a line), grbl-Mega's 36
 /// blocks from 187 mm/s. Not more: grbl-Mega stalls in simavr at 10000
 /// mm/s² and above (it goes idle with blocks left; not investigated), and
 /// crashes above ~44 kHz of steps (the move to the circle's start runs at
