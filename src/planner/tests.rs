@@ -672,14 +672,11 @@ fn the_look_ahead_without_an_idle_forward_pass_plans_as_both_passes_do() {
     let st = s();
     let mut p = Planner::new();
     let mut pos = [0i32; N_AXES];
-    let mut seed = 99u32;
+    let mut rng = crate::test_util::XorShift(99);
     let mut passes = 0;
     let mut longest = 0;
     for i in 0..20_000 {
-        // xorshift32
-        seed ^= seed << 13;
-        seed ^= seed >> 17;
-        seed ^= seed << 5;
+        let seed = rng.next();
         // Runs of a few hundred moves at one feed: at the higher ones the
         // whole ring is a deceleration ramp.
         let feed = [3300.0, 600.0, 5000.0, 1800.0, 20.0][(i / 700) % 5];
@@ -707,13 +704,8 @@ fn the_look_ahead_without_an_idle_forward_pass_plans_as_both_passes_do() {
 #[test]
 fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
     use super::junction::{cos_theta, cos_theta_plain};
-    let mut seed = 12_345u32;
-    let mut next = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 17;
-        seed ^= seed << 5;
-        seed
-    };
+    let mut rng = crate::test_util::XorShift(12_345);
+    let mut next = move || rng.next();
     let (mut nonzero, mut zero) = (0, 0);
     for k in 0..200_000 {
         // Components from a few steps (exact repeats, opposite and zero

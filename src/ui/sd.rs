@@ -1064,13 +1064,8 @@ pub(crate) mod tests {
         let max = crate::protocol::MAX_LINE_LEN;
         let pieces: [&[u8]; 14] =
             [b"G1 X1.5 Y-2", b" ", b"\t", b"(", b")", b";", b"\r", b"\n", "ä".as_bytes(), &BOM, b"*", b"\x01", b"N7", b"%"];
-        let mut seed = 0x2545_f491u32;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed
-        };
+        let mut rng = crate::test_util::XorShift(0x2545_f491);
+        let mut next = move || rng.next();
         for case in 0..3000 {
             let mut data = Vec::new();
             while data.len() < 40 + case % 700 {
