@@ -754,13 +754,8 @@ mod tests {
 
     #[test]
     fn keep_out_entry_matches_its_plain_reference() {
-        let mut x = 0x2545_F491_u32;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x
-        };
+        let mut rng = crate::test_util::XorShift(0x2545_F491);
+        let mut next = || rng.next();
         // Widths: off (0, −0, negative, NaN), on, and the edge cases of the bit test.
         let widths = [0.0, -0.0, -5.0, f32::NAN, -f32::NAN, f32::INFINITY, f32::MIN_POSITIVE, 1e-45, 10.0, 3.5];
         let mut hits = 0;

@@ -127,12 +127,9 @@ mod tests {
         for b in [0, 0x8000_0000, 1, 0x8000_0001, 0x7F80_0000, 0xFF80_0000, 0x3F80_0000, 0xBF80_0000, 0x7FFF_FFFF, 0xFFFF_FFFF] {
             check(b);
         }
-        let mut x = 0x2545_F491_u32;
+        let mut rng = crate::test_util::XorShift(0x2545_F491);
         for _ in 0..1_000_000 {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            check(x);
+            check(rng.next());
         }
     }
 

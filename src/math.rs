@@ -309,12 +309,9 @@ mod tests {
             check(b);
             check(b ^ 0x8000_0000);
         }
-        let mut x = 0x2545_F491_u32;
+        let mut rng = crate::test_util::XorShift(0x2545_F491);
         for _ in 0..4_000_000 {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            check(x);
+            check(rng.next());
         }
         // Halves and near-halves of the step counts a move gives.
         for i in -300_000i32..300_000 {
@@ -338,12 +335,9 @@ mod tests {
                 check(p.wrapping_add(d));
             }
         }
-        let mut x = 0x1234_5678_u32;
+        let mut rng = crate::test_util::XorShift(0x1234_5678);
         for _ in 0..2_000_000 {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            check(x);
+            check(rng.next());
         }
     }
 }

@@ -261,14 +261,12 @@ mod tests {
             "G0", "G1", "G2", "G38.2", "X1", "Y-2", "Z.5", "@3", "^45", "E2", "F100", "F0", "F-5", "S1000", "S-1", "T2", "T99", "M3", "M4",
             "M5", "M6", "M8", "G4 P1", "M114",
         ];
-        let mut x = 0x2545_F491_u32;
+        let mut rng = crate::test_util::XorShift(0x2545_F491);
         let mut atc = crate::atc::Atc::new();
         let mut settings = Settings::DEFAULT;
         let (mut short, mut total) = (0, 0);
         for i in 0..40_000 {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
+            let x = rng.next();
             let mut text = String::new();
             for (k, w) in WORDS.iter().enumerate() {
                 // Move words often, the others seldom.

@@ -130,13 +130,8 @@ mod tests {
 
     #[test]
     fn work_to_machine_fast_matches_the_plain_sum() {
-        let mut x = 0x2545_F491_u32;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x
-        };
+        let mut rng = crate::test_util::XorShift(0x2545_F491);
+        let mut next = move || rng.next();
         // Offsets: mostly none (the fast path), some −0.0, some real ones.
         let off = |n: u32| match n % 4 {
             0 | 1 => 0.0,

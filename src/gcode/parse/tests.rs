@@ -222,11 +222,9 @@ fn the_division_free_conversion_matches_the_division() {
             }
         }
     }
-    let mut x = 0x9E37_79B9_u32;
+    let mut rng = crate::test_util::XorShift(0x9E37_79B9);
     for _ in 0..3_000_000 {
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
+        let x = rng.next();
         check(x & 0xFF_FFFF, (x >> 24) as u16 % 10);
         check(x % 1_000_000_000, (x >> 27) as u16 + 1);
     }
