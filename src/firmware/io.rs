@@ -171,7 +171,8 @@ impl Host for Hw {
         // lines waits (a long arc, a full planner, M0): the status screen
         // says so.
         super::sd::keep_record(self, m);
-        if self.job.card_check(board::sd_detected(), m, &mut SerialOut) {
+        // (Without a job running it has nothing to end.)
+        if self.job.active() && self.job.card_check(board::sd_detected(), m, &mut SerialOut) {
             self.sd.unmount();
             self.ui.screen = Screen::Status;
         }

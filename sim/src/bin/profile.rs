@@ -20,6 +20,9 @@
 //! `--hist NAME` (with `--trace`) also prints the traced cycles per
 //! instruction address inside the functions whose name contains NAME, to
 //! read against `avr-objdump -d`.
+//! `--under NAME` (with `--trace`) counts the self cycles only while a
+//! function whose name contains NAME is on the stack: what it costs,
+//! callee by callee (interrupts that land in it included).
 
 use sim::host::prepare_gcode;
 use sim::{CardKind, FatKind, SdCard, SdImage, Vm, VmConfig};
@@ -69,6 +72,7 @@ fn main() {
     let mut job: Option<PathBuf> = None;
     let mut sd = false;
     let mut hist_name: Option<String> = None;
+    let mut under_name: Option<String> = None;
     let mut feed = 3000.0f64;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -78,6 +82,7 @@ fn main() {
             "--count" => window = it.next().expect("--count BYTES").parse().expect("number"),
             "--sd" => sd = true,
             "--hist" => hist_name = Some(it.next().expect("--hist NAME")),
+            "--under" => under_name = Some(it.next().expect("--under NAME")),
             "--feed" => feed = it.next().expect("--feed F").parse().expect("number"),
             "--trace" => {
                 let v = it.next().expect("--trace FROM:N");
@@ -152,6 +157,7 @@ fn main() {
         }
     };
     let starts: HashMap<u32, usize> = syms.iter().enumerate().map(|(i, s)| (s.0, i)).collect();
+    let under: Option<Vec<bool>> = under_name.as_ref().map(|n| syms.iter().map(|s| s.2.contains(n.as_str())).collect());
     // From SD: the first lines (setup) over serial, the rest as a file.
     let mut lines = lines;
     let mut sd_start_cycles = 0u64;
@@ -212,7 +218,13 @@ fn main() {
                 let sp = vm.read_u16(0x5D) as u32;
                 // Self time: the cycles of the instruction just run, charged
                 // to the function the PC was in before it ran.
-                *tself.entry(prev_pc_fn).or_default() += c - c0;
+                let counted = match &under {
+                    Some(u) => tstack.iter().any(|f| u[f.0]) || prev_pc_fn.is_some_and(|k| u[k]),
+                    None => true,
+                };
+                if counted {
+                    *tself.entry(prev_pc_fn).or_default() += c - c0;
+                }
                 if let (Some(h), Some(k)) = (&hist_name, prev_pc_fn) {
                     if syms[k].2.contains(h.as_str()) {
                         *hist.entry(prev_pc).or_default() += c - c0;
