@@ -44,6 +44,10 @@ impl Stepper for Hw {
         stepper::push_fitting(cmd)
     }
 
+    fn queued_at_least(&self, cycles: u32) -> bool {
+        stepper::queued_at_least(cycles)
+    }
+
     fn stepper(&self) -> StepperStatus {
         let m = stepper::MOTION.load(portable_atomic::Ordering::Acquire);
         StepperStatus {

@@ -77,6 +77,11 @@ pub trait Stepper {
             0
         }
     }
+    /// At least `cycles` CPU cycles of motion wait in the segment ring
+    /// (a board that does not count them says yes).
+    fn queued_at_least(&self, _cycles: u32) -> bool {
+        true
+    }
     /// Stepper position and activity.
     fn stepper(&self) -> StepperStatus;
     /// Overwrite the stepper's position counter (only while stopped).

@@ -24,6 +24,11 @@ impl Machine {
     pub fn push_bytes(&mut self, mut bytes: impl Iterator<Item = u8>, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
         while let Some(done) = self.asm.push_from(|| bytes.next()) {
             self.line_end(done, io, scratch);
+            // Lines back to back (a host with many bytes in flight): the
+            // ISR must not run dry meanwhile (as in an SD job's batch).
+            if !io.queued_at_least(crate::F_CPU_HZ / 200) {
+                self.fill_segments(io);
+            }
         }
     }
 

@@ -56,6 +56,16 @@ pub struct Planner {
     /// Blocks were queued since the last look-ahead pass (see
     /// [`Planner::settle`]).
     pub(super) stale: bool,
+    /// The deceleration ramp the last look-ahead pass left after `planned`
+    /// (lookahead.rs, "The ramp"): its newest block, and whether the next
+    /// pass may extend it rather than re-plan it. The blocks after
+    /// `planned` up to `ramp_end` hold their entry speed² less `lift`;
+    /// `slack` is the least of their maximum entry speed² less that, so no
+    /// block of the ramp reaches its maximum while `lift` stays below it.
+    pub(super) ramp_end: u8,
+    pub(super) ramp_ok: bool,
+    pub(super) lift: f32,
+    pub(super) slack: f32,
     /// Axes (bits) whose last direction is known, for backlash.
     pub(super) dir_known: u8,
     /// Last direction of each axis (bit set = negative), for backlash.
@@ -130,6 +140,10 @@ impl Planner {
             planned: 0,
             exec_replanned: false,
             stale: false,
+            ramp_end: 0,
+            ramp_ok: false,
+            lift: 0.0,
+            slack: 0.0,
             dir_known: 0,
             last_dir: 0,
             position: [0; N_AXES],
@@ -173,13 +187,25 @@ impl Planner {
         }
     }
 
-    /// The i-th queued block, 0 = executing.
-    pub fn block(&self, i: usize) -> Option<&Block> {
+    /// The i-th queued block, 0 = executing (a copy: its entry speed² with
+    /// the ramp's `lift` added, as the look-ahead planned it).
+    pub fn block(&self, i: usize) -> Option<Block> {
         if i >= self.len as usize {
-            None
-        } else {
-            Some(&self.blocks[(self.tail as usize + i) % BLOCK_BUFFER_LEN])
+            return None;
         }
+        let k = (self.tail as usize + i) % BLOCK_BUFFER_LEN;
+        let mut b = self.blocks[k];
+        if self.in_ramp(k as u8) {
+            b.entry_speed_sqr += self.lift;
+        }
+        Some(b)
+    }
+
+    /// Block `k` is in the ramp: after `planned`, up to `ramp_end`.
+    pub(super) fn in_ramp(&self, k: u8) -> bool {
+        let from = |i: u8| (i as usize + BLOCK_BUFFER_LEN - self.planned as usize) % BLOCK_BUFFER_LEN;
+        let d = from(k);
+        d != 0 && d <= from(self.ramp_end) && from(self.ramp_end) < self.len as usize
     }
 
     /// Drop the executing block (prep has prepared all its steps).
@@ -188,7 +214,20 @@ impl Planner {
             return;
         }
         if self.planned == self.tail {
-            self.planned = next_index(self.tail);
+            let n = next_index(self.tail);
+            if self.ramp_end == self.planned {
+                // No ramp: the next block was not planned yet, or is
+                // the newest.
+                self.ramp_ok = false;
+            } else {
+                // The ramp's first block becomes final: its entry speed²
+                // as planned.
+                self.blocks[n as usize].entry_speed_sqr += self.lift;
+                if n == self.ramp_end {
+                    self.lift = 0.0;
+                }
+            }
+            self.planned = n;
         }
         self.tail = next_index(self.tail);
         self.len -= 1;
@@ -200,6 +239,8 @@ impl Planner {
     #[inline(always)]
     pub fn exec_exit_speed_sqr(&self) -> f32 {
         match self.blocks.get(next_index(self.tail) as usize) {
+            // The ramp's first block: planned as its entry plus `lift`.
+            Some(b) if self.len > 1 && self.planned == self.tail && self.ramp_end != self.planned => b.entry_speed_sqr + self.lift,
             Some(b) if self.len > 1 => b.entry_speed_sqr,
             _ => 0.0,
         }
@@ -263,6 +304,9 @@ impl Planner {
         self.head = 0;
         self.len = 0;
         self.planned = 0;
+        self.ramp_end = 0;
+        self.ramp_ok = false;
+        self.lift = 0.0;
         self.exec_replanned = false;
         self.dir_known = 0;
         self.previous_unit_vec = [0.0; N_AXES];
