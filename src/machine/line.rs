@@ -25,9 +25,11 @@ impl Machine {
         while let Some(done) = self.asm.push_from(|| bytes.next()) {
             self.line_end(done, io, scratch);
             // Lines back to back (a host with many bytes in flight): the
-            // ISR must not run dry meanwhile (as in an SD job's batch).
+            // ISR must not run dry meanwhile (as in an SD job's batch), so
+            // the main loop takes its turn (the top-up, realtime requests,
+            // the watchdog) when less than 5 ms of motion are left.
             if !io.queued_at_least(crate::F_CPU_HZ / 200) {
-                self.fill_segments(io);
+                return;
             }
         }
     }

@@ -16,7 +16,8 @@
 //! line; `--trace FROM:N` then starts FROM ms after M24 and covers N lines
 //! (counted as entries into `Planner::queue_block`).
 //! `--feed F` runs the default job at F mm/min (the axes' M203 limit
-//! raised above 3000), to profile it where the CPU is the limit.
+//! raised above 3000), to profile it where the CPU is the limit; `--accel
+//! A` at A mm/s² on X and Y (the benchmark's CPU row: F12000, 5000).
 //! `--hist NAME` (with `--trace`) also prints the traced cycles per
 //! instruction address inside the functions whose name contains NAME, to
 //! read against `avr-objdump -d`.
@@ -74,6 +75,7 @@ fn main() {
     let mut hist_name: Option<String> = None;
     let mut under_name: Option<String> = None;
     let mut feed = 3000.0f64;
+    let mut accel: Option<f64> = None;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -84,6 +86,7 @@ fn main() {
             "--hist" => hist_name = Some(it.next().expect("--hist NAME")),
             "--under" => under_name = Some(it.next().expect("--under NAME")),
             "--feed" => feed = it.next().expect("--feed F").parse().expect("number"),
+            "--accel" => accel = Some(it.next().expect("--accel A").parse().expect("number")),
             "--trace" => {
                 let v = it.next().expect("--trace FROM:N");
                 let (a, b) = v.split_once(':').expect("FROM:N");
@@ -96,6 +99,9 @@ fn main() {
         Some(p) => prepare_gcode(&std::fs::read_to_string(p).expect("job")),
         None => {
             let mut v = vec!["M999".to_string()];
+            if let Some(a) = accel {
+                v.push(format!("M201 X{a} Y{a}"));
+            }
             v.extend(sim::circle::setup(feed));
             v.extend(sim::circle::moves());
             v
