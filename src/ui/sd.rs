@@ -332,16 +332,13 @@ impl SdJob {
         Ok(())
     }
 
-    /// One main-loop turn. `motion_done`: nothing planned or stepping.
-    /// May fill `line` with the next line to run (see [`Turn`]).
-    /// [`SdJob::poll`] has nothing to do this turn: no job runs (nor
-    /// scans, drains or aborts) and no abort finished since the last poll.
-    /// The main loop's quick test before it (~250 cycles a turn saved).
-    #[inline]
+    /// [`SdJob::poll`] has nothing to do: no job, no abort unseen.
     pub fn quiet(&self, m: &Machine) -> bool {
         !self.active() && m.aborts == self.seen_aborts
     }
 
+    /// One main-loop turn. `motion_done`: nothing planned or stepping.
+    /// May fill `line` with the next line to run (see [`Turn`]).
     pub fn poll(
         &mut self,
         card: &mut impl Card,
@@ -435,9 +432,7 @@ impl SdJob {
         self.phase = Phase::Draining(Outcome::NotResumed(to));
     }
 
-    /// [`SdJob::record_due`] may find a record due: a job runs, or a
-    /// record waits (the end of a job's). The idle hook's quick test.
-    #[inline]
+    /// [`SdJob::record_due`] may find one due: a job, or a record waiting.
     pub fn record_maybe_due(&self) -> bool {
         self.active() || self.record_now != NO_RECORD
     }
