@@ -27,6 +27,8 @@ use crate::protocol::{code_run, folded_len, Keep, LineCut, BOM, MAX_LINE_LEN};
 use crate::ui::text::Text;
 use ufmt::{uWrite, uwriteln};
 
+mod card_out;
+
 pub use super::card::{Card, Entry, Folder, Name, SdError};
 
 /// Requests to the machine, as realtime bits (see the module docs).
@@ -387,6 +389,7 @@ impl SdJob {
                         self.phase = Phase::Draining(Outcome::Done);
                         Turn::Idle
                     }
+                    Err(_) if !card.detected() => self.card_gone(card, m, out),
                     Err(e) => {
                         uwriteln!(out, "{}{}{}{}{}{}", Text::Error, e, Text::AtSdByte, self.pos, Text::JobStopped, self.line + 1).ok();
                         self.request(req::ABORT);
@@ -416,6 +419,7 @@ impl SdJob {
                 self.not_resumed(to, Text::WhyPastEnd);
                 Turn::Idle
             }
+            Err(_) if !card.detected() => self.card_gone(card, m, out),
             Err(e) => {
                 uwriteln!(out, "{}{}{}{}{}{}", Text::Error, e, Text::AtSdByte, self.pos, Text::JobStopped, self.line + 1).ok();
                 self.not_resumed(to, e);
@@ -467,36 +471,6 @@ impl SdJob {
         } else {
             Due::Reached(self.reached)
         })
-    }
-
-    /// The card is gone (`detected` false) while the job still runs: end
-    /// it. Decelerate and drop every queued move, spindle kept (the tool is
-    /// in the cut); once stopped, [`SdJob::poll`] has the tool retracted and
-    /// the spindle stopped ([`Turn::RetractThenSpindleOff`]). Says at which
-    /// line the job stopped. True when the job ended here. Called every
-    /// main-loop turn, also while a job's line waits (a long arc, a full
-    /// planner), so no queued move outlives the card.
-    pub fn card_check(&mut self, detected: bool, m: &Machine, out: &mut impl uWrite) -> bool {
-        if detected {
-            return false;
-        }
-        if let Phase::Scanning(to) = self.phase {
-            // Nothing moves during a scan: the job only ends.
-            uwriteln!(out, "{}{}{}{}", Text::Echo, Text::MsgCardRemovedAt, to, Text::MsgNothingMoved).ok();
-            self.not_resumed(to, Text::WhyCardOut);
-            return true;
-        }
-        if !matches!(self.phase, Phase::Running | Phase::Paused | Phase::Draining(_))
-            || matches!(self.phase, Phase::Draining(Outcome::NotResumed(_)))
-        {
-            return false;
-        }
-        let stopped = self.cut_line(m);
-        self.reached = stopped;
-        self.request(req::ABORT | req::KEEP_SPINDLE);
-        self.phase = Phase::Aborting(Outcome::CardRemoved(stopped));
-        uwriteln!(out, "{}{}{}", Text::Echo, Text::MsgCardRemovedAt, stopped).ok();
-        true
     }
 
     /// After a line ran: on an error, stop reading (the moves before it finish).
@@ -812,6 +786,8 @@ pub(crate) mod tests {
         open: Option<(usize, usize, bool)>,
         /// Reads fail from this byte offset on.
         pub fail_at: Option<usize>,
+        /// The card is pulled by the read that reaches this byte offset.
+        pub pull_at: Option<usize>,
     }
 
     /// One entry of a [`FakeCard`].
@@ -826,7 +802,8 @@ pub(crate) mod tests {
     impl FakeCard {
         /// Root files with 8.3 names.
         pub fn new(files: &[(&str, &str)]) -> FakeCard {
-            let mut c = FakeCard { present: true, mounted: false, files: Vec::new(), cwd: String::new(), open: None, fail_at: None };
+            let mut c =
+                FakeCard { present: true, mounted: false, files: Vec::new(), cwd: String::new(), open: None, fail_at: None, pull_at: None };
             for (n, d) in files {
                 c.add("", n, "", false, d);
             }
@@ -914,6 +891,10 @@ pub(crate) mod tests {
                 return Err(SdError::NoCard);
             }
             let (i, pos, _) = self.open.as_mut().ok_or(SdError::NotFound)?;
+            if self.pull_at.is_some_and(|p| *pos >= p) {
+                self.present = false;
+                return Err(SdError::NoCard);
+            }
             if let Some(f) = self.fail_at {
                 if *pos >= f {
                     return Err(SdError::ReadFailed);
@@ -1312,6 +1293,41 @@ pub(crate) mod tests {
         (big.phase, big.size, big.pos, big.line) = (Phase::Running, 3_000_000_000, 1_500_000_000, 9);
         assert_eq!(big.permille_cut(&Machine::new()), 500);
         assert_eq!(scaled(7, 0, 1000), 0, "an empty file");
+    }
+
+    /// The card pulled while a line is read (after the turn's check saw it
+    /// in): a removal, as when the check sees it, in a job and in run from
+    /// line's scan, never a read error.
+    #[test]
+    fn a_card_pulled_during_a_read_is_a_removal_not_a_read_error() {
+        for scan in [false, true] {
+            let text: String = (0..300).map(|k| format!("G1 X{k}\n")).collect();
+            let mut card = FakeCard::new(&[("A.NC", &text)]);
+            card.mount().unwrap();
+            let mut m = Machine::new();
+            let mut job = SdJob::new();
+            job.select(&mut card, Folder::Root, &Name::parse(b"A.NC").unwrap()).unwrap();
+            if scan {
+                job.start_from(&mut m, 250).unwrap();
+            } else {
+                job.phase = Phase::Running;
+            }
+            card.pull_at = Some(700);
+            let (mut out, mut line) = (Out::default(), [0u8; MAX_LINE_LEN]);
+            let mut turns = 0;
+            while matches!(job.phase, Phase::Running | Phase::Scanning(_)) && turns < 1000 {
+                job.poll(&mut card, &mut m, true, &mut line, &mut out);
+                turns += 1;
+            }
+            assert!(!card.present, "the card was pulled by a read");
+            assert!(!out.0.contains("rror"), "scan {scan}: {}", out.0);
+            assert!(out.0.contains("removed"), "scan {scan}: {}", out.0);
+            if scan {
+                assert_eq!(job.phase, Phase::Draining(Outcome::NotResumed(250)));
+            } else {
+                assert!(matches!(job.phase, Phase::Aborting(Outcome::CardRemoved(_))), "{:?}", job.phase);
+            }
+        }
     }
 
     #[test]
