@@ -21,7 +21,9 @@
 //! collinear moves only the blocks in the final deceleration ramp are visited.
 //! The forward pass also ends at the first block it leaves unchanged once past
 //! the newest block the backward pass left faster than the one before it: in
-//! a ring that is one deceleration ramp it visits a block or two.
+//! a ring that is one deceleration ramp it visits a block or two, and the
+//! backward pass is replaced by one raise of the whole ramp (`lookahead`,
+//! "The ramp").
 //!
 //! **The executing block** is shared with prep: prep writes its remaining
 //! distance (`millimeters`) and current speed (`entry_speed_sqr`) into it after
@@ -52,12 +54,14 @@
 //! (`lt_nn`), settings-derived inverses are cached, and a block in the same
 //! direction as the previous one reuses its limits and needs no junction maths.
 //! A junction is first compared with a cached sin²(θ/2) threshold above which
-//! the speed cap decides (`junction::CapCache`), a short move's acceleration
-//! takes 1/n from a flash table (`math::recip_small`) instead of a division,
+//! the speed cap decides (`junction::CapCache`), a short move's length,
+//! acceleration and speed limit are cached by its Σd² and dominant steps
+//! (`queue::Short`; on a miss its acceleration takes 1/n from a flash table,
+//! `math::recip_small`, instead of a division),
 //! and an X/Y/Z move whose time per mm can meet neither step-rate limit
 //! (`AxisCache::rate_free_inv_feed`) skips that test. `reference` (tests)
 //! holds all of it to a plain f64 planner within 1 %.
-//! RAM on AVR: `Block` 46 B, `Planner` 904 B with 16 blocks.
+//! RAM on AVR: `Block` 50 B, 21 of them (`ring`).
 //!
 //! **Files**: `block` the block and the results of queuing one, `ring` the
 //! ring and the planner's state, `queue` queuing a move, `junction` the

@@ -9,18 +9,54 @@ use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::{Block, PlanError, Push, Speed};
 use super::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
 use super::junction::junction_sqr;
-use super::ring::{next_index, Planner, BLOCK_BUFFER_LEN, ROOTS_LEN};
+use super::ring::{next_index, Planner, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::{round_i32, sqrtf};
 use crate::N_AXES;
 
-/// The square-root cache's entry for `n` ≥ 1: (n, √n, 1/√n). Not inlined:
-/// behind a cache test LLVM-AVR would compute it every time (`math::div_cold`).
+/// A short X/Y/Z move's path values, cached by its Σd² (steps², X/Y/Z at
+/// one steps/mm) and its dominant axis' steps n: a stream of short moves
+/// repeats a few dozen of them. RAM: 26 B each.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Short {
+    /// Σd² and n it is for (Σd² = 0: empty).
+    pub(super) sum_sqr: u32,
+    pub(super) n: u16,
+    /// 1/√S.
+    pub(super) inv_root: f32,
+    /// Path length, mm: √S · mm/step.
+    pub(super) mm: f32,
+    /// On axes with axis 0's limits: the acceleration a₀/|u|max = a₀·√S·(1/n)
+    /// (mm/s²), the time per mm at the speed limit |u|max/v₀ (s/mm), and
+    /// twice the acceleration times the length ((mm/s)²).
+    pub(super) accel: f32,
+    pub(super) t_axes: f32,
+    pub(super) max_delta: f32,
+}
+
+impl Short {
+    pub(super) const EMPTY: Short = Short { sum_sqr: 0, n: 0, inv_root: 0.0, mm: 0.0, accel: 0.0, t_axes: 0.0, max_delta: 0.0 };
+}
+
+/// The [`Short`] for Σd² = `sum_sqr` ≥ 1 and `n` dominant steps, as
+/// `queue_block` would compute it without the cache (the twin test
+/// `a_cached_short_move_is_planned_as_computed`). Not inlined: behind a
+/// cache test LLVM-AVR would compute it every time (`math::div_cold`).
 // speed: inlined (LLVM's choice), the cache miss is computed on every call
 #[inline(never)]
-fn root_entry(n: u32) -> (u32, f32, f32) {
-    let r = sqrtf(n as f32);
-    (n, r, 1.0 / r)
+fn short_entry(sum_sqr: u32, n: u32, ax: &super::axis_cache::AxisCache, a0: f32) -> Short {
+    let root = sqrtf(sum_sqr as f32);
+    let inv_root = 1.0 / root;
+    let mm = root * ax.mm_per_step[0];
+    // |u|max: the dominant axis' n·(1/√S), the very product its unit
+    // component takes (`the_largest_unit_component_is_the_dominant_axis_share`).
+    let u_max = n as f32 * inv_root;
+    // a₀·√S·(1/n), 1/n from a table for short moves (two multiplies).
+    let accel = match crate::math::recip_small(n) {
+        Some(r) => a0 * root * r,
+        None => 1.0 / (u_max * ax.inv_accel[0]),
+    };
+    Short { sum_sqr, n: n as u16, inv_root, mm, accel, t_axes: u_max * ax.inv_max_speed[0], max_delta: times2(accel * mm) }
 }
 
 /// The backlash take-up of the `reversing` axes (bits; `dir`: the new
@@ -132,8 +168,10 @@ impl Planner {
 
         if !(may_defer && self.axis_fresh) {
             if self.axis.refresh(s) {
-                // Limits changed: the same direction no longer means the same limits.
+                // Limits changed: the same direction no longer means the same
+                // limits, nor the same short move the same values.
                 self.previous_limits_valid = false;
+                self.shorts = [Short::EMPTY; SHORTS_LEN];
             }
             self.axis_fresh = may_defer;
         }
@@ -231,25 +269,26 @@ impl Planner {
         b.direction_bits = dir;
         // Path length and unit vector.
         let (mm, inv_mm);
-        // (√S, 1/√S) of a cached root: see below.
-        let mut roots = None;
+        // The cached values of a short move: see below.
+        let mut short: Option<&Short> = None;
         if moving & 0b1000 == 0 && ax.xyz_same_steps && step_event_count < 0x8000 {
             // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
             // of short moves repeats a few dozen values of the integer Σd²,
-            // whose root and inverse root are cached: no square root and no
-            // division (~1 k cycles on the AVR) on a hit.
+            // whose root, inverse root and what follows from them are cached
+            // ([`Short`]): no square root, no division and five multiplies
+            // fewer (~1.7 k cycles on the AVR) on a hit.
             let mut sum_sqr = 0u32;
             for i in 0..3 {
                 let n = b.steps[i] as u16;
                 sum_sqr += crate::math::mul_u16(n, n);
             }
-            let e = &mut self.roots[(sum_sqr & (ROOTS_LEN as u32 - 1)) as usize];
-            if e.0 != sum_sqr {
-                *e = root_entry(sum_sqr);
+            let e = &mut self.shorts[(sum_sqr & (SHORTS_LEN as u32 - 1)) as usize];
+            if e.sum_sqr != sum_sqr || e.n as u32 != step_event_count {
+                *e = short_entry(sum_sqr, step_event_count, ax, s.accel_mm_per_s2[0]);
             }
-            let (root, inv_root) = (e.1, e.2);
-            roots = Some((root, inv_root));
-            mm = root * ax.mm_per_step[0];
+            let inv_root = e.inv_root;
+            mm = e.mm;
+            short = Some(e);
             // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
             inv_mm = inv_root;
             let mut bit = 1u8;
@@ -290,29 +329,23 @@ impl Planner {
         // as hard) as the slowest axis allows, scaled by its share of the motion.
         // They depend on the direction only: a block in the same direction as the
         // last one (a stream of collinear moves) reuses them.
+        // A short move's cached 2·a·mm, when its acceleration is the cached one.
+        let mut max_delta = None;
         let (acceleration, t_axes) = if same_dir {
             (prev_accel, prev_t_axes)
         } else if moving & !ax.uniform == 0 {
             // Every moving axis has axis 0's limits: the largest |u| decides
             // (exactly: rounding keeps the order of the products).
-            // The largest |u|: on a cached root that of the dominant axis,
-            // n = step_event_count steps of the √S, |u|max = n·(1/√S), is
-            // the very product its unit component took (the twin test
-            // `the_largest_unit_component_is_the_dominant_axis_share`).
-            let mut u_max = 0.0f32;
-            for u in &unit {
-                u_max = max_nn(u_max, abs_f32(*u));
+            if let Some(e) = short {
+                max_delta = Some(e.max_delta);
+                (e.accel, e.t_axes)
+            } else {
+                let mut u_max = 0.0f32;
+                for u in &unit {
+                    u_max = max_nn(u_max, abs_f32(*u));
+                }
+                (1.0 / (u_max * ax.inv_accel[0]), u_max * ax.inv_max_speed[0])
             }
-            let accel = match roots {
-                // The acceleration a₀/|u|max = a₀·√S·(1/n), 1/n from a
-                // table for short moves (two multiplies, not a division).
-                Some((root, _)) => match crate::math::recip_small(step_event_count) {
-                    Some(r) => s.accel_mm_per_s2[0] * root * r,
-                    None => 1.0 / (u_max * ax.inv_accel[0]),
-                },
-                None => 1.0 / (u_max * ax.inv_accel[0]),
-            };
-            (accel, u_max * ax.inv_max_speed[0])
         } else {
             let mut inv_accel = 0.0f32; // s²/mm along the path
             let mut t_axes = 0.0f32; // s/mm along the path
@@ -345,7 +378,7 @@ impl Planner {
         let (t_lo, t_hi) = ax.rate_free_inv_feed;
         if moving & 0b1000 != 0 || lt_nn(t, t_lo) || lt_nn(t_hi, t) {
             let mut steps_per_mm = step_event_count as f32 * inv_mm;
-            if roots.is_some() {
+            if short.is_some() {
                 steps_per_mm *= s.steps_per_mm[0];
             }
             if lt_nn(t * MAX_STEP_RATE_HZ, steps_per_mm) {
@@ -376,7 +409,10 @@ impl Planner {
         b.millimeters = mm;
         b.acceleration = acceleration;
         b.nominal_speed_sqr = nominal_speed_sqr;
-        b.max_delta_speed_sqr = times2(acceleration * mm);
+        b.max_delta_speed_sqr = match max_delta {
+            Some(d) => d,
+            None => times2(acceleration * mm),
+        };
 
         self.previous_unit_vec = unit;
         self.previous_nominal_speed_sqr = nominal_speed_sqr;

@@ -6,6 +6,7 @@
 use super::axis_cache::AxisCache;
 use super::block::Block;
 use super::junction::CapCache;
+use super::queue::Short;
 use crate::N_AXES;
 use core::mem::size_of;
 
@@ -27,9 +28,10 @@ const _: () = assert!(size_of::<Block>() * BLOCK_BUFFER_LEN <= 1536);
 const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
 const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
 
-/// Entries of the square-root cache (a power of two). 8 entries hit 88 % of
-/// the benchmark's 0.1 mm circle (19 distinct lengths).
-pub(super) const ROOTS_LEN: usize = 8;
+/// Entries of the short-move cache ([`Short`], a power of two). 4 entries
+/// hit 79 % of the benchmark's 0.1 mm circle (19 distinct moves), 8 would
+/// hit 88 % for 104 B more.
+pub(super) const SHORTS_LEN: usize = 4;
 
 /// The block ring and the look-ahead state.
 #[cfg_attr(test, derive(Clone))]
@@ -92,9 +94,9 @@ pub struct Planner {
     pub(super) nominal_cache: (u32, f32),
     /// What the junction rule derives from the last junction cap.
     pub(super) cap_sqr_cache: CapCache,
-    /// (n, √n, 1/√n) for path lengths in steps, squared (n ≥ 1), direct
-    /// mapped on n's low bits. RAM: 12 B each.
-    pub(super) roots: [(u32, f32, f32); ROOTS_LEN],
+    /// Short moves' path values ([`Short`]), direct mapped on Σd²'s low
+    /// bits. RAM: 26 B each.
+    pub(super) shorts: [Short; SHORTS_LEN],
     /// Settings-derived per-axis values.
     pub(super) axis: AxisCache,
     /// A move accepted by [`Planner::accept_line`] and not planned yet: its
@@ -156,7 +158,7 @@ impl Planner {
             feed_cache: (0, 0.0),
             nominal_cache: (0, 0.0),
             cap_sqr_cache: CapCache::EMPTY,
-            roots: [(0, 0.0, 0.0); ROOTS_LEN],
+            shorts: [Short::EMPTY; SHORTS_LEN],
             axis: AxisCache::EMPTY,
             pending: None,
             delta: [0; N_AXES],

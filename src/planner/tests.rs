@@ -740,3 +740,81 @@ fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
     }
     assert!(zero > 1000 && nonzero > 100_000, "{zero} zero, {nonzero} not");
 }
+
+/// The short-move cache ([`queue::Short`]) against the values computed
+/// without it (square root, division, the unit vector's largest component,
+/// a₀·√S·(1/n) or a₀/|u|max): bit for bit, on its hits and its misses
+/// (moves of up to 40 steps in random order, so that entries collide and
+/// are replaced), and after the settings change (an entry of the old
+/// acceleration must not be used).
+#[test]
+fn a_cached_short_move_is_planned_as_computed() {
+    let mut rng = crate::test_util::XorShift(4242);
+    let mut st = s();
+    let mut p = Planner::new();
+    let mut pos = [0i32; N_AXES];
+    let (mut repeats, mut checked) = (0, 0);
+    let mut seen = std::collections::HashSet::new();
+    let mut pool = [[0i32; 3]; 12];
+    let mut last = [0i32; 3];
+    for (j, m) in pool.iter_mut().enumerate() {
+        // Up to 40 steps (the reciprocal table ends at 16), some without Z.
+        *m = [(rng.next() % 40) as i32 + 1, (rng.next() % 41) as i32, if j % 3 == 0 { 0 } else { (rng.next() % 20) as i32 }];
+    }
+    // One Σd² for two moves of different dominant steps (5 and 4).
+    (pool[0], pool[1]) = ([5, 0, 0], [3, 4, 0]);
+    for k in 0..20_000 {
+        if k == 10_000 {
+            st.accel_mm_per_s2 = [1700.0, 1700.0, 1700.0, st.accel_mm_per_s2[3]];
+            st.max_feed_mm_per_min = [4200.0, 4200.0, 4200.0, st.max_feed_mm_per_min[3]];
+            seen.clear();
+        }
+        // From a pool of 12 moves, signs at random: a third of them hit;
+        // right after the settings change the last move again (its entry
+        // is cached, with the old limits).
+        let r = rng.next();
+        let mut d = pool[(r % 12) as usize];
+        for (i, x) in d.iter_mut().enumerate() {
+            if r >> (8 + i) & 1 != 0 {
+                *x = -*x;
+            }
+        }
+        if k == 10_000 {
+            d = last;
+        }
+        last = d;
+        if p.is_full() {
+            p.discard_current_block();
+        }
+        for i in 0..3 {
+            pos[i] += d[i];
+        }
+        // Feeds above the axes' limit: the per-axis limit sets the speed.
+        p.push_line(pos, 1.0e5, false, &st).unwrap();
+        let b = p.block(p.len() - 1).unwrap();
+        let sum = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) as u32;
+        let n = d.iter().map(|x| x.unsigned_abs()).max().unwrap();
+        let root = crate::math::sqrtf(sum as f32);
+        let inv_root = 1.0 / root;
+        let mm = root * (1.0 / st.steps_per_mm[0]);
+        let mut u_max = 0.0f32;
+        for x in d {
+            u_max = u_max.max((x as f32 * inv_root).abs());
+        }
+        let accel = match crate::math::recip_small(n) {
+            Some(r) => st.accel_mm_per_s2[0] * root * r,
+            None => 1.0 / (u_max * (1.0 / st.accel_mm_per_s2[0])),
+        };
+        let v = 1.0 / (u_max * (60.0 / st.max_feed_mm_per_min[0]));
+        let what = format!("move {k} {d:?}");
+        assert_eq!(b.millimeters.to_bits(), mm.to_bits(), "{what}: mm");
+        if !seen.insert((sum, n)) {
+            repeats += 1;
+        }
+        assert_eq!(b.acceleration.to_bits(), accel.to_bits(), "{what}: acceleration");
+        assert_eq!(b.nominal_speed_sqr.to_bits(), (v * v).to_bits(), "{what}: nominal");
+        assert_eq!(b.max_delta_speed_sqr.to_bits(), (2.0 * (accel * mm)).to_bits(), "{what}: 2·a·mm");
+        checked += 1;
+    }
+    assert!(repeats > 19_000 && checked == 20_000, "{repeats} repeated moves, {checked} checked");
+}
