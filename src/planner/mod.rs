@@ -56,7 +56,7 @@
 //! A junction is first compared with a cached sin²(θ/2) threshold above which
 //! the speed cap decides (`junction::CapCache`), a short move's length,
 //! acceleration and speed limit are cached by its Σd² and dominant steps
-//! (`queue::Short`; on a miss its acceleration takes 1/n from a flash table,
+//! (`ring::Short`; on a miss its acceleration takes 1/n from a flash table,
 //! `math::recip_small`, instead of a division),
 //! and an X/Y/Z move whose time per mm can meet neither step-rate limit
 //! (`AxisCache::rate_free_inv_feed`) skips that test. `reference` (tests)

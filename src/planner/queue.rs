@@ -9,34 +9,10 @@ use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::{Block, PlanError, Push, Speed};
 use super::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
 use super::junction::junction_sqr;
-use super::ring::{next_index, Planner, BLOCK_BUFFER_LEN, SHORTS_LEN};
+use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::{round_i32, sqrtf};
 use crate::N_AXES;
-
-/// A short X/Y/Z move's path values, cached by its Σd² (steps², X/Y/Z at
-/// one steps/mm) and its dominant axis' steps n: a stream of short moves
-/// repeats a few dozen of them. RAM: 26 B each.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Short {
-    /// Σd² and n it is for (Σd² = 0: empty).
-    pub(super) sum_sqr: u32,
-    pub(super) n: u16,
-    /// 1/√S.
-    pub(super) inv_root: f32,
-    /// Path length, mm: √S · mm/step.
-    pub(super) mm: f32,
-    /// On axes with axis 0's limits: the acceleration a₀/|u|max = a₀·√S·(1/n)
-    /// (mm/s²), the time per mm at the speed limit |u|max/v₀ (s/mm), and
-    /// twice the acceleration times the length ((mm/s)²).
-    pub(super) accel: f32,
-    pub(super) t_axes: f32,
-    pub(super) max_delta: f32,
-}
-
-impl Short {
-    pub(super) const EMPTY: Short = Short { sum_sqr: 0, n: 0, inv_root: 0.0, mm: 0.0, accel: 0.0, t_axes: 0.0, max_delta: 0.0 };
-}
 
 /// The [`Short`] for Σd² = `sum_sqr` ≥ 1 and `n` dominant steps, as
 /// `queue_block` would compute it without the cache (the twin test

@@ -6,7 +6,6 @@
 use super::axis_cache::AxisCache;
 use super::block::Block;
 use super::junction::CapCache;
-use super::queue::Short;
 use crate::N_AXES;
 use core::mem::size_of;
 
@@ -32,6 +31,30 @@ const _: () = assert!(BLOCK_BUFFER_LEN <= 128);
 /// hit 79 % of the benchmark's 0.1 mm circle (19 distinct moves), 8 would
 /// hit 88 % for 104 B more.
 pub(super) const SHORTS_LEN: usize = 4;
+
+/// A short X/Y/Z move's path values, cached by its Σd² (steps², X/Y/Z at
+/// one steps/mm) and its dominant axis' steps n: a stream of short moves
+/// repeats a few dozen of them. RAM: 26 B each.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Short {
+    /// Σd² and n it is for (Σd² = 0: empty).
+    pub(super) sum_sqr: u32,
+    pub(super) n: u16,
+    /// 1/√S.
+    pub(super) inv_root: f32,
+    /// Path length, mm: √S · mm/step.
+    pub(super) mm: f32,
+    /// On axes with axis 0's limits: the acceleration a₀/|u|max = a₀·√S·(1/n)
+    /// (mm/s²), the time per mm at the speed limit |u|max/v₀ (s/mm), and
+    /// twice the acceleration times the length ((mm/s)²).
+    pub(super) accel: f32,
+    pub(super) t_axes: f32,
+    pub(super) max_delta: f32,
+}
+
+impl Short {
+    pub(super) const EMPTY: Short = Short { sum_sqr: 0, n: 0, inv_root: 0.0, mm: 0.0, accel: 0.0, t_axes: 0.0, max_delta: 0.0 };
+}
 
 /// The block ring and the look-ahead state.
 #[cfg_attr(test, derive(Clone))]

@@ -741,7 +741,7 @@ fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
     assert!(zero > 1000 && nonzero > 100_000, "{zero} zero, {nonzero} not");
 }
 
-/// The short-move cache ([`queue::Short`]) against the values computed
+/// The short-move cache ([`ring::Short`]) against the values computed
 /// without it (square root, division, the unit vector's largest component,
 /// a₀·√S·(1/n) or a₀/|u|max): bit for bit, on its hits and its misses
 /// (moves of up to 40 steps in random order, so that entries collide and
