@@ -93,3 +93,26 @@ fn four_axes_at_twice_the_isr_rate_are_capped_and_every_axis_ends_on_the_exact_s
     }
     assert_clean(&vm);
 }
+
+/// A stream the CPU cannot keep up with (`tools/bench`'s CPU row: the
+/// 2,000 chords of 0.1 mm at F12000 and 5000 mm/s², 254 bytes in flight,
+/// over 3 s): every line is answered, without an error, and the firmware
+/// never resets. Lines waiting back to back must not keep the main loop
+/// from its turn for longer than the watchdog's 2 s (topping the segment
+/// ring up from inside the line loop did: the board reset mid-stream).
+#[test]
+fn a_stream_of_short_moves_faster_than_the_cpu_is_answered_without_a_reset() {
+    let mut vm = boot_unlocked();
+    ok(&mut vm, "M201 X5000 Y5000");
+    for l in sim::circle::setup(12_000.0) {
+        ok(&mut vm, &l);
+    }
+    let moves = sim::circle::moves();
+    let rep = vm.stream(&moves, sim::StreamOptions::new(sim::Flow::CharCount(254)).timeout(20.0)).unwrap();
+    assert!(!rep.timed_out, "stream timed out after {} of {} oks; resets {:?}", rep.oks, moves.len(), vm.resets());
+    assert_eq!(rep.oks, moves.len(), "every line answered");
+    assert!(rep.errors.is_empty(), "{:?}", rep.errors);
+    ok(&mut vm, "M400");
+    vm.run_for(0.01).unwrap();
+    assert_clean(&vm);
+}
