@@ -8,6 +8,8 @@
 //! `-lm` in `avr-atmega2560.json`); `libm`'s generic version would put a
 //! 256-byte table in RAM. On the host the same functions use `libm`.
 
+pub mod float_bits;
+
 /// Square root of `x` (f32).
 #[inline]
 pub fn sqrtf(x: f32) -> f32 {

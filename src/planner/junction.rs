@@ -3,8 +3,8 @@
 //! it reverses. Used when a block is queued and when the overrides re-plan the
 //! ring.
 
-use super::float_bits::{abs_f32, half, lt_nn, min_nn};
 use crate::config::Settings;
+use crate::math::float_bits::{abs_f32, half, lt_nn, min_nn};
 use crate::math::sqrtf;
 use crate::N_AXES;
 

@@ -22,8 +22,8 @@
 //! f64 planner within 1 % (`reference`).
 
 use super::block::Block;
-use super::float_bits::{lt_nn, min_nn};
 use super::ring::{next_index, prev_index, Planner, BLOCK_BUFFER_LEN};
+use crate::math::float_bits::{lt_nn, min_nn};
 
 impl Planner {
     /// Run the look-ahead if blocks were queued since the last pass and it

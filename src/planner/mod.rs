@@ -66,13 +66,13 @@
 //! **Files**: `block` the block and the results of queuing one, `ring` the
 //! ring and the planner's state, `queue` queuing a move, `junction` the
 //! junction speed, `lookahead` the look-ahead passes, `overrides` the feed
-//! and rapid overrides, `axis_cache` the settings-derived per-axis values,
-//! `float_bits` the float shortcuts they share.
+//! and rapid overrides, `axis_cache` the settings-derived per-axis values;
+//! the float shortcuts on bit patterns are `math::float_bits` (segment prep
+//! uses them too).
 
 pub mod arc;
 mod axis_cache;
 mod block;
-mod float_bits;
 mod junction;
 mod lookahead;
 mod overrides;

@@ -4,10 +4,10 @@
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::Block;
-use super::float_bits::{abs_f32, lt_nn, max_nn, min_nn};
 use super::junction::junction_sqr;
 use super::ring::{next_index, Planner};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
+use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn};
 use crate::math::sqrtf;
 use crate::N_AXES;
 

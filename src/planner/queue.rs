@@ -7,10 +7,10 @@
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::{Block, PlanError, Push, Speed};
-use super::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
 use super::junction::junction_sqr;
 use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
+use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
 use crate::math::{round_i32, sqrtf};
 use crate::N_AXES;
 

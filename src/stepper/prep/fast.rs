@@ -3,8 +3,9 @@
 //! enough for one ramp segment ([`Prep::short_block`]), each one segment
 //! with one division instead of the profile and the segment loop.
 
-use super::timer::{per_tick, timer_for, times2};
+use super::timer::{per_tick, timer_for};
 use super::{Prep, Ramp, F_CPU, SEGMENT_TIME_S};
+use crate::math::float_bits::times2;
 use crate::planner::Planner;
 use crate::stepper::Segment;
 
@@ -121,8 +122,9 @@ fn plus_time(cycles: f32, dt_s: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::timer::{per_tick, timer_for, times2};
+    use super::super::timer::{per_tick, timer_for};
     use super::super::{Prep, Ramp, F_CPU, SEGMENT_TIME_S};
+    use crate::math::float_bits::times2;
     use crate::test_util::XorShift;
 
     /// The plain duration `short_cycles` replaces, s: each ramp's Δv / a,

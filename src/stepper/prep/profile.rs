@@ -60,7 +60,7 @@ impl Prep {
             sqrtf(exit_speed_sqr)
         };
         self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
-        let intersect = super::timer::half(mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
+        let intersect = crate::math::float_bits::half(mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
         if entry_sqr > nominal_sqr {
             self.accelerate_until = mm - inv_2_accel * (entry_sqr - nominal_sqr);
             if self.accelerate_until <= 0.0 {

@@ -2,8 +2,9 @@
 //! along its profile, its ticks timed from the previous segment's last
 //! tick to this one's last whole step.
 
-use super::timer::{abs_f32, ceil_u32, timer_for};
+use super::timer::{ceil_u32, timer_for};
 use super::{Prep, Ramp, CRUISE_SEGMENT_TIME_S, F_CPU, RAMP_END_EPSILON, REQ_STEPS_PER_SEGMENT, SEGMENT_TIME_S};
+use crate::math::float_bits::abs_f32;
 use crate::math::sqrtf;
 use crate::planner::Planner;
 use crate::stepper::Segment;

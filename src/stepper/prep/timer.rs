@@ -1,38 +1,8 @@
 //! From time to the timer: the CPU cycles per step event of a segment
 //! ([`per_tick`], a multiply by 1/n for the usual few ticks) and the
-//! Timer1 period and prescaler for them ([`timer_for`]); the float helpers
-//! the segment maths needs without soft-float compares.
+//! Timer1 period and prescaler for them ([`timer_for`]).
 
 use crate::stepper::{Prescale, MIN_PERIOD_CYCLES};
-
-/// |x| by clearing the sign bit (no soft-float compare).
-pub(super) fn abs_f32(x: f32) -> f32 {
-    f32::from_bits(x.to_bits() & 0x7FFF_FFFF)
-}
-
-/// 2·x exactly, by adding one to the exponent of a normal x below 2¹²⁶
-/// (a soft-float add or multiply on the AVR otherwise); other values take
-/// the multiply.
-pub(super) fn times2(x: f32) -> f32 {
-    let e = x.to_bits() & 0x7F80_0000;
-    if e != 0 && e < 0x7E80_0000 {
-        f32::from_bits(x.to_bits() + 0x0080_0000)
-    } else {
-        2.0 * x
-    }
-}
-
-/// x / 2 exactly, by taking one from the exponent of a normal x whose half
-/// is normal too (a soft-float multiply on the AVR otherwise); other values
-/// take the multiply.
-pub(super) fn half(x: f32) -> f32 {
-    let e = x.to_bits() & 0x7F80_0000;
-    if e > 0x0080_0000 && e != 0x7F80_0000 {
-        f32::from_bits(x.to_bits() - 0x0080_0000)
-    } else {
-        0.5 * x
-    }
-}
 
 /// ⌈x⌉ for 0 ≤ x < 2³².
 #[inline]
@@ -84,46 +54,7 @@ pub(super) fn timer_for(cycles: f32) -> (u16, Prescale) {
 
 #[cfg(test)]
 mod tests {
-    use super::{half, per_tick, times2};
-
-    #[test]
-    fn half_is_the_multiply_bit_for_bit() {
-        let mut b = 7u32;
-        for _ in 0..200_000 {
-            b = b.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let x = f32::from_bits(b);
-            let (got, want) = (half(x), 0.5 * x);
-            assert!(got.to_bits() == want.to_bits() || (x.is_nan() && got.is_nan()), "{x:e}: {got:e} vs {want:e}");
-        }
-        for x in [
-            0.0f32,
-            -0.0,
-            f32::MIN_POSITIVE,
-            2.0 * f32::MIN_POSITIVE,
-            3.0 * f32::MIN_POSITIVE,
-            1e-45,
-            f32::MAX,
-            -f32::MAX,
-            f32::INFINITY,
-            -f32::INFINITY,
-        ] {
-            assert_eq!(half(x).to_bits(), (0.5 * x).to_bits(), "{x:e}");
-        }
-    }
-
-    #[test]
-    fn times2_is_the_multiply_bit_for_bit() {
-        let mut b = 1u32;
-        for _ in 0..200_000 {
-            b = b.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let x = f32::from_bits(b);
-            let (got, want) = (times2(x), 2.0 * x);
-            assert!(got.to_bits() == want.to_bits() || (x.is_nan() && got.is_nan()), "{x:e}: {got:e} vs {want:e}");
-        }
-        for x in [0.0f32, -0.0, f32::MIN_POSITIVE, 1e-45, f32::MAX, -f32::MAX, 1.7e38, f32::INFINITY] {
-            assert_eq!(times2(x).to_bits(), (2.0 * x).to_bits(), "{x:e}");
-        }
-    }
+    use super::per_tick;
 
     #[test]
     fn per_tick_is_the_division_within_an_ulp() {
