@@ -50,6 +50,17 @@ impl<T: Copy, const N: usize> InFlash<[T; N]> {
     }
 }
 
+impl<const K: usize> InFlash<[[u8; 256]; K]> {
+    /// Byte `i` of column `k` of a table of byte columns: one `lpm` (a
+    /// `u8` index cannot leave a 256-byte column; `k` is a constant where
+    /// it is used, so its bounds check folds away).
+    #[inline(always)]
+    pub fn at(&'static self, k: usize, i: u8) -> u8 {
+        // SAFETY: as in `get`; the byte is an element of the static array.
+        unsafe { avr_progmem::raw::read_byte(&self.0[k][i as usize]) }
+    }
+}
+
 /// A string in program memory: a pointer into flash and a length.
 #[derive(Clone, Copy)]
 pub struct FStr {

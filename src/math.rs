@@ -9,6 +9,8 @@
 //! 256-byte table in RAM. On the host the same functions use `libm`.
 
 pub mod float_bits;
+mod sqrt;
+pub use sqrt::sqrt_1ulp;
 
 /// Square root of `x` (f32).
 #[inline]

@@ -5,7 +5,7 @@
 
 use crate::config::Settings;
 use crate::math::float_bits::{abs_f32, half, lt_nn, min_nn};
-use crate::math::sqrtf;
+use crate::math::sqrt_1ulp;
 use crate::N_AXES;
 
 /// Cosine beyond which a junction counts as a full reversal / a straight line.
@@ -88,7 +88,7 @@ pub(super) fn junction_sqr(
         if reversing == 0 && !lt_nn(h * (k * k), cap_cache.cap_sqr) {
             JUNCTION_SPEED_SQR_STRAIGHT
         } else {
-            let sin_theta_d2 = sqrtf(h);
+            let sin_theta_d2 = sqrt_1ulp(h);
             let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
             // An axis that reverses here jumps from +v·u_prev to −v·u
             // in one step, between a deceleration and an acceleration of

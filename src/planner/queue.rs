@@ -11,7 +11,7 @@ use super::junction::junction_sqr;
 use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
-use crate::math::{round_i32, sqrtf};
+use crate::math::{round_i32, sqrt_1ulp};
 use crate::N_AXES;
 
 /// The [`Short`] for Σd² = `sum_sqr` ≥ 1 and `n` dominant steps, as
@@ -21,7 +21,7 @@ use crate::N_AXES;
 // speed: inlined (LLVM's choice), the cache miss is computed on every call
 #[inline(never)]
 fn short_entry(sum_sqr: u32, n: u32, ax: &super::axis_cache::AxisCache, a0: f32) -> Short {
-    let root = sqrtf(sum_sqr as f32);
+    let root = sqrt_1ulp(sum_sqr as f32);
     let inv_root = 1.0 / root;
     let mm = root * ax.mm_per_step[0];
     // |u|max: the dominant axis' n·(1/√S), the very product its unit
@@ -288,7 +288,7 @@ impl Planner {
                     xyz_sqr += unit[i] * unit[i];
                 }
             }
-            mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
+            mm = if xyz_sqr.to_bits() != 0 { sqrt_1ulp(xyz_sqr) } else { abs_f32(unit[3]) };
             inv_mm = 1.0 / mm;
             for i in 0..N_AXES {
                 if moving & (1 << i) != 0 {

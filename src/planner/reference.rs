@@ -313,7 +313,8 @@ fn the_largest_unit_component_is_the_dominant_axis_share() {
     // The cached-root path at a feed above the axes' limit, so that the
     // per-axis limit sets the nominal speed: the plain way takes |u|max as
     // n·(1/√S) (n the dominant axis' steps), the planner as the largest
-    // unit component; bit for bit the same.
+    // unit component; bit for bit the same (both roots by the planner's
+    // `sqrt_1ulp`, which has its own twin test against the exact root).
     let st = Settings::DEFAULT;
     for dx in -40i32..=40 {
         for dy in -40i32..=40 {
@@ -325,7 +326,7 @@ fn the_largest_unit_component_is_the_dominant_axis_share() {
                 p.push_line([dx, dy, dz, 0], 1.0e5, false, &st).unwrap();
                 let b = p.block(0).unwrap();
                 let n = dx.abs().max(dy.abs()).max(dz.abs()) as f32;
-                let inv_root = 1.0 / ((dx * dx + dy * dy + dz * dz) as f32).sqrt();
+                let inv_root = 1.0 / crate::math::sqrt_1ulp((dx * dx + dy * dy + dz * dz) as f32);
                 let u_max = n * inv_root;
                 let v = 1.0 / (u_max * (60.0 / st.max_feed_mm_per_min[0]));
                 assert_eq!(b.nominal_speed_sqr.to_bits(), (v * v).to_bits(), "({dx}, {dy}, {dz})");

@@ -59,7 +59,7 @@ mod timer;
 
 use super::{StBlock, StepperCmd};
 use crate::config::MIN_STEP_RATE_HZ;
-use crate::math::sqrtf;
+use crate::math::sqrt_1ulp;
 use crate::planner::Planner;
 use crate::F_CPU_HZ;
 
@@ -298,7 +298,7 @@ impl Prep {
                     // The planned entry is the exit we just reached.
                     self.current_speed = self.exit_speed;
                 } else {
-                    self.current_speed = sqrtf(b.entry_speed_sqr);
+                    self.current_speed = sqrt_1ulp(b.entry_speed_sqr);
                 }
                 self.active = true;
                 self.block_pending = true;

@@ -3,14 +3,14 @@
 //! hold), and the cached square root of its nominal speed².
 
 use super::{Prep, Ramp, CRUISE_SEGMENT_TIME_S, F_CPU};
-use crate::math::sqrtf;
+use crate::math::sqrt_1ulp;
 use crate::planner::Planner;
 
 impl Prep {
     /// The square root of a nominal speed², cached with the cruise figures.
     pub(super) fn nominal_speed(&mut self, nominal_sqr: f32) -> f32 {
         if self.nominal_cache.0 != nominal_sqr.to_bits() {
-            let v = sqrtf(nominal_sqr);
+            let v = sqrt_1ulp(nominal_sqr);
             self.nominal_cache = (nominal_sqr.to_bits(), v);
             let cycles_per_mm = if v > 0.0 { crate::math::div_cold(F_CPU, v) } else { 0.0 };
             self.cruise_cache = (cycles_per_mm, CRUISE_SEGMENT_TIME_S * v);
@@ -41,7 +41,7 @@ impl Prep {
             let decel_dist = mm - inv_2_accel * entry_sqr;
             if decel_dist < 0.0 {
                 // The stop is beyond this block.
-                self.exit_speed = sqrtf(entry_sqr - 2.0 * a * mm);
+                self.exit_speed = sqrt_1ulp(entry_sqr - 2.0 * a * mm);
             } else {
                 self.mm_complete = decel_dist;
                 self.exit_speed = 0.0;
@@ -57,7 +57,7 @@ impl Prep {
         } else if exit_speed_sqr.to_bits() == 0 {
             0.0
         } else {
-            sqrtf(exit_speed_sqr)
+            sqrt_1ulp(exit_speed_sqr)
         };
         self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
         let intersect = crate::math::float_bits::half(mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
@@ -67,7 +67,7 @@ impl Prep {
                 // Deceleration only; the next block starts at our exit speed.
                 self.ramp = Ramp::Decel;
                 let v2 = entry_sqr - 2.0 * a * mm;
-                self.exit_speed = if v2 > 0.0 { sqrtf(v2) } else { 0.0 };
+                self.exit_speed = if v2 > 0.0 { sqrt_1ulp(v2) } else { 0.0 };
                 self.exit_speed_sqr_bits = u32::MAX;
                 self.decel_override = true;
             } else {
@@ -89,7 +89,7 @@ impl Prep {
                 } else {
                     self.accelerate_until = intersect;
                     self.decelerate_after = intersect;
-                    self.maximum_speed = sqrtf(2.0 * a * intersect + exit_speed_sqr);
+                    self.maximum_speed = sqrt_1ulp(2.0 * a * intersect + exit_speed_sqr);
                 }
             } else {
                 // Deceleration only.

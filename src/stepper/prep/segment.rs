@@ -5,7 +5,7 @@
 use super::timer::{ceil_u32, timer_for};
 use super::{Prep, Ramp, CRUISE_SEGMENT_TIME_S, F_CPU, RAMP_END_EPSILON, REQ_STEPS_PER_SEGMENT, SEGMENT_TIME_S};
 use crate::math::float_bits::abs_f32;
-use crate::math::sqrtf;
+use crate::math::sqrt_1ulp;
 use crate::planner::Planner;
 use crate::stepper::Segment;
 
@@ -186,7 +186,7 @@ impl Prep {
         let t = if self.ramp == Ramp::Decel {
             // Decelerating into the end: frac = v·t + a·t²/2.
             let a = self.acceleration * self.step_per_mm;
-            2.0 * frac / (v + sqrtf(v * v + 2.0 * a * frac))
+            2.0 * frac / (v + sqrt_1ulp(v * v + 2.0 * a * frac))
         } else if v > 0.0 {
             frac / v
         } else {
