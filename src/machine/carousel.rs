@@ -140,7 +140,7 @@ fn home_steps(m: &mut Machine, io: &mut impl Io) -> Result<bool, Error> {
 fn nudge(m: &mut Machine, io: &mut impl Io, pitches: f32, feed: f32) -> CmdResult {
     let mut target = io.stepper().position;
     target[axis::E] += round_i32(pitches * m.settings.steps_per_mm[axis::E]);
-    m.queue_line(io, target, Speed::Fixed(feed))?;
+    m.queue_line(io, &target, Speed::Fixed(feed))?;
     m.wait_motion_or_trip(io).map(|_| ())
 }
 

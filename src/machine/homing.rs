@@ -22,7 +22,7 @@ impl Machine {
         self.apply_watch(io, 1 << axis, false);
         let mut target = io.stepper().position;
         target[axis] += steps;
-        let r = self.queue_line(io, target, Speed::Fixed(feed)).and_then(|_| self.wait_motion_or_trip(io));
+        let r = self.queue_line(io, &target, Speed::Fixed(feed)).and_then(|_| self.wait_motion_or_trip(io));
         self.apply_watch(io, 0, false);
         let tripped = r?;
         if tripped {
@@ -140,6 +140,6 @@ fn switch(io: &impl Inputs, axis: u8) -> Event {
 fn pull_off(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: f32) -> CmdResult {
     let mut target = io.stepper().position;
     target[axis] += round_i32(mm * m.settings.steps_per_mm[axis]);
-    m.queue_line(io, target, Speed::Fixed(feed))?;
+    m.queue_line(io, &target, Speed::Fixed(feed))?;
     m.wait_idle(io)
 }

@@ -15,7 +15,7 @@ impl Machine {
     /// space while serving realtime requests.
     // speed: keeps the per-move path lean (this file's attributes removed: ping-pong stream 5.756 -> 5.807 s)
     #[inline(never)]
-    pub fn queue_line(&mut self, io: &mut impl Io, target: [i32; N_AXES], speed: Speed) -> CmdResult {
+    pub fn queue_line(&mut self, io: &mut impl Io, target: &[i32; N_AXES], speed: Speed) -> CmdResult {
         if self.alarm.is_some() {
             return Err(interp::Error::Alarm);
         }
@@ -26,7 +26,7 @@ impl Machine {
         // (each refusal costs ~500 cycles on the AVR, ~0.4 of them a line
         // in a stream). A move to where the planner already is queues
         // nothing and does not wait.
-        while self.planner.is_full() && target != self.planner.position() {
+        while self.planner.is_full() && *target != self.planner.position() {
             self.wait_step(io)?;
         }
         loop {
@@ -57,7 +57,7 @@ impl Machine {
     pub fn move_mm(&mut self, io: &mut impl Io, target: &[f32; N_AXES], speed: Speed) -> CmdResult {
         self.may_move_to(target)?;
         let steps = self.interp.steps_of(&self.settings, target);
-        self.queue_line(io, steps, speed)?;
+        self.queue_line(io, &steps, speed)?;
         self.interp.pos_mm = *target;
         Ok(())
     }
@@ -70,7 +70,7 @@ impl Machine {
         self.may_move_to(self.interp.target())?;
         let steps = self.interp.target_steps(&self.settings);
         let speed = if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) };
-        self.queue_line(io, steps, speed)?;
+        self.queue_line(io, &steps, speed)?;
         self.interp.target_reached();
         Ok(())
     }
@@ -198,7 +198,7 @@ impl Machine {
         self.state = State::Probe;
         self.apply_watch(io, 0, true);
         let steps = self.interp.steps_of(&self.settings, &target);
-        let r = self.queue_line(io, steps, speed).and_then(|_| self.wait_motion_or_trip(io));
+        let r = self.queue_line(io, &steps, speed).and_then(|_| self.wait_motion_or_trip(io));
         self.apply_watch(io, 0, false);
         self.state = prev;
         let tripped = r?;

@@ -197,7 +197,7 @@ fn probe(m: &mut Machine, io: &mut impl Io, axis: usize, mm: f32, feed: Option<f
     target[axis] += round_i32(mm * m.settings.steps_per_mm[axis]);
     m.apply_watch(io, 0, watch);
     let r = m
-        .queue_line(io, target, Speed::Fixed(feed.unwrap_or(crate::toolsetter::SEEK_FAST_MM_PER_MIN)))
+        .queue_line(io, &target, Speed::Fixed(feed.unwrap_or(crate::toolsetter::SEEK_FAST_MM_PER_MIN)))
         .and_then(|_| m.wait_motion_or_trip(io));
     m.apply_watch(io, 0, false);
     let tripped = r?;

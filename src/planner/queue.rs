@@ -59,12 +59,12 @@ impl Planner {
     /// `feed_mm_per_min` (mm/min along the path, ignored when `rapid`: then each
     /// axis may run at its max feed). Zero-length moves queue nothing.
     pub fn push_line(&mut self, target: [i32; N_AXES], feed_mm_per_min: f32, rapid: bool, s: &Settings) -> Result<Push, PlanError> {
-        self.push(target, if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) }, s, false)
+        self.push(&target, if rapid { Speed::Rapid } else { Speed::Feed(feed_mm_per_min) }, s, false)
     }
 
     /// [`Planner::push_line`] at `speed`.
     pub fn push_move(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
-        self.push(target, speed, s, false)
+        self.push(&target, speed, s, false)
     }
 
     /// [`Planner::push_line`] for the firmware, which calls
@@ -77,12 +77,12 @@ impl Planner {
     /// prep's caller before taking segments). The firmware sends `ok` in
     /// between, so a host that waits for it (ping-pong) sends the next line
     /// while this one is planned (~10 k cycles on the AVR).
-    pub fn accept_line(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
+    pub fn accept_line(&mut self, target: &[i32; N_AXES], speed: Speed, s: &Settings) -> Result<Push, PlanError> {
         self.push(target, speed, s, true)
     }
 
     /// [`Planner::push_move`] (`may_defer` false) or [`Planner::accept_line`].
-    fn push(&mut self, target: [i32; N_AXES], speed: Speed, s: &Settings, may_defer: bool) -> Result<Push, PlanError> {
+    fn push(&mut self, target: &[i32; N_AXES], speed: Speed, s: &Settings, may_defer: bool) -> Result<Push, PlanError> {
         let rapid = speed == Speed::Rapid;
         let (feed_mm_per_min, pct, programmed) = match speed {
             Speed::Rapid => (0.0, 100, 0),
@@ -177,7 +177,7 @@ impl Planner {
             push.rate_capped |= capped;
             push.rate_floored |= floored;
         }
-        self.position = target;
+        self.position = *target;
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
         if !may_defer {

@@ -217,7 +217,7 @@ fn accepted_moves_get_the_reference_junctions_once_flushed() {
                 p.discard_current_block();
                 r.blocks.remove(0);
             }
-            p.accept_line(target, speed, &st).unwrap();
+            p.accept_line(&target, speed, &st).unwrap();
             r.push(target, speed);
             p.flush(&st);
             p.replan();

@@ -508,7 +508,7 @@ fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_pla
     for k in 1..=12i32 {
         let t = [k * 37, k * k * 5, 0, 0];
         a.push_line(t, 3000.0, false, &st).unwrap();
-        assert_eq!(b.accept_line(t, Speed::Feed(3000.0), &st).unwrap().queued, 1);
+        assert_eq!(b.accept_line(&t, Speed::Feed(3000.0), &st).unwrap().queued, 1);
         // The pending move holds its slot and the position already moved.
         assert_eq!((b.len(), b.position()), (a.len(), a.position()));
     }
@@ -517,9 +517,9 @@ fn an_accepted_feed_move_is_planned_on_flush_and_settle_exactly_as_push_line_pla
     b.settle();
     assert_eq!(blocks(&a), blocks(&b));
     // Rapids and E moves are planned at once (they may be rate-capped).
-    b.accept_line([0, 0, 0, 0], Speed::Rapid, &st).unwrap();
+    b.accept_line(&[0, 0, 0, 0], Speed::Rapid, &st).unwrap();
     assert_eq!(blocks(&b).len(), 13);
-    b.accept_line([0, 0, 0, 100], Speed::Feed(600.0), &st).unwrap();
+    b.accept_line(&[0, 0, 0, 100], Speed::Feed(600.0), &st).unwrap();
     assert_eq!(blocks(&b).len(), 14);
     b.clear();
     assert!(b.is_empty());
@@ -660,7 +660,7 @@ fn drive_ring(p: &mut Planner, pos: &mut [i32; N_AXES], r: u32, feed: f32, st: &
             };
             pos[0] += dx;
             pos[1] += dy;
-            p.accept_line(*pos, Speed::Feed(feed), st).unwrap();
+            p.accept_line(pos, Speed::Feed(feed), st).unwrap();
             p.flush(st);
         }
         _ => {}

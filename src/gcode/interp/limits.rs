@@ -129,11 +129,15 @@ fn step_cached(c: &mut (u32, i32), steps_per_mm: f32, mm: f32) -> i32 {
 // speed: every move converts its target here (a call cost ping-pong lines/s)
 #[inline(always)]
 fn steps_cached(cache: &mut [(u32, i32); N_AXES], s: &Settings, mm: &[f32; N_AXES]) -> [i32; N_AXES] {
-    let mut st = [0i32; N_AXES];
-    for a in 0..N_AXES {
-        st[a] = step_cached(&mut cache[a], s.steps_per_mm[a], mm[a]);
-    }
-    st
+    // Each element written once (a loop over a zeroed array cost a
+    // memset on the AVR).
+    let [c0, c1, c2, c3] = cache;
+    [
+        step_cached(c0, s.steps_per_mm[0], mm[0]),
+        step_cached(c1, s.steps_per_mm[1], mm[1]),
+        step_cached(c2, s.steps_per_mm[2], mm[2]),
+        step_cached(c3, s.steps_per_mm[3], mm[3]),
+    ]
 }
 
 /// A straight move from `a` to `b` must not enter the tool magazine's
