@@ -30,7 +30,7 @@ impl Planner {
         self.flush(s);
         self.feed_pct = feed_pct;
         self.rapid_pct = rapid_pct;
-        self.feed_cache = (0, 0.0);
+        self.feed_cache = (0, 0.0, 0);
         let ax = &self.axis;
         let mut prev: Option<([f32; N_AXES], f32, f32)> = None;
         let mut i = self.tail;

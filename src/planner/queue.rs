@@ -14,6 +14,15 @@ use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
 use crate::math::{round_i32, sqrt_1ulp};
 use crate::N_AXES;
 
+/// (s/mm at `feed` mm/min times `pct` %, the feed rounded) for the feed
+/// cache. Not inlined: LLVM-AVR hoisted the rounding's soft-float calls
+/// above the cache test, so every move paid for them.
+// speed: inlined, (f + 0.5) as u16 ran on every move (~300 cycles)
+#[inline(never)]
+fn feed_entry(feed: f32, pct: u16) -> (f32, u16) {
+    (crate::math::div_cold(6000.0, feed * pct as f32), ((feed + 0.5) as u16).max(1))
+}
+
 /// The [`Short`] for Σd² = `sum_sqr` ≥ 1 and `n` dominant steps, as
 /// `queue_block` would compute it without the cache (the twin test
 /// `a_cached_short_move_is_planned_as_computed`). Not inlined: behind a
@@ -84,25 +93,29 @@ impl Planner {
     /// [`Planner::push_move`] (`may_defer` false) or [`Planner::accept_line`].
     fn push(&mut self, target: &[i32; N_AXES], speed: Speed, s: &Settings, may_defer: bool) -> Result<Push, PlanError> {
         let rapid = speed == Speed::Rapid;
-        let (feed_mm_per_min, pct, programmed) = match speed {
-            Speed::Rapid => (0.0, 100, 0),
-            Speed::Feed(f) => (f, self.feed_pct, ((f + 0.5) as u16).max(1)),
-            Speed::Fixed(f) => (f, 100, 0),
+        let (feed_mm_per_min, pct, follows) = match speed {
+            Speed::Rapid => (0.0, 100, false),
+            Speed::Feed(f) => (f, self.feed_pct, true),
+            Speed::Fixed(f) => (f, 100, false),
         };
-        let inv_feed = if rapid {
-            0.0
+        let (inv_feed, programmed) = if rapid {
+            (0.0, 0)
         } else {
-            if !(feed_mm_per_min > 0.0 && feed_mm_per_min.is_finite()) {
+            // 0 < feed < ∞ on the bits: positive finite floats are 1 ..
+            // 0x7F7F_FFFF (no soft-float compare).
+            if feed_mm_per_min.to_bits().wrapping_sub(1) >= 0x7F7F_FFFF {
                 return Err(PlanError::BadFeed);
             }
-            // s/mm at the feed times the override: 6000 / (feed · percent).
-            // The key: the feed's bits (a feed is > 0: the sign bit is free)
-            // and whether the override applies; `set_overrides` clears it.
+            // s/mm at the feed times the override: 6000 / (feed · percent),
+            // and the feed rounded for the block (`Block::feed`). The key:
+            // the feed's bits (a feed is > 0: the sign bit is free) and
+            // whether the override applies; `set_overrides` clears it.
             let bits = feed_mm_per_min.to_bits() | ((pct != 100) as u32) << 31;
             if self.feed_cache.0 != bits {
-                self.feed_cache = (bits, crate::math::div_cold(6000.0, feed_mm_per_min * pct as f32));
+                let (inv, rounded) = feed_entry(feed_mm_per_min, pct);
+                self.feed_cache = (bits, inv, rounded);
             }
-            self.feed_cache.1
+            (self.feed_cache.1, if follows { self.feed_cache.2 } else { 0 })
         };
 
         // The move accepted before this one is planned first (it holds

@@ -110,9 +110,9 @@ pub struct Planner {
     pub(super) previous_t_axes: f32,
     /// `previous_acceleration` and `previous_t_axes` match the current settings.
     pub(super) previous_limits_valid: bool,
-    /// Bits of the last feed seen and 1/feed, s/mm (the feed is modal, so it
-    /// rarely changes between blocks).
-    pub(super) feed_cache: (u32, f32),
+    /// Bits of the last feed seen, 1/feed, s/mm, and the feed rounded,
+    /// mm/min (the feed is modal, so it rarely changes between blocks).
+    pub(super) feed_cache: (u32, f32, u16),
     /// Bits of the last time per mm `t` and the nominal speed² 1/t², (mm/s)².
     pub(super) nominal_cache: (u32, f32),
     /// What the junction rule derives from the last junction cap.
@@ -178,7 +178,7 @@ impl Planner {
             previous_acceleration: 0.0,
             previous_t_axes: 0.0,
             previous_limits_valid: false,
-            feed_cache: (0, 0.0),
+            feed_cache: (0, 0.0, 0),
             nominal_cache: (0, 0.0),
             cap_sqr_cache: CapCache::EMPTY,
             shorts: [Short::EMPTY; SHORTS_LEN],

@@ -195,8 +195,33 @@ fn zero_length_moves_queue_nothing_and_bad_feeds_are_refused() {
     assert_eq!(p.push_line([10, 0, 0, 0], -5.0, false, &s()), Err(PlanError::BadFeed));
     assert_eq!(p.push_line([10, 0, 0, 0], f32::NAN, false, &s()), Err(PlanError::BadFeed));
     assert_eq!(p.push_line([10, 0, 0, 0], f32::INFINITY, false, &s()), Err(PlanError::BadFeed));
+    assert_eq!(p.push_line([10, 0, 0, 0], -0.0, false, &s()), Err(PlanError::BadFeed));
+    assert_eq!(p.push_line([10, 0, 0, 0], f32::NEG_INFINITY, false, &s()), Err(PlanError::BadFeed));
+    assert_eq!(p.push_line([10, 0, 0, 0], -f32::NAN, false, &s()), Err(PlanError::BadFeed));
     assert!(p.is_empty());
     assert_eq!(p.position(), [0; 4]);
+}
+
+#[test]
+fn a_block_keeps_its_programmed_feed_only_when_it_follows_the_override() {
+    // The rounded feed shares the 1/feed cache; the same feed as a fixed
+    // speed (a jog, the tool changer's moves) still carries none.
+    let mut p = Planner::new();
+    let speeds = [
+        (Speed::Fixed(1500.0), 0),
+        (Speed::Feed(1500.0), 1500),
+        (Speed::Fixed(1500.0), 0),
+        (Speed::Feed(1234.4), 1234),
+        (Speed::Feed(1234.6), 1235),
+        (Speed::Feed(0.2), 1),
+        (Speed::Rapid, 0),
+        (Speed::Feed(0.2), 1),
+    ];
+    for (i, (speed, want)) in speeds.into_iter().enumerate() {
+        p.push_move([10 * (i as i32 + 1), 0, 0, 0], speed, &s()).unwrap();
+        let b = p.block(p.len() - 1).unwrap();
+        assert_eq!(b.feed, want, "{speed:?}");
+    }
 }
 
 #[test]
