@@ -39,12 +39,14 @@ pub(crate) fn abs_f32(x: f32) -> f32 {
 }
 
 /// 2·x exactly, by adding one to the exponent of a normal x below 2¹²⁶
-/// (a ~145-cycle soft-float multiply on the AVR otherwise); other values
-/// take the multiply.
+/// (a ~145-cycle soft-float multiply on the AVR otherwise); ±0 is itself;
+/// other values take the multiply.
 pub(crate) fn times2(x: f32) -> f32 {
     let e = x.to_bits() & 0x7F80_0000;
     if e != 0 && e < 0x7E80_0000 {
         f32::from_bits(x.to_bits() + 0x0080_0000)
+    } else if x.to_bits() << 1 == 0 {
+        x
     } else {
         2.0 * x
     }
