@@ -269,6 +269,35 @@ pub fn mul_u16(a: u16, b: u16) -> u32 {
     a as u32 * b as u32
 }
 
+/// `*dst = *src` for a 16-byte value (a move's four axes). On the AVR 16
+/// `ld`/`st` pairs in line, ~70 cycles: at opt-level "z" LLVM-AVR calls
+/// `memcpy` for it, ~120 cycles with the call and its loop.
+// speed: a call otherwise (doc above)
+#[inline(always)]
+pub fn copy16<T: Copy>(dst: &mut T, src: &T) {
+    const { assert!(core::mem::size_of::<T>() == 16) };
+    #[cfg(target_arch = "avr")]
+    // SAFETY: reads the 16 bytes of `*src` and writes the 16 bytes of
+    // `*dst`, two valid references to values of one `Copy` type of that
+    // size (asserted above); they cannot overlap (`&mut`).
+    unsafe {
+        core::arch::asm!(
+            ".rept 16",
+            "ld {t}, Z+",
+            "st X+, {t}",
+            ".endr",
+            inout("Z") src as *const T => _,
+            inout("X") dst as *mut T => _,
+            t = out(reg) _,
+            options(nostack),
+        );
+    }
+    #[cfg(not(target_arch = "avr"))]
+    {
+        *dst = *src;
+    }
+}
+
 /// `(v / 10, v % 10)` by shifts and adds (Hacker's Delight, `divu10`):
 /// LLVM-AVR calls `__udivmodsi4` for a `u32` division by a constant,
 /// ~600 cycles; this is ~100. Exact for every `u32` (`div10_is_exact`).

@@ -190,7 +190,7 @@ impl Planner {
             push.rate_capped |= capped;
             push.rate_floored |= floored;
         }
-        self.position = *target;
+        crate::math::copy16(&mut self.position, target);
         self.last_dir = (self.last_dir & !moving) | (dir & moving);
         self.dir_known |= moving;
         if !may_defer {
@@ -403,7 +403,7 @@ impl Planner {
             None => times2(acceleration * mm),
         };
 
-        self.previous_unit_vec = unit;
+        crate::math::copy16(&mut self.previous_unit_vec, &unit);
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
         self.previous_acceleration = acceleration;
         self.previous_t_axes = t_axes;

@@ -31,7 +31,7 @@ impl Interp {
 
     /// The move to [`Interp::target`] was queued: it is the commanded position.
     pub fn target_reached(&mut self) {
-        self.pos_mm = self.run.target;
+        crate::math::copy16(&mut self.pos_mm, &self.run.target);
     }
 
     /// The line begun last has nothing more to do: [`Interp::next`] would
