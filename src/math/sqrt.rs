@@ -1,11 +1,13 @@
-//! A square root by table, for speeds: segment prep takes a speed from a
-//! speed² for every block it starts (`v = √v²`), and avr-libc's `sqrt`
-//! costs ~550 cycles on the AVR. [`sqrt_1ulp`] reads two knots and a bow
-//! from a 1.3 KB table in flash and interpolates between them: ~150
-//! cycles, within one unit in the last place of the correctly rounded
-//! root (`sqrt_1ulp_is_within_one_ulp`: every float of two octaves, and
-//! the exponents between; four in five are correctly rounded), exact at
-//! the knots.
+//! A square root by table, for speeds and short lengths: segment prep
+//! takes a speed from a speed² for every block it starts (`v = √v²`), the
+//! planner a chord's length from its steps, and avr-libc's `sqrt` costs
+//! ~550 cycles on the AVR. [`sqrt_1ulp`] reads a knot, the rise to the
+//! next one and a bow from a 1.5 KB table in flash and interpolates:
+//! ~240 cycles a call (`profile`), within one unit in the last place of
+//! the correctly rounded root (`sqrt_1ulp_is_within_one_ulp`: every float
+//! of two octaves, and the exponents between; four in five are correctly
+//! rounded), exact at the knots. Geometry that ends in positions (arcs,
+//! cutter compensation, polar words) keeps [`super::sqrtf`].
 //!
 //! The argument's exponent parity and its top 7 mantissa bits pick the
 //! knot: with u = 1.m in [1, 2) for an odd biased exponent and 2·1.m in
