@@ -79,7 +79,9 @@ const BOW: usize = 5;
 
 /// Per interval i: its first knot less the leading 1 (2²³), three bytes;
 /// the knots' difference (the rise, < 2¹⁶), two; the bow, one. Byte
-/// columns, so each is one `lpm` at a constant base plus i.
+/// columns, so each is one `lpm` at a constant base plus i. (The rise from
+/// the next knot's columns instead: 512 B less flash, ~20 cycles more a
+/// call.)
 const fn table() -> [[u8; 256]; 6] {
     let mut t = [[0u8; 256]; 6];
     let mut i = 0;
