@@ -6,6 +6,7 @@
 
 use super::inputs::drive_input;
 use super::outputs::{set_coolant, update_spindle};
+use super::setup::RAM_START;
 use super::simavr::no_sleep;
 use super::{Inner, Vm};
 use crate::boot;
@@ -134,9 +135,8 @@ impl Vm {
         unsafe {
             let data = (*avr).data;
             if kind == ResetKind::PowerOn {
-                let ioend = (*avr).ioend as usize;
                 let ramend = (*avr).ramend as usize;
-                power_on_noise(std::slice::from_raw_parts_mut(data.add(ioend + 1), ramend - ioend), seed);
+                power_on_noise(std::slice::from_raw_parts_mut(data.add(RAM_START), ramend + 1 - RAM_START), seed);
             }
             match kind {
                 ResetKind::PowerOn => *data.add(MCUSR) = 0x01,

@@ -21,6 +21,12 @@ use std::ffi::{c_int, c_void, CString};
 use std::path::PathBuf;
 use std::sync::{Mutex, Once};
 
+/// The last data address of the IO space as the VM runs it (see
+/// `Vm::new`): UDR3, the chip's last register, is 0x136.
+const IO_END: u16 = 0x137;
+/// The ATmega2560's first SRAM address (after the reserved extended IO).
+pub(super) const RAM_START: usize = 0x200;
+
 static LOGGER: Once = Once::new();
 static LOAD_LOCK: Mutex<()> = Mutex::new(());
 
@@ -78,6 +84,18 @@ impl Vm {
             }
             return Err(VmError::Load(e));
         }
+        // simavr's ATmega2560 ends the IO space at 0x1FF (RAMSTART − 1),
+        // but its table of IO callbacks holds 280 registers (data addresses
+        // 0x20..=0x137): a load or store to the reserved extended IO at
+        // 0x138..=0x1FF read a "callback" past the table's end and the VM
+        // crashed (SIGSEGV: code run from the middle of the firmware after a
+        // watchdog reset without the landing pad, tests/bootloader.rs, did
+        // such a store). The chip's last register is UDR3 at 0x136, so the
+        // IO space ends at 0x137 here: the reserved bytes above it are plain
+        // memory, where the chip ignores writes and reads 0. Set after the
+        // ELF is loaded (simavr places data chunks relative to `ioend`).
+        // SAFETY: avr is ours, initialised and not running.
+        unsafe { (*avr).ioend = IO_END };
 
         let recorder = Recorder::new(config.recorder.clone(), &config.machine);
         let mut physics = Physics::new(config.machine.clone());
