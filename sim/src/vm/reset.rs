@@ -6,7 +6,6 @@
 
 use super::inputs::drive_input;
 use super::outputs::{set_coolant, update_spindle};
-use super::setup::RAM_START;
 use super::simavr::no_sleep;
 use super::{Inner, Vm};
 use crate::boot;
@@ -14,6 +13,9 @@ use crate::pins::Input;
 use crate::report::{ResetKind, ResetRecord};
 use simavr_ffi as ffi;
 use std::ffi::{c_int, c_void};
+
+/// The ATmega2560's first SRAM address (after the reserved extended IO).
+const RAM_START: usize = 0x200;
 
 /// MCUSR: reset flags (PORF bit 0, EXTRF bit 1, BORF bit 2, WDRF bit 3).
 const MCUSR: usize = 0x54;

@@ -24,8 +24,6 @@ use std::sync::{Mutex, Once};
 /// The last data address of the IO space as the VM runs it (see
 /// `Vm::new`): UDR3, the chip's last register, is 0x136.
 const IO_END: u16 = 0x137;
-/// The ATmega2560's first SRAM address (after the reserved extended IO).
-pub(super) const RAM_START: usize = 0x200;
 
 static LOGGER: Once = Once::new();
 static LOAD_LOCK: Mutex<()> = Mutex::new(());
