@@ -8,7 +8,7 @@ use super::junction::junction_sqr;
 use super::ring::{next_index, Planner};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn};
-use crate::math::sqrtf;
+use crate::math::sqrt_1ulp;
 use crate::N_AXES;
 
 impl Planner {
@@ -50,7 +50,7 @@ impl Planner {
                     }
                 }
             }
-            let mm = if xyz_sqr.to_bits() != 0 { sqrtf(xyz_sqr) } else { abs_f32(unit[3]) };
+            let mm = if xyz_sqr.to_bits() != 0 { sqrt_1ulp(xyz_sqr) } else { abs_f32(unit[3]) };
             let inv_mm = 1.0 / mm;
             for u in unit.iter_mut() {
                 *u *= inv_mm;

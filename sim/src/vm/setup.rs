@@ -84,7 +84,7 @@ impl Vm {
         }
         // simavr's ATmega2560 ends the IO space at 0x1FF (RAMSTART − 1),
         // but its table of IO callbacks holds 280 registers (data addresses
-        // 0x20..=0x137): a load or store to the reserved extended IO at
+        // 0x20..=0x137): a store to the reserved extended IO at
         // 0x138..=0x1FF read a "callback" past the table's end and the VM
         // crashed (SIGSEGV: code run from the middle of the firmware after a
         // watchdog reset without the landing pad, tests/bootloader.rs, did
