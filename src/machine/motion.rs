@@ -58,7 +58,7 @@ impl Machine {
         self.may_move_to(target)?;
         let steps = self.interp.steps_of(&self.settings, target);
         self.queue_line(io, &steps, speed)?;
-        self.interp.pos_mm = *target;
+        crate::math::copy16(&mut self.interp.pos_mm, target);
         Ok(())
     }
 
