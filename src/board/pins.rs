@@ -170,6 +170,11 @@ impl Pin {
         port(self.pin_addr)
     }
 
+    /// Data-space address of the pin's PINx register.
+    pub const fn pin_addr(self) -> u16 {
+        self.pin_addr
+    }
+
     /// Read the pin level.
     pub fn is_high(self) -> bool {
         // SAFETY: reading a PINx register has no side effects.

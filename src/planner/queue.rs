@@ -233,31 +233,37 @@ impl Planner {
         b.flags = flags;
         b.feed = feed;
         b.entry_speed_sqr = 0.0;
-        let mut unit = [0f32; N_AXES];
         // Counted in registers, stored once.
         let mut moving = 0u8;
         let mut dir = 0u8;
         let mut step_event_count = 0u32;
-        let mut bit = 1u8;
-        for i in 0..N_AXES {
-            let d = delta[i];
-            let n = d.unsigned_abs();
-            b.steps[i] = n;
-            if n > step_event_count {
-                step_event_count = n;
-            }
-            if d != 0 {
-                moving |= bit;
-                if d < 0 {
-                    dir |= bit;
+        // One axis, its index and bit constants: written out, ~100 cycles
+        // a block fewer on the AVR than the loop (which indexed and
+        // shifted at run time).
+        macro_rules! count_axis {
+            ($i:literal) => {{
+                let d = delta[$i];
+                let n = d.unsigned_abs();
+                b.steps[$i] = n;
+                if n > step_event_count {
+                    step_event_count = n;
                 }
-            }
-            bit <<= 1;
+                if d != 0 {
+                    moving |= 1 << $i;
+                    if d < 0 {
+                        dir |= 1 << $i;
+                    }
+                }
+            }};
         }
+        count_axis!(0);
+        count_axis!(1);
+        count_axis!(2);
+        count_axis!(3);
         b.step_event_count = step_event_count;
         b.direction_bits = dir;
         // Path length and unit vector.
-        let (mm, inv_mm);
+        let (mm, inv_mm, mut unit);
         // The cached values of a short move: see below.
         let mut short: Option<&Short> = None;
         if moving & 0b1000 == 0 && ax.xyz_same_steps && step_event_count < 0x8000 {
@@ -280,14 +286,19 @@ impl Planner {
             short = Some(e);
             // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
             inv_mm = inv_root;
-            let mut bit = 1u8;
-            for i in 0..3 {
-                if moving & bit != 0 {
-                    unit[i] = delta[i] as f32 * inv_root;
-                }
-                bit <<= 1;
+            // Per axis, written out (see `count_axis`); E does not move here.
+            macro_rules! unit_axis {
+                ($i:literal) => {
+                    if moving & (1 << $i) != 0 {
+                        delta[$i] as f32 * inv_root
+                    } else {
+                        0.0
+                    }
+                };
             }
+            unit = [unit_axis!(0), unit_axis!(1), unit_axis!(2), 0.0];
         } else {
+            unit = [0.0; N_AXES];
             // Path length: XYZ distance, or the E distance for an E-only move.
             // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
             for i in 0..N_AXES {

@@ -16,7 +16,7 @@
 pub const DEBOUNCE_MS: u8 = 8;
 
 /// Decoder state (6 bytes, lives in the ISR's static).
-#[derive(Clone, Copy, Default, Debug)]
+#[derive(Clone, Copy, Default, Debug, PartialEq, Eq)]
 pub struct Decoder {
     pos: u8,
     quarter: i8,
@@ -64,6 +64,13 @@ impl Decoder {
         } else {
             self.bounce = 0;
         }
+    }
+
+    /// The last sample left nothing in progress (the button's level agrees
+    /// with its debounced state): a sample of the same levels again changes
+    /// nothing, so the tick may skip it (`settled_levels_again_change_nothing`).
+    pub fn settled(&self) -> bool {
+        self.bounce == 0
     }
 
     /// Take the detents and presses counted so far.
@@ -129,5 +136,34 @@ mod tests {
             d.sample(false, false, false);
         }
         assert_eq!(d.take().1, 1);
+    }
+
+    /// The tick's fast path skips a sample when the levels are those of
+    /// the last sample and it left the decoder settled: then that sample
+    /// must change nothing, from every state a random walk reaches.
+    #[test]
+    fn settled_levels_again_change_nothing() {
+        let mut rng = crate::test_util::XorShift(0xE4C0);
+        let mut d = Decoder::new();
+        let (mut skipped, mut walked) = (0, 0);
+        for _ in 0..200_000 {
+            let r = rng.next();
+            // Mostly hold the levels (as the tick sees them between edges).
+            let (a, b, button) = (r & 1 != 0, r & 2 != 0, r & 4 != 0);
+            for _ in 0..(r >> 8) % 40 {
+                d.sample(a, b, button);
+                walked += 1;
+                if d.settled() {
+                    let before = d;
+                    d.sample(a, b, button);
+                    assert_eq!(d, before, "levels {a} {b} {button}");
+                    skipped += 1;
+                }
+            }
+            if r & 0x80 != 0 {
+                d.take();
+            }
+        }
+        assert!(skipped > walked / 4, "{skipped} of {walked}");
     }
 }
