@@ -125,19 +125,23 @@ impl Planner {
         // from, now or when it is flushed: no copy.
         let mut moving = 0u8;
         let mut dir = 0u8;
-        // Axis i's bit, shifted along (a shift by i is a loop on the AVR).
-        let mut bit = 1u8;
-        for i in 0..N_AXES {
-            let d = target[i].wrapping_sub(self.position[i]);
-            self.delta[i] = d;
-            if d != 0 {
-                moving |= bit;
-            }
-            if d < 0 {
-                dir |= bit;
-            }
-            bit <<= 1;
+        // One axis, written out (as `queue_block`'s `count_axis`).
+        macro_rules! delta_axis {
+            ($i:literal) => {{
+                let d = target[$i].wrapping_sub(self.position[$i]);
+                self.delta[$i] = d;
+                if d != 0 {
+                    moving |= 1 << $i;
+                    if d < 0 {
+                        dir |= 1 << $i;
+                    }
+                }
+            }};
         }
+        delta_axis!(0);
+        delta_axis!(1);
+        delta_axis!(2);
+        delta_axis!(3);
         if moving == 0 {
             return Ok(Push::default());
         }
