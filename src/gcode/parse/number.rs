@@ -241,10 +241,12 @@ pub(super) fn digit(c: Option<&u8>) -> u8 {
 /// split saved ~300 cycles a streamed line (`profile --trace`: the
 /// digit-by-digit loop's state did not fit in the registers).
 ///
-/// Always inlined into `parse_into` (three call sites): as a call, its
-/// frame and its result written to memory cost ~190 cycles a number.
-// speed: ~190 cycles a number as a call (doc above)
-#[inline(always)]
+/// Not inlined: the usual value and G word are read by `parse_into`'s
+/// own `plain_value` first, so this is the route of M codes and of
+/// numbers with a sign, blanks or a `+` (~190 cycles more a number as a
+/// call). Inlined at its four call sites it was ~1 KB of flash.
+// flash: four inlined copies (doc above)
+#[inline(never)]
 pub(super) fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize), ParseError> {
     let mut pos = skip_blanks(s, pos);
     let mut negative = false;
