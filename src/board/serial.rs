@@ -195,18 +195,33 @@ pub fn rx_len() -> usize {
 }
 
 /// Queue bytes for sending; waits (running the wait hook) while the ring is full.
+///
+/// A byte that finds the ring empty and the data register free goes
+/// straight into UDR0, as the hardware allows at any time: no ring slot
+/// and no interrupt for it. An `ok` is then one interrupt (its newline),
+/// not four (~145 cycles a streamed line, `profile --trace`). Bytes keep
+/// their order: UDR0 is written only when everything queued before has
+/// left the ring, and the interrupt sends from the ring alone.
 pub fn write(bytes: &[u8]) {
     let (head, tail) = (TX_HEAD.as_ptr(), TX_TAIL.as_ptr());
     // SAFETY: `u8` volatile accesses (single instructions, kept in program
     // order). The main loop is the only writer of TX_HEAD and of the slot
     // it points at, which is outside the range `TX_TAIL..TX_HEAD` the ISR
     // sends from until the head store below publishes it; TX_TAIL is only
-    // read here.
+    // read here. UDR0 is written only while the ring is empty, when the
+    // ISR (which writes it only from the ring) has nothing to send.
     unsafe {
         if TX_READY.as_ptr().read_volatile() == 0 {
             return;
         }
+        let usart = &*USART0::ptr();
+        let mut queued = false;
         for &b in bytes {
+            if !queued && head.read_volatile() == tail.read_volatile() && usart.ucsr0a().read().udre0().bit_is_set() {
+                usart.udr0().write(|w| w.bits(b));
+                continue;
+            }
+            queued = true;
             loop {
                 let h = head.read_volatile();
                 let next = tx_next(h);
@@ -219,8 +234,10 @@ pub fn write(bytes: &[u8]) {
                 (*addr_of_mut!(TX_WAIT_HOOK))();
             }
         }
+        if queued {
+            kick_tx();
+        }
     }
-    kick_tx();
 }
 
 /// True when every queued byte has left the TX ring.
@@ -513,12 +530,15 @@ fn USART0_UDRE() {
         let u = &*USART0::ptr();
         let (head, tail) = (TX_HEAD.as_ptr(), TX_TAIL.as_ptr());
         let t = tail.read_volatile();
-        if t == head.read_volatile() {
-            u.ucsr0b().modify(|_, w| w.udrie0().clear_bit());
-        } else {
+        if t != head.read_volatile() {
             let b = addr_of_mut!(TX_BUF).cast::<u8>().add(t as usize).read_volatile();
             u.udr0().write(|w| w.bits(b));
             tail.write_volatile(tx_next(t));
+        }
+        // The ring emptied: off now, not one more interrupt later (a byte
+        // queued after this load kicks the interrupt on again).
+        if tail.read_volatile() == head.read_volatile() {
+            u.ucsr0b().modify(|_, w| w.udrie0().clear_bit());
         }
     }
 }
