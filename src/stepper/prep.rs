@@ -149,8 +149,8 @@ pub struct Prep {
     /// `step_per_mm` is valid for the active block (computed on first use:
     /// the cruise fast path does not need it).
     step_per_mm_valid: bool,
-    /// (bits of an acceleration a, 0.5 / a).
-    inv_2_accel_cache: (u32, f32),
+    /// 0.5 / a for the last accelerations a.
+    inv_2_accel: profile::HalfInvCache,
 }
 
 impl Prep {
@@ -179,7 +179,7 @@ impl Prep {
             nominal_cache: (0, 0.0),
             cruise_cache: (0.0, 0.0),
             step_per_mm_valid: false,
-            inv_2_accel_cache: (u32::MAX, 0.0),
+            inv_2_accel: profile::HalfInvCache::EMPTY,
         }
     }
 
