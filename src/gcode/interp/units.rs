@@ -4,6 +4,7 @@
 //! AVR a soft-float compare or addition.
 
 use crate::frame;
+pub(super) use crate::math::float_bits::positive;
 use crate::math::round_i32;
 
 /// Millimetres per inch.
@@ -47,15 +48,6 @@ pub(super) fn to_steps(mm: f32, steps_per_mm: f32) -> i32 {
     round_i32(mm * steps_per_mm)
 }
 
-/// `v > 0.0`, on the bit pattern (sign clear, not +0.0, not a NaN): the
-/// soft-float compare costs ~50 cycles on the AVR. The reference:
-/// `positive_matches_the_float_compare`.
-#[inline(always)]
-pub(super) fn positive(v: f32) -> bool {
-    let b = v.to_bits();
-    b as i32 > 0 && b <= 0x7F80_0000
-}
-
 /// `a == b` for finite floats (+0.0 equals −0.0), on the bit patterns: a
 /// soft-float compare costs ~50 cycles on the AVR.
 #[inline]
@@ -82,24 +74,4 @@ pub(super) fn add_nz(a: f32, b: f32) -> f32 {
 #[inline(never)]
 fn add_cold(a: f32, b: f32) -> f32 {
     a + b
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn positive_matches_the_float_compare() {
-        let check = |b: u32| assert_eq!(positive(f32::from_bits(b)), f32::from_bits(b) > 0.0, "{b:#x}");
-        // The edges: ±0, the smallest subnormals, ±infinity, the NaNs.
-        for b in [0, 1, 0x7F7F_FFFF, 0x7F80_0000, 0x7F80_0001, 0x7FC0_0000, 0x7FFF_FFFF, 0x8000_0000, 0xFFFF_FFFF] {
-            check(b);
-            check(b ^ 0x8000_0000);
-        }
-        // Every pattern with its low 12 bits fixed: all signs and exponents.
-        for hi in 0..0x10_0000u32 {
-            check(hi << 12 | 0x5A5);
-            check(hi << 12);
-        }
-    }
 }

@@ -5,7 +5,7 @@
 
 use super::timer::{per_tick, timer_for};
 use super::{Prep, Ramp, F_CPU, SEGMENT_TIME_S};
-use crate::math::float_bits::times2;
+use crate::math::float_bits::{positive, times2};
 use crate::planner::Planner;
 use crate::stepper::Segment;
 
@@ -99,13 +99,15 @@ impl Prep {
             Ramp::DecelOverride => return None,
         };
         let mut cycles = dv * inv_a * F_CPU;
-        if cruise_mm > 0.0 {
+        if positive(cruise_mm) {
             if self.nominal_cache.1.to_bits() != vmax.to_bits() {
                 return None;
             }
             cycles += cruise_mm * self.cruise_cache.0;
         }
-        if !(cycles <= SEGMENT_TIME_S * F_CPU) || !(cycles > 0.0) {
+        // 0 < cycles ≤ one segment, on the bits (positive floats order like
+        // them; a NaN fails both, as the float compares it replaces).
+        if !positive(cycles) || cycles.to_bits() > (SEGMENT_TIME_S * F_CPU).to_bits() {
             return None;
         }
         Some(cycles)

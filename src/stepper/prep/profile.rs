@@ -3,6 +3,7 @@
 //! hold), and the cached square root of its nominal speed².
 
 use super::{Prep, Ramp, CRUISE_SEGMENT_TIME_S, F_CPU};
+use crate::math::float_bits::{lt_nn, lt_of_positive, positive};
 use crate::math::sqrt_1ulp;
 use crate::planner::Planner;
 
@@ -58,7 +59,10 @@ impl Prep {
         };
         self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
         let intersect = crate::math::float_bits::half(mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
-        if entry_sqr > nominal_sqr {
+        // The compares on the bits (exact here, see each helper): a
+        // soft-float compare is a ~50-cycle call on the AVR, and a block
+        // runs four or five of them.
+        if lt_nn(nominal_sqr, entry_sqr) {
             self.accelerate_until = mm - inv_2_accel * (entry_sqr - nominal_sqr);
             if self.accelerate_until <= 0.0 {
                 // Deceleration only; the next block starts at our exit speed.
@@ -72,11 +76,11 @@ impl Prep {
                 self.maximum_speed = nominal;
                 self.ramp = Ramp::DecelOverride;
             }
-        } else if intersect > 0.0 {
-            if intersect < mm {
+        } else if positive(intersect) {
+            if lt_nn(intersect, mm) {
                 // Trapezoid or triangle.
                 self.decelerate_after = inv_2_accel * (nominal_sqr - exit_speed_sqr);
-                if self.decelerate_after < intersect {
+                if lt_of_positive(self.decelerate_after, intersect) {
                     self.maximum_speed = nominal;
                     if entry_sqr == nominal_sqr {
                         self.ramp = Ramp::Cruise;
