@@ -204,8 +204,10 @@ pub struct Machine {
     /// Where the line being run came from (serial, SD job, menu, none).
     source: LineSource,
 
-    /// Realtime events of the last poll (trip flags persist until cleared).
-    last_rt: Realtime,
+    /// The last poll reported a homing or probe trip (the ISR's latch holds
+    /// it until the stop is cleared): all that is kept of a poll (the whole
+    /// `Realtime`, 14 B, was copied on every main-loop turn).
+    tripped: bool,
     /// The host numbers its lines (so dropped lines get `Resend:`): a
     /// property of the serial host's last line, kept after it ended (a
     /// line dropped after an overrun is answered as the one before it) and
@@ -290,22 +292,7 @@ impl Machine {
             last_busy_ms: 0,
             host: crate::hostcodes::HostState::new(),
             source: LineSource::None,
-            last_rt: Realtime {
-                status: false,
-                hold: false,
-                resume: false,
-                estop: false,
-                limit: false,
-                home_tripped: false,
-                probe_tripped: false,
-                abort: false,
-                abort_keep_spindle: false,
-                reset: false,
-                reset_moving: false,
-                jog_cancel: false,
-                motion_ovr: 0,
-                accessory_ovr: 0,
-            },
+            tripped: false,
             spindle_pct: 100,
             spindle_duty: 0,
             spindle_stopped: false,

@@ -190,8 +190,7 @@ impl Machine {
         self.spindle_pct = 100;
         self.holding = false;
         self.aborting = false;
-        self.last_rt.home_tripped = false;
-        self.last_rt.probe_tripped = false;
+        self.tripped = false;
         self.apply_watch(io, 0, false);
         io.flush_rx();
         self.asm.reset();

@@ -268,7 +268,7 @@ impl Machine {
         loop {
             self.keepalive(io);
             self.wait_step(io)?;
-            if self.last_rt.home_tripped || self.last_rt.probe_tripped {
+            if self.tripped {
                 return Ok(true);
             }
             if self.motion_done(io) {
@@ -287,8 +287,7 @@ impl Machine {
         self.planner.clear();
         self.prep.reset();
         io.clear_stop();
-        self.last_rt.home_tripped = false;
-        self.last_rt.probe_tripped = false;
+        self.tripped = false;
         let p = io.stepper().position;
         self.planner.set_position(p);
         self.interp.sync_position(&self.settings, p);

@@ -12,7 +12,7 @@ impl Machine {
     pub fn idle(&mut self, io: &mut impl Io) {
         self.fill_segments(io);
         let rt = io.poll();
-        self.last_rt = rt;
+        self.tripped = rt.home_tripped || rt.probe_tripped;
         if rt.reset {
             self.soft_reset(io, rt.reset_moving);
         }
@@ -165,7 +165,7 @@ impl Machine {
             self.keepalive(io);
             self.fill_segments(io);
             let rt = io.poll();
-            self.last_rt = rt;
+            self.tripped = rt.home_tripped || rt.probe_tripped;
             if rt.estop {
                 self.raise(io, Alarm::EmergencyStop);
                 return Err(interp::Error::Alarm);
