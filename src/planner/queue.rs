@@ -281,10 +281,19 @@ impl Planner {
                 let n = b.steps[i] as u16;
                 sum_sqr += crate::math::mul_u16(n, n);
             }
-            let e = &mut self.shorts[(sum_sqr & (SHORTS_LEN as u32 - 1)) as usize];
-            if e.sum_sqr != sum_sqr || e.n as u32 != step_event_count {
-                *e = short_entry(sum_sqr, step_event_count, ax, s.accel_mm_per_s2[0]);
-            }
+            // Any entry may hold it; a miss replaces the oldest (first in,
+            // first out: the circle's chords come back in runs).
+            let n16 = step_event_count as u16;
+            let i = match self.shorts.iter().position(|e| e.sum_sqr == sum_sqr && e.n == n16) {
+                Some(i) => i,
+                None => {
+                    let i = self.short_next as usize & (SHORTS_LEN - 1);
+                    self.short_next = (i as u8 + 1) & (SHORTS_LEN as u8 - 1);
+                    self.shorts[i] = short_entry(sum_sqr, step_event_count, ax, s.accel_mm_per_s2[0]);
+                    i
+                }
+            };
+            let e = &self.shorts[i];
             let inv_root = e.inv_root;
             mm = e.mm;
             short = Some(e);
