@@ -198,10 +198,12 @@ pub fn rx_len() -> usize {
 ///
 /// A byte that finds the ring empty and the data register free goes
 /// straight into UDR0, as the hardware allows at any time: no ring slot
-/// and no interrupt for it. An `ok` is then one interrupt (its newline),
-/// not four (~145 cycles a streamed line, `profile --trace`). Bytes keep
-/// their order: UDR0 is written only when everything queued before has
-/// left the ring, and the interrupt sends from the ring alone.
+/// and no interrupt for it. On the chip, whose transmitter is
+/// double-buffered, an `ok` is then one interrupt (its newline), not four;
+/// in the VM, whose transmitter is not, two (−104 cycles a streamed line,
+/// `profile --trace`). Bytes keep their order: UDR0 is written only when
+/// everything queued before has left the ring, and the interrupt sends
+/// from the ring alone.
 pub fn write(bytes: &[u8]) {
     let (head, tail) = (TX_HEAD.as_ptr(), TX_TAIL.as_ptr());
     // SAFETY: `u8` volatile accesses (single instructions, kept in program
