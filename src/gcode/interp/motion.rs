@@ -10,9 +10,10 @@ use super::limits::{keep_out, soft_limits};
 use super::line_run::Phase;
 use super::modal::ModalCopy;
 use super::offsets::{work_to_machine, work_to_machine_fast};
-use super::units::{positive, word_mm};
+use super::units::word_mm;
 use super::{axis_words_are_settings, has_axis_words, Ctx, Interp};
 use crate::gcode::{Line, Motion, NonModal, Word};
+use crate::math::float_bits::positive;
 
 impl Interp {
     /// The motion part of a line: target, checks, then (through

@@ -4,7 +4,6 @@
 //! AVR a soft-float compare or addition.
 
 use crate::frame;
-pub(super) use crate::math::float_bits::positive;
 use crate::math::round_i32;
 
 /// Millimetres per inch.
