@@ -21,6 +21,7 @@ pub mod bootloader;
 pub mod eeprom;
 pub mod halt;
 mod mem;
+mod soft_float;
 pub mod oled;
 pub mod pins;
 pub mod serial;

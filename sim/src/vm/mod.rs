@@ -88,9 +88,12 @@
 //! - `display`: the SH1106 OLED on the TWI bus.
 //! - `sd_socket`: the SD card on the SPI bus and its socket.
 //! - `memory`: data space, flash, EEPROM, ELF symbols, stack high water.
+//! - `call`: one routine of the ELF called with chosen registers (the
+//!   tests of the assembly float routines).
 //! - `summary`: the run's [`Report`](crate::report::Report), its JSON, the
 //!   step trace CSV and simavr's log.
 
+mod call;
 mod config;
 mod display;
 mod drivers;

@@ -1,0 +1,150 @@
+//! The firmware's assembly f32 multiply (`src/board/soft_float.rs`, every
+//! `*` on the AVR) against the routine it replaces, avr-libc's `__mulsf3`
+//! (`__mulsf3x`, then `__fp_round`: what avr-libc's `__mulsf3` runs), both
+//! called in the real ELF in the virtual machine, bit for bit, on random and
+//! edge operands. Where both operands and the product are normal, both must
+//! also be the host's IEEE product (round to nearest, ties to even), and the
+//! fast path must have answered; a zero times a finite number must have
+//! taken the short way to a signed zero.
+
+mod common;
+
+use common::Rng;
+use sim::{Vm, VmConfig};
+
+/// Longest call, cycles (avr-libc's slowest path is a few hundred).
+const MAX_CYCLES: u64 = 2_000;
+/// The fast path's longest run, cycles: above it, the call went the slow way.
+const FAST_MAX: u64 = 110;
+/// The longest run for a zero times a finite number.
+const ZERO_MAX: u64 = 45;
+
+struct Mul {
+    vm: Vm,
+    ours: u32,
+    split: u32,
+    round: u32,
+}
+
+fn args(a: f32, b: f32) -> [(u8, u8); 8] {
+    let (a, b) = (a.to_bits().to_le_bytes(), b.to_bits().to_le_bytes());
+    [(22, a[0]), (23, a[1]), (24, a[2]), (25, a[3]), (18, b[0]), (19, b[1]), (20, b[2]), (21, b[3])]
+}
+
+impl Mul {
+    fn new() -> Mul {
+        let vm = Vm::new(VmConfig::default()).expect("load firmware");
+        let addr = |name: &str| vm.symbol_addr(name).unwrap_or_else(|| panic!("{name} is not in the ELF"));
+        let (ours, split, round) = (addr("__wrap___mulsf3"), addr("__mulsf3x"), addr("__fp_round"));
+        Mul { vm, ours, split, round }
+    }
+
+    fn result(&self) -> u32 {
+        u32::from_le_bytes([self.vm.reg(22), self.vm.reg(23), self.vm.reg(24), self.vm.reg(25)])
+    }
+
+    /// The firmware's multiply: the product's bits and the cycles it took.
+    fn ours(&mut self, a: f32, b: f32) -> (u32, u64) {
+        let cycles = self.vm.call(self.ours, &args(a, b), MAX_CYCLES).expect("__wrap___mulsf3 returns");
+        assert_eq!(self.vm.reg(1), 0, "r1 is zero again after {a:e} * {b:e}");
+        (self.result(), cycles)
+    }
+
+    /// avr-libc's multiply.
+    fn avr_libc(&mut self, a: f32, b: f32) -> u32 {
+        self.vm.call(self.split, &args(a, b), MAX_CYCLES).expect("__mulsf3x returns");
+        self.vm.call(self.round, &[], MAX_CYCLES).expect("__fp_round returns");
+        self.result()
+    }
+}
+
+fn is_normal_or_zero(x: f32) -> bool {
+    x.is_normal() || x == 0.0
+}
+
+/// Operands of every kind: any bit pattern (zeros, subnormals, infinities,
+/// NaN among them), normal numbers of any exponent, exponent sums at the
+/// fast path's limits, and short significands (their products are ties
+/// and carries out of the rounding more often than random ones).
+fn operands(rng: &mut Rng, i: u32) -> (f32, f32) {
+    let normal = |rng: &mut Rng, e: u32, frac_mask: u32| {
+        let sign = rng.next() & 0x8000_0000;
+        f32::from_bits(sign | (e << 23) | (rng.next() & frac_mask))
+    };
+    match i % 7 {
+        0 => (f32::from_bits(rng.next()), f32::from_bits(rng.next())),
+        1 => {
+            let (ea, eb) = (1 + rng.next() % 254, 1 + rng.next() % 254);
+            (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
+        }
+        2 => {
+            // ea + eb − 128 around 0 and around 251.
+            let ea = 1 + rng.next() % 254;
+            let t = if rng.next() & 1 == 0 { (rng.next() % 5) as i32 - 2 } else { 249 + (rng.next() % 5) as i32 };
+            let eb = (t + 128 - ea as i32).clamp(1, 254) as u32;
+            (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
+        }
+        3 => {
+            // Short significands: exact products, ties.
+            let (ea, eb) = (100 + rng.next() % 56, 100 + rng.next() % 56);
+            (normal(rng, ea, 0x7F_F000), normal(rng, eb, 0x7F_F000))
+        }
+        4 => {
+            // Products a hair from 2: rounding carries into the exponent
+            // (a significand times the f32 nearest 2 over it), at exponent
+            // sums anywhere and at the fast path's limits.
+            let fa = rng.next() & 0x7F_FFFF;
+            let fb = (2.0 / f32::from_bits(0x3F80_0000 | fa)).to_bits() & 0x7F_FFFF;
+            let ea = 1 + rng.next() % 254;
+            let t = [(rng.next() % 5) as i32 - 2, 248 + (rng.next() % 7) as i32, (rng.next() % 254) as i32][(rng.next() % 3) as usize];
+            let eb = (t + 128 - ea as i32).clamp(1, 254) as u32;
+            let a = f32::from_bits(normal(rng, ea, 0).to_bits() | fa);
+            (a, f32::from_bits(normal(rng, eb, 0).to_bits() | fb))
+        }
+        5 => {
+            // A zero.
+            let z = f32::from_bits(rng.next() & 0x8000_0000);
+            if rng.next() & 1 == 0 { (z, f32::from_bits(rng.next())) } else { (f32::from_bits(rng.next()), z) }
+        }
+        _ => {
+            // The values a streamed line multiplies: mm, steps/mm, speeds.
+            let x = (rng.next() % 2_000_000) as f32 / 1000.0 - 1000.0;
+            let y = (rng.next() % 400_000) as f32 / 997.0;
+            (x, y)
+        }
+    }
+}
+
+#[test]
+fn the_assembly_multiply_is_avr_libcs_bit_for_bit_and_ieee_where_both_are_normal() {
+    let mut m = Mul::new();
+    let mut rng = Rng(0x5EED_F10A);
+    let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+    let mut pairs: Vec<(f32, f32)> = specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect();
+    pairs.extend((0..60_000).map(|i| operands(&mut rng, i)));
+    let (mut fast, mut fast_cycles, mut fast_max, mut zeros) = (0u32, 0u64, 0u64, 0u32);
+    for &(a, b) in &pairs {
+        let (got, cycles) = m.ours(a, b);
+        let want = m.avr_libc(a, b);
+        assert_eq!(got, want, "{a:e} ({:#010x}) * {b:e} ({:#010x}): {got:#010x}, avr-libc {want:#010x}", a.to_bits(), b.to_bits());
+        let ieee = a * b;
+        if a.is_normal() && b.is_normal() && ieee.is_normal() && (ieee.to_bits() & 0x7F80_0000) != 0x7F00_0000 {
+            assert_eq!(got, ieee.to_bits(), "{a:e} * {b:e}: {got:#010x}, IEEE {:#010x}", ieee.to_bits());
+            let t = ((a.to_bits() >> 23) & 0xFF) as i32 + ((b.to_bits() >> 23) & 0xFF) as i32 - 128;
+            if (0..=252).contains(&t) {
+                assert!(cycles <= FAST_MAX, "{a:e} * {b:e}: {cycles} cycles, not the fast path");
+                fast += 1;
+                fast_cycles += cycles;
+                fast_max = fast_max.max(cycles);
+            }
+        } else if (a == 0.0 && b.is_finite()) || (b == 0.0 && a.is_finite()) {
+            assert!(cycles <= ZERO_MAX, "{a:e} * {b:e}: {cycles} cycles, not the zero path");
+            zeros += 1;
+        } else if is_normal_or_zero(a) && is_normal_or_zero(b) && is_normal_or_zero(ieee) && !ieee.is_infinite() {
+            assert_eq!(got, ieee.to_bits(), "{a:e} * {b:e}: {got:#010x}, IEEE {:#010x}", ieee.to_bits());
+        }
+    }
+    assert!(fast > 30_000, "only {fast} products took the fast path");
+    assert!(zeros > 50, "only {zeros} products of a zero");
+    println!("fast path: {fast} of {} products, mean {} cycles, max {fast_max} (call to ret)", pairs.len(), fast_cycles / fast as u64);
+}
