@@ -104,7 +104,11 @@ fn operands(rng: &mut Rng, i: u32) -> (f32, f32) {
         5 => {
             // A zero.
             let z = f32::from_bits(rng.next() & 0x8000_0000);
-            if rng.next() & 1 == 0 { (z, f32::from_bits(rng.next())) } else { (f32::from_bits(rng.next()), z) }
+            if rng.next() & 1 == 0 {
+                (z, f32::from_bits(rng.next()))
+            } else {
+                (f32::from_bits(rng.next()), z)
+            }
         }
         _ => {
             // The values a streamed line multiplies: mm, steps/mm, speeds.

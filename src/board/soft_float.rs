@@ -37,23 +37,23 @@ core::arch::global_asm!(
     "    or   r26, r24",
     "    or   r26, r23",
     "    or   r26, r22",
-    "    breq 5f",                 // a = ±0: is b finite?
+    "    breq 5f", // a = ±0: is b finite?
     "    mov  r26, r21",
     "    andi r26, 0x7f",
     "    or   r26, r20",
     "    or   r26, r19",
     "    or   r26, r18",
-    "    brne 6f",                 // no zero
-    "    mov  r26, r24",           // b = ±0: is a finite?
+    "    brne 6f",       // no zero
+    "    mov  r26, r24", // b = ±0: is a finite?
     "    lsl  r26",
     "    mov  r26, r25",
     "    rjmp 7f",
     "5:  mov  r26, r20",
     "    lsl  r26",
     "    mov  r26, r21",
-    "7:  rol  r26",                // the other's exponent
+    "7:  rol  r26", // the other's exponent
     "    cpi  r26, 0xff",
-    "    breq 6f",                 // 0 × ∞, 0 × NaN: avr-libc's NaN
+    "    breq 6f", // 0 × ∞, 0 × NaN: avr-libc's NaN
     "    eor  r25, r21",
     "    andi r25, 0x80",
     "    ldi  r24, 0",
@@ -94,9 +94,9 @@ core::arch::global_asm!(
     "    brsh .Lmul_slow",
     // Nothing above changed an operand: the slow path gets them whole.
     "    eor  r25, r21",
-    "    bst  r25, 7",             // T: the product's sign
-    "    mov  r21, r26",           // t
-    "    ori  r24, 0x80",          // the hidden bits
+    "    bst  r25, 7",    // T: the product's sign
+    "    mov  r21, r26",  // t
+    "    ori  r24, 0x80", // the hidden bits
     "    ori  r20, 0x80",
     // 24 × 24 → 48 bits, avr-libc's __mulsf3_pse order; bytes 5..0 end
     // in r18, r22, r26, r27, r31, r30 (a2 a1 a0 = r24 r23 r22, b2 b1 b0 =
@@ -139,19 +139,19 @@ core::arch::global_asm!(
     "    add  r22, r0",
     "    adc  r18, r1",
     "    eor  r1, r1",
-    "    or   r30, r31",           // bytes 1 and 0: sticky bits only
+    "    or   r30, r31", // bytes 1 and 0: sticky bits only
     "    mov  r24, r18",
     "    mov  r23, r22",
-    "    mov  r22, r26",           // significand r24:r23:r22, r27 the byte below
+    "    mov  r22, r26", // significand r24:r23:r22, r27 the byte below
     "    sbrc r24, 7",
     "    rjmp 1f",
-    "    lsl  r27",                // in [1, 2): one bit up
+    "    lsl  r27", // in [1, 2): one bit up
     "    rol  r22",
     "    rol  r23",
     "    rol  r24",
     "    rjmp 2f",
-    "1:  inc  r21",                // in [2, 4)
-    "2:  inc  r21",                // the exponent
+    "1:  inc  r21", // in [2, 4)
+    "2:  inc  r21", // the exponent
     // Round to nearest, ties to even: bit 7 of r27 is the round bit, the
     // rest of r27 and r30 the sticky bits.
     "    sbrs r27, 7",
@@ -159,14 +159,14 @@ core::arch::global_asm!(
     "    andi r27, 0x7f",
     "    or   r27, r30",
     "    brne 3f",
-    "    sbrs r22, 0",             // a tie: up only from an odd significand
+    "    sbrs r22, 0", // a tie: up only from an odd significand
     "    rjmp 4f",
-    "3:  subi r22, 0xff",          // + 1
+    "3:  subi r22, 0xff", // + 1
     "    sbci r23, 0xff",
     "    sbci r24, 0xff",
     "    brne 4f",
-    "    inc  r21",                // 0xFFFFFF + 1: 1.0 (the hidden bit goes), one exponent up
-    "4:  lsl  r24",                // pack: drop the hidden bit, exponent, sign
+    "    inc  r21", // 0xFFFFFF + 1: 1.0 (the hidden bit goes), one exponent up
+    "4:  lsl  r24", // pack: drop the hidden bit, exponent, sign
     "    lsr  r21",
     "    ror  r24",
     "    bld  r21, 7",
