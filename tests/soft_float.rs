@@ -18,12 +18,12 @@ const MAX_CYCLES: u64 = 2_000;
 const FAST_MAX: u64 = 110;
 /// The longest run for a zero times a finite number.
 const ZERO_MAX: u64 = 45;
+/// The sum's fast path's longest run.
+const ADD_FAST_MAX: u64 = 200;
 
-struct Mul {
+/// The routines of the ELF, called in one virtual machine.
+struct Routines {
     vm: Vm,
-    ours: u32,
-    split: u32,
-    round: u32,
 }
 
 fn args(a: f32, b: f32) -> [(u8, u8); 8] {
@@ -31,29 +31,36 @@ fn args(a: f32, b: f32) -> [(u8, u8); 8] {
     [(22, a[0]), (23, a[1]), (24, a[2]), (25, a[3]), (18, b[0]), (19, b[1]), (20, b[2]), (21, b[3])]
 }
 
-impl Mul {
-    fn new() -> Mul {
-        let vm = Vm::new(VmConfig::default()).expect("load firmware");
-        let addr = |name: &str| vm.symbol_addr(name).unwrap_or_else(|| panic!("{name} is not in the ELF"));
-        let (ours, split, round) = (addr("__wrap___mulsf3"), addr("__mulsf3x"), addr("__fp_round"));
-        Mul { vm, ours, split, round }
+impl Routines {
+    fn new() -> Routines {
+        Routines { vm: Vm::new(VmConfig::default()).expect("load firmware") }
+    }
+
+    fn addr(&self, name: &str) -> u32 {
+        self.vm.symbol_addr(name).unwrap_or_else(|| panic!("{name} is not in the ELF"))
     }
 
     fn result(&self) -> u32 {
         u32::from_le_bytes([self.vm.reg(22), self.vm.reg(23), self.vm.reg(24), self.vm.reg(25)])
     }
 
-    /// The firmware's multiply: the product's bits and the cycles it took.
-    fn ours(&mut self, a: f32, b: f32) -> (u32, u64) {
-        let cycles = self.vm.call(self.ours, &args(a, b), MAX_CYCLES).expect("__wrap___mulsf3 returns");
-        assert_eq!(self.vm.reg(1), 0, "r1 is zero again after {a:e} * {b:e}");
+    /// The firmware's routine at `addr`: the result's bits and the cycles
+    /// it took.
+    fn ours(&mut self, addr: u32, a: f32, b: f32) -> (u32, u64) {
+        let cycles = self.vm.call(addr, &args(a, b), MAX_CYCLES).expect("the routine returns");
+        assert_eq!(self.vm.reg(1), 0, "r1 is zero again after {addr:#x}({a:e}, {b:e})");
         (self.result(), cycles)
     }
 
-    /// avr-libc's multiply.
-    fn avr_libc(&mut self, a: f32, b: f32) -> u32 {
-        self.vm.call(self.split, &args(a, b), MAX_CYCLES).expect("__mulsf3x returns");
-        self.vm.call(self.round, &[], MAX_CYCLES).expect("__fp_round returns");
+    /// avr-libc's routine: its `x` part at `x_addr` (`__mulsf3x`,
+    /// `__addsf3x`, entered with r26 and r27 cleared as avr-libc's
+    /// `__addsf3` does; `__mulsf3x` does not read them), then `__fp_round`
+    /// on what it left.
+    fn avr_libc(&mut self, x_addr: u32, round: u32, a: f32, b: f32) -> u32 {
+        let mut regs = args(a, b).to_vec();
+        regs.extend([(26, 0), (27, 0)]);
+        self.vm.call(x_addr, &regs, MAX_CYCLES).expect("avr-libc's routine returns");
+        self.vm.call(round, &[], MAX_CYCLES).expect("__fp_round returns");
         self.result()
     }
 }
@@ -62,11 +69,11 @@ fn is_normal_or_zero(x: f32) -> bool {
     x.is_normal() || x == 0.0
 }
 
-/// Operands of every kind: any bit pattern (zeros, subnormals, infinities,
+/// Factors of every kind: any bit pattern (zeros, subnormals, infinities,
 /// NaN among them), normal numbers of any exponent, exponent sums at the
 /// fast path's limits, and short significands (their products are ties
 /// and carries out of the rounding more often than random ones).
-fn operands(rng: &mut Rng, i: u32) -> (f32, f32) {
+fn factors(rng: &mut Rng, i: u32) -> (f32, f32) {
     let normal = |rng: &mut Rng, e: u32, frac_mask: u32| {
         let sign = rng.next() & 0x8000_0000;
         f32::from_bits(sign | (e << 23) | (rng.next() & frac_mask))
@@ -121,15 +128,16 @@ fn operands(rng: &mut Rng, i: u32) -> (f32, f32) {
 
 #[test]
 fn the_assembly_multiply_is_avr_libcs_bit_for_bit_and_ieee_where_both_are_normal() {
-    let mut m = Mul::new();
+    let mut m = Routines::new();
+    let (ours, mulx, round) = (m.addr("__wrap___mulsf3"), m.addr("__mulsf3x"), m.addr("__fp_round"));
     let mut rng = Rng(0x5EED_F10A);
     let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
     let mut pairs: Vec<(f32, f32)> = specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect();
-    pairs.extend((0..60_000).map(|i| operands(&mut rng, i)));
+    pairs.extend((0..60_000).map(|i| factors(&mut rng, i)));
     let (mut fast, mut fast_cycles, mut fast_max, mut zeros) = (0u32, 0u64, 0u64, 0u32);
     for &(a, b) in &pairs {
-        let (got, cycles) = m.ours(a, b);
-        let want = m.avr_libc(a, b);
+        let (got, cycles) = m.ours(ours, a, b);
+        let want = m.avr_libc(mulx, round, a, b);
         assert_eq!(got, want, "{a:e} ({:#010x}) * {b:e} ({:#010x}): {got:#010x}, avr-libc {want:#010x}", a.to_bits(), b.to_bits());
         let ieee = a * b;
         if a.is_normal() && b.is_normal() && ieee.is_normal() && (ieee.to_bits() & 0x7F80_0000) != 0x7F00_0000 {
@@ -151,4 +159,111 @@ fn the_assembly_multiply_is_avr_libcs_bit_for_bit_and_ieee_where_both_are_normal
     assert!(fast > 30_000, "only {fast} products took the fast path");
     assert!(zeros > 50, "only {zeros} products of a zero");
     println!("fast path: {fast} of {} products, mean {} cycles, max {fast_max} (call to ret)", pairs.len(), fast_cycles / fast as u64);
+}
+
+/// Terms of every kind: any bit pattern, normal numbers of any exponent,
+/// exponent differences from 0 to 30 (y shifted by bytes and bits, or
+/// dropped), near cancellations (x − x·(1 ± a few last places)), short
+/// significands (ties), exponents at the fast path's limits, zeros, powers
+/// of two less the smallest terms that change them, and the values a
+/// streamed line adds.
+fn terms(rng: &mut Rng, i: u32) -> (f32, f32) {
+    let normal = |rng: &mut Rng, e: u32, frac_mask: u32| {
+        let sign = rng.next() & 0x8000_0000;
+        f32::from_bits(sign | (e << 23) | (rng.next() & frac_mask))
+    };
+    let near = |rng: &mut Rng, e: u32| (e as i32 + (rng.next() % 61) as i32 - 30).clamp(1, 254) as u32;
+    match i % 9 {
+        0 => (f32::from_bits(rng.next()), f32::from_bits(rng.next())),
+        1 => {
+            let (ea, eb) = (1 + rng.next() % 254, 1 + rng.next() % 254);
+            (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
+        }
+        2 => {
+            let ea = 1 + rng.next() % 254;
+            let eb = near(rng, ea);
+            (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
+        }
+        3 => {
+            // x and nearly −x (or nearly −2x, −x/2): cancellation.
+            let e = 30 + rng.next() % 200;
+            let a = normal(rng, e, 0x7F_FFFF);
+            let k = [1.0f32, 2.0, 0.5][(rng.next() % 3) as usize];
+            let d = (rng.next() % 9) as i32 - 4;
+            let b = f32::from_bits(((a * k).to_bits() as i32 + d) as u32);
+            (a, if rng.next() & 1 == 0 { -b } else { b })
+        }
+        4 => {
+            // Short significands: ties.
+            let ea = 60 + rng.next() % 100;
+            let eb = near(rng, ea);
+            (normal(rng, ea, 0x7F_0000), normal(rng, eb, 0x7C_0003))
+        }
+        5 => {
+            // The fast path's exponent limits (26 and 252).
+            let e = [24 + rng.next() % 5, 250 + rng.next() % 5][(rng.next() & 1) as usize];
+            let eb = near(rng, e).min(254);
+            (normal(rng, e, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
+        }
+        6 => {
+            let z = f32::from_bits(rng.next() & 0x8000_0000);
+            if rng.next() & 1 == 0 {
+                (z, f32::from_bits(rng.next()))
+            } else {
+                (f32::from_bits(rng.next()), z)
+            }
+        }
+        7 => {
+            // A power of two less a term 22 to 27 exponents below it: the
+            // difference may drop to the next binade (the smallest terms
+            // that still change it).
+            let e = 30 + rng.next() % 200;
+            let a = normal(rng, e, 0);
+            let eb = e - 22 - rng.next() % 6;
+            let b = normal(rng, eb, 0x7F_FFFF);
+            (a, if (a > 0.0) == (b > 0.0) { -b } else { b })
+        }
+        _ => {
+            // mm, speeds, times.
+            let x = (rng.next() % 2_000_000) as f32 / 1000.0 - 1000.0;
+            let y = (rng.next() % 400_000) as f32 / 997.0 * [1.0, 1e-3, 1e3][(rng.next() % 3) as usize];
+            (x, y)
+        }
+    }
+}
+
+#[test]
+fn the_assembly_sum_and_difference_are_avr_libcs_bit_for_bit_and_ieee_where_all_are_normal() {
+    let mut m = Routines::new();
+    let (add, sub, addx, round) = (m.addr("__wrap___addsf3"), m.addr("__wrap___subsf3"), m.addr("__addsf3x"), m.addr("__fp_round"));
+    let mut rng = Rng(0xADD5_0B7A);
+    let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+    let mut pairs: Vec<(f32, f32)> = specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect();
+    pairs.extend((0..60_000).map(|i| terms(&mut rng, i)));
+    let (mut fast, mut fast_cycles, mut fast_max) = (0u32, 0u64, 0u64);
+    for &(a, b) in &pairs {
+        for (addr, name) in [(add, "+"), (sub, "-")] {
+            let (got, cycles) = m.ours(addr, a, b);
+            // a − b is a + (−b), as avr-libc's __subsf3 makes it.
+            let b = if name == "-" { -b } else { b };
+            let want = m.avr_libc(addx, round, a, b);
+            let ctx =
+                format!("{a:e} ({:#010x}) + {b:e} ({:#010x}) by {name}: {got:#010x}, avr-libc {want:#010x}", a.to_bits(), b.to_bits());
+            assert_eq!(got, want, "{ctx}");
+            let ieee = a + b;
+            let ea = (a.to_bits() >> 23) & 0xFF;
+            let eb = (b.to_bits() >> 23) & 0xFF;
+            if a.is_normal() && b.is_normal() && (ieee.is_normal() || ieee == 0.0) {
+                assert_eq!(got, ieee.to_bits(), "{ctx}, IEEE {:#010x}", ieee.to_bits());
+                if (26..=252).contains(&ea) && (26..=252).contains(&eb) {
+                    assert!(cycles <= ADD_FAST_MAX, "{ctx}: {cycles} cycles, not the fast path");
+                    fast += 1;
+                    fast_cycles += cycles;
+                    fast_max = fast_max.max(cycles);
+                }
+            }
+        }
+    }
+    assert!(fast > 60_000, "only {fast} sums took the fast path");
+    println!("fast path: {fast} of {} sums, mean {} cycles, max {fast_max} (call to ret)", 2 * pairs.len(), fast_cycles / fast as u64);
 }

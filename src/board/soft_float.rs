@@ -175,3 +175,173 @@ core::arch::global_asm!(
     ".size __wrap___mulsf3, . - __wrap___mulsf3",
     ".popsection",
 );
+
+// The f32 sum (`__addsf3`) and difference (`__subsf3`, which flips b's
+// sign and adds): a fast path for two normal numbers of exponents 26..252
+// (|x| from 6.7e-32 to 1.7e38), avr-libc's `__addsf3x` and `__fp_round`
+// for the rest, as avr-libc's `__addsf3` runs them. The larger-exponent
+// operand x keeps its place; y's significand is shifted right by the
+// exponent difference into three bytes and a guard byte, whose last bit
+// is set when anything nonzero was shifted out (the sticky bit: round to
+// nearest even needs no more); then added or subtracted, normalized,
+// rounded and packed. An exponent difference above 25 leaves x as it is
+// (y is below a quarter of x's last place).
+core::arch::global_asm!(
+    ".pushsection .text.__wrap___addsf3,\"ax\",@progbits",
+    ".global __mill_addsf3_off_path",
+    ".type __mill_addsf3_off_path, @function",
+    "__mill_addsf3_off_path:",
+    ".Ladd_slow:",
+    // rcall and rjmp, not call and jmp: avr-ld's relaxation of those puts
+    // the second of two symbols that follow at the first one's address.
+    "    ldi  r26, 0", // what avr-libc's __addsf3 clears first
+    "    ldi  r27, 0",
+    "    rcall __addsf3x",
+    "    rjmp __fp_round",
+    ".size __mill_addsf3_off_path, . - __mill_addsf3_off_path",
+    ".global __wrap___subsf3",
+    ".type __wrap___subsf3, @function",
+    "__wrap___subsf3:",
+    "    subi r21, 0x80",
+    ".global __wrap___addsf3",
+    ".type __wrap___addsf3, @function",
+    // a: r25:r22, b: r21:r18.
+    "__wrap___addsf3:",
+    "    mov  r26, r24",
+    "    lsl  r26",
+    "    mov  r26, r25",
+    "    rol  r26", // ea
+    "    cpi  r26, 26",
+    "    brlo .Ladd_slow",
+    "    cpi  r26, 253",
+    "    brsh .Ladd_slow",
+    "    mov  r27, r20",
+    "    lsl  r27",
+    "    mov  r27, r21",
+    "    rol  r27", // eb
+    "    cpi  r27, 26",
+    "    brlo .Ladd_slow",
+    "    cpi  r27, 253",
+    "    brsh .Ladd_slow",
+    "    bst  r25, 7",    // T: the sign of x (a, unless swapped)
+    "    eor  r25, r21",  // bit 7: the signs differ
+    "    ori  r24, 0x80", // the hidden bits
+    "    ori  r20, 0x80",
+    "    cp   r26, r27",
+    "    brsh 1f",
+    "    bst  r21, 7", // eb > ea: x is b
+    "    movw r30, r22",
+    "    movw r22, r18",
+    "    movw r18, r30",
+    "    mov  r30, r24",
+    "    mov  r24, r20",
+    "    mov  r20, r30",
+    "    mov  r30, r26",
+    "    mov  r26, r27",
+    "    mov  r27, r30",
+    // x: r24:r23:r22, exponent r26; y: r20:r19:r18, guard r30; r27 the
+    // exponent difference, r21 the bits shifted out.
+    "1:  neg  r27",
+    "    add  r27, r26",
+    "    ldi  r30, 0",
+    "    ldi  r21, 0",
+    "    cpi  r27, 26",
+    "    brlo 2f",
+    "    rjmp .Ladd_round", // x alone (guard 0: no rounding)
+    "2:  cpi  r27, 8",      // whole bytes
+    "    brlo 3f",
+    "    or   r21, r30",
+    "    mov  r30, r18",
+    "    mov  r18, r19",
+    "    mov  r19, r20",
+    "    ldi  r20, 0",
+    "    subi r27, 8",
+    "    rjmp 2b",
+    "3:  cpse r21, r1", // 0 or 1: the bit loop's rol keeps it
+    "    ldi  r21, 1",
+    "    rjmp 5f",
+    "4:  lsr  r20", // then bits
+    "    ror  r19",
+    "    ror  r18",
+    "    ror  r30",
+    "    rol  r21",
+    "5:  subi r27, 1",
+    "    brcc 4b",
+    "    cpse r21, r1",
+    "    ori  r30, 1", // the sticky bit
+    "    sbrc r25, 7",
+    "    rjmp 6f",
+    "    add  r22, r18", // same signs: x + y
+    "    adc  r23, r19",
+    "    adc  r24, r20",
+    "    brcc .Ladd_round",
+    "    ror  r24", // in [2, 4): one bit down
+    "    ror  r23",
+    "    ror  r22",
+    "    ror  r30",
+    "    brcc 7f",
+    "    ori  r30, 1",
+    "7:  inc  r26",
+    "    rjmp .Ladd_round",
+    "6:  neg  r30", // signs differ: x − y (x's guard is 0)
+    "    sbc  r22, r18",
+    "    sbc  r23, r19",
+    "    sbc  r24, r20",
+    "    brcc 8f",
+    "    com  r24", // |y| > |x| (equal exponents, guard 0):
+    "    com  r23", // negate, y's sign
+    "    neg  r22",
+    "    sbci r23, 0xff",
+    "    sbci r24, 0xff",
+    "    brts 7f",
+    "    set",
+    "    rjmp 8f",
+    "7:  clt",
+    "8:  mov  r27, r24",
+    "    or   r27, r23",
+    "    or   r27, r22",
+    "    or   r27, r30",
+    "    breq 9f",  // x − x: +0
+    "1:  tst  r24", // normalize: whole bytes (exponent
+    "    brne 2f",  // difference 0 or 1 only), then bits
+    "    mov  r24, r23",
+    "    mov  r23, r22",
+    "    mov  r22, r30",
+    "    ldi  r30, 0",
+    "    subi r26, 8",
+    "    rjmp 1b",
+    "2:  sbrc r24, 7",
+    "    rjmp .Ladd_round",
+    "    lsl  r30",
+    "    rol  r22",
+    "    rol  r23",
+    "    rol  r24",
+    "    dec  r26",
+    "    rjmp 2b",
+    "9:  ldi  r22, 0",
+    "    ldi  r23, 0",
+    "    movw r24, r22",
+    "    ret",
+    // Round to nearest, ties to even (bit 7 of the guard is the round bit,
+    // the rest sticky), then pack.
+    ".Ladd_round:",
+    "    sbrs r30, 7",
+    "    rjmp 4f",
+    "    andi r30, 0x7f",
+    "    brne 3f",
+    "    sbrs r22, 0",
+    "    rjmp 4f",
+    "3:  subi r22, 0xff",
+    "    sbci r23, 0xff",
+    "    sbci r24, 0xff",
+    "    brne 4f",
+    "    inc  r26",
+    "4:  lsl  r24",
+    "    lsr  r26",
+    "    ror  r24",
+    "    bld  r26, 7",
+    "    mov  r25, r26",
+    "    ret",
+    ".size __wrap___addsf3, . - __wrap___addsf3",
+    ".popsection",
+);
