@@ -12,8 +12,9 @@
 //! - [`bootloader`]: the stock bootloader's watchdog entry (the landing
 //!   pad at 0x20000) and the reset cause it clears;
 //! - [`halt`]: where every panic and `abort` ends (the M112 state, then halt);
-//! - `mem`: faster `memcpy` and `memset` than avr-libc's (not registers,
-//!   but AVR-only assembly like the rest).
+//! - `mem`: faster `memcpy` and `memset` than avr-libc's, and
+//!   `soft_float`: faster f32 `*`, `+` and `-` (not registers, but
+//!   AVR-only assembly like the rest).
 //!
 //! Everything above this layer (the `mill` library) sees values, never pins.
 

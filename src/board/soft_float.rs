@@ -1,25 +1,31 @@
-//! The f32 multiply every `*` on the AVR calls, in assembly: a fast path
-//! for what a streamed line multiplies (two normal numbers whose product is
-//! normal), avr-libc's routine for everything else.
+//! The f32 multiply, sum and difference every `*`, `+` and `-` on the AVR
+//! calls, in assembly: a fast path for what a streamed line computes
+//! (normal numbers, a normal result), avr-libc's routines for everything
+//! else.
 //!
-//! avr-libc's `__mulsf3` (`libm.a`, hand-written) unpacks both operands in
-//! `__fp_split3` (zeros, subnormals, infinities, NaN), multiplies, and
-//! rounds in `__fp_round`, three calls deep: 152 cycles a call on average
-//! on a streamed line (`profile --trace`), 16 calls a line. Here, after two
-//! exponent tests, the same 24 × 24-bit product (avr-libc's `mul` order),
-//! one normalizing shift, round to nearest even and the packing are done in
-//! line: ~100 cycles. A zero times a finite number is a signed zero in
-//! ~30 cycles. Where the operands or the product's exponent are out of
-//! the fast path's range (a subnormal, an infinity or a NaN operand, or an
-//! exponent sum that could overflow or underflow), it jumps to avr-libc's
-//! `__mulsf3x` and `__fp_round`, which is what avr-libc's `__mulsf3` does.
+//! avr-libc's routines (`libm.a`, hand-written) unpack both operands in
+//! `__fp_split3` (zeros, subnormals, infinities, NaN), compute, and round
+//! in `__fp_round`, three calls deep: 152 cycles a multiply and ~123 a sum
+//! on average on a streamed line (`profile --trace`), 16 and 17 calls a
+//! line. Here the fast path does it in line after two exponent tests:
+//! ~95 cycles a multiply, ~85 a sum (CPU row 23 044 -> 22 333 cycles a
+//! line).
 //!
-//! The linker's `--wrap=__mulsf3` (`avr-atmega2560.json`) sends every call
-//! of `__mulsf3` here (`__wrap___mulsf3`), libm's own calls included.
+//! The multiply: the same 24 × 24-bit product as avr-libc's (its `mul`
+//! order), one normalizing shift, round to nearest even, the packing. A
+//! zero times a finite number is a signed zero in ~30 cycles. Off the fast
+//! path (a subnormal, an infinity or a NaN operand, or an exponent sum that
+//! could overflow or underflow) it jumps to avr-libc's `__mulsf3x` and
+//! `__fp_round`, which is what avr-libc's `__mulsf3` does.
 //!
-//! Tested against avr-libc's routine, bit for bit, in the virtual machine:
-//! `tests/soft_float.rs` calls both in the real ELF on random and edge
-//! operands, and checks the fast path against the host's IEEE product.
+//! The linker's `--wrap` (`avr-atmega2560.json`) sends every call of
+//! `__mulsf3`, `__addsf3` and `__subsf3` here (`__wrap___mulsf3`, …),
+//! libm's own calls included.
+//!
+//! Tested against avr-libc's routines, bit for bit, in the virtual
+//! machine: `tests/soft_float.rs` calls both in the real ELF on random and
+//! edge operands, and checks the fast paths against the host's IEEE
+//! results.
 
 core::arch::global_asm!(
     ".pushsection .text.__wrap___mulsf3,\"ax\",@progbits",
