@@ -55,6 +55,10 @@ mod addr {
 pub const PA: Port = port(addr::A);
 pub const PF: Port = port(addr::F);
 pub const PL: Port = port(addr::L);
+/// The step ports' PINx addresses, for the step interrupt's assembly.
+pub const PA_PIN: u16 = addr::A;
+pub const PF_PIN: u16 = addr::F;
+pub const PL_PIN: u16 = addr::L;
 
 const fn pin(pin_addr: u16, bit: u8) -> Pin {
     Pin { pin_addr, mask: 1 << bit }

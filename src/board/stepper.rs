@@ -37,12 +37,17 @@
 //! (simavr never fires CTC with OCR1A = 0, docs/SPEC.md §14). No TCNT preload is used
 //! (simavr loses those).
 //!
+//! The usual event (not stopped, nothing homed or probed, no segment to
+//! load) runs in assembly, `__vector_17` below; every other one jumps from
+//! it to the Rust path (`step_slow`), which does the same steps.
+//!
 //! Cycle budget (simavr, 16 MHz, interrupt response and RETI included,
-//! measured by `tools/bench` over all its runs): min 135, mean 168, max 340
-//! (docs/SPEC.md §11: 400). One tick: 149 cycles with no partial axis (one axis, or
-//! equal-step diagonals), 195 / 218 / 241 with one / two / three partial
-//! axes; a segment load adds ~60, a new chunk ~50, armed switch checks ~30.
-//! Idle polling at 1 kHz: ~135.
+//! measured by `tools/bench` over all its runs): min 143, mean 170, max 365
+//! (docs/SPEC.md §11: 400). The longest is a segment load with a new chunk
+//! on the Rust path, ~22 cycles after the assembly's tests and jump. On a
+//! streamed 0.1 mm G1 line the interrupt averages 181 cycles (it was 204
+//! in Rust alone: `profile --count 254 --feed 12000 --accel 5000 --trace
+//! 500:300`, `__vector_17`). Idle polling at 1 kHz takes the Rust path.
 
 use super::pins;
 use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
@@ -52,6 +57,8 @@ use mill::stepper::rings::{IsrSnapshot, RingMem, Rings, CHUNK_MASK, CHUNK_RING_L
 use mill::stepper::{Prescale, StepperCmd};
 use mill::N_AXES;
 use portable_atomic::{compiler_fence, AtomicU8, Ordering};
+
+mod fast;
 
 /// Timer period while idle: 1 kHz at clk/1.
 const IDLE_PERIOD: u16 = 16_000;
@@ -362,6 +369,9 @@ unsafe fn set_idle_timer(st: &mut Isr) {
 /// Switch checks after the rising edges. Returns true to stop (flags set).
 /// A hard limit is checked first and turns the spindle off before anything
 /// else, a few cycles after the switch pins are read.
+// speed: in the interrupt's Rust paths, not a call from them (each call
+// cost the worst case ~40 cycles, over SPEC §11's 400)
+#[inline(always)]
 unsafe fn switches_trip(st: &mut Isr) -> bool {
     // SAFETY: called from the stepper ISR only: MOTION is read and written
     // with plain volatile accesses, as main changes it only with interrupts
@@ -370,8 +380,7 @@ unsafe fn switches_trip(st: &mut Isr) -> bool {
         let closed = pins::home_closed() ^ st.invert;
         let m = MOTION.as_ptr();
         if closed & st.limit != 0 {
-            super::spindle_off_raw();
-            write_volatile(m, read_volatile(m) | motion::LIMIT | motion::STOP);
+            limit_trip();
             return true;
         }
         if st.homing != 0 {
@@ -396,6 +405,8 @@ unsafe fn switches_trip(st: &mut Isr) -> bool {
 
 /// The next segment, if any; on a new chunk also its pointer, the direction
 /// pins and the limit mask.
+// speed: as `switches_trip`
+#[inline(always)]
 unsafe fn load_segment(st: &mut Isr) {
     // SAFETY: called from the stepper ISR only, which owns `st`, timer 1 and
     // the direction pins; main writes the segment and chunk slots before it
@@ -552,9 +563,11 @@ unsafe fn toggle_steps(p: u8) {
     }
 }
 
-// One step event. See the module doc for the order of operations.
-#[avr_device::interrupt(atmega2560)]
-fn TIMER1_COMPA() {
+/// The step interrupt's other cases (stopped, homing or probing, a segment
+/// to load), entered from `__vector_17` by a jump with the registers as
+/// the interrupt found them. See the module doc for the order of
+/// operations.
+extern "avr-interrupt" fn step_slow() {
     // SAFETY: the ISR has exclusive use of ST while it runs (no nesting); the
     // main loop touches ST only inside critical sections or through
     // single-byte indices, and writes ring slots before publishing them.
@@ -567,10 +580,57 @@ fn TIMER1_COMPA() {
         }
         let p = st.pending;
         toggle_steps(p);
+        after_rise(st, p);
+    }
+}
+
+/// The fast path raised the step pins and read a hard-limit switch of the
+/// running chunk closed: the trip, as `switches_trip` and `after_rise` make
+/// it (the spindle goes off ~30 cycles after the switches were read).
+extern "avr-interrupt" fn step_tripped() {
+    // SAFETY: as `step_slow`.
+    unsafe {
+        let st = &mut *addr_of_mut!(ST);
+        limit_trip();
+        stop_event(st);
+    }
+}
+
+/// A hard limit: the spindle off first, then the stop and the alarm flag.
+#[inline(always)]
+unsafe fn limit_trip() {
+    // SAFETY: called from the step interrupt only: MOTION is read and
+    // written with plain volatile accesses, as main changes it only with
+    // interrupts off.
+    unsafe {
+        super::spindle_off_raw();
+        let m = MOTION.as_ptr();
+        write_volatile(m, read_volatile(m) | motion::LIMIT | motion::STOP);
+    }
+}
+
+/// A trip ends the event: the pending step is never output (main
+/// subtracts it), the timer idles, the pulse ends.
+#[inline(always)]
+unsafe fn stop_event(st: &mut Isr) {
+    let p = st.pending;
+    st.pending = 0;
+    // SAFETY: called from the step interrupt only.
+    unsafe {
+        set_idle_timer(st);
+        toggle_steps(p);
+    }
+}
+
+/// The event after its rising edges: switches, the next segment, the next
+/// event, the falling edges.
+// speed: in both interrupt paths, not a call from them
+#[inline(always)]
+unsafe fn after_rise(st: &mut Isr, p: u8) {
+    // SAFETY: called from the step interrupt only (see `step_slow`).
+    unsafe {
         if st.armed != 0 && switches_trip(st) {
-            st.pending = 0;
-            set_idle_timer(st);
-            toggle_steps(p);
+            stop_event(st);
             return;
         }
         if st.ticks_left == 0 {
