@@ -4,8 +4,8 @@
 //! called in the real ELF in the virtual machine, bit for bit, on random and
 //! edge operands. Where both operands and the product are normal, both must
 //! also be the host's IEEE product (round to nearest, ties to even), and the
-//! fast path must have answered; a zero times a finite number must have
-//! taken the short way to a signed zero.
+//! fast path must have answered; a zero times a finite number, or a zero
+//! plus a normal one, must have taken the short way.
 
 mod common;
 
@@ -16,7 +16,8 @@ use sim::{Vm, VmConfig};
 const MAX_CYCLES: u64 = 2_000;
 /// The fast path's longest run, cycles: above it, the call went the slow way.
 const FAST_MAX: u64 = 110;
-/// The longest run for a zero times a finite number.
+/// The longest run for a zero times a finite number, or a zero plus a
+/// normal one.
 const ZERO_MAX: u64 = 45;
 /// The sum's fast path's longest run.
 const ADD_FAST_MAX: u64 = 200;
@@ -240,7 +241,7 @@ fn the_assembly_sum_and_difference_are_avr_libcs_bit_for_bit_and_ieee_where_all_
     let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
     let mut pairs: Vec<(f32, f32)> = specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect();
     pairs.extend((0..60_000).map(|i| terms(&mut rng, i)));
-    let (mut fast, mut fast_cycles, mut fast_max) = (0u32, 0u64, 0u64);
+    let (mut fast, mut fast_cycles, mut fast_max, mut zeros) = (0u32, 0u64, 0u64, 0u32);
     for &(a, b) in &pairs {
         for (addr, name) in [(add, "+"), (sub, "-")] {
             let (got, cycles) = m.ours(addr, a, b);
@@ -253,6 +254,11 @@ fn the_assembly_sum_and_difference_are_avr_libcs_bit_for_bit_and_ieee_where_all_
             let ieee = a + b;
             let ea = (a.to_bits() >> 23) & 0xFF;
             let eb = (b.to_bits() >> 23) & 0xFF;
+            if (a == 0.0 && b.is_normal()) || (b == 0.0 && a.is_normal()) {
+                assert_eq!(got, ieee.to_bits(), "{ctx}, IEEE {:#010x}", ieee.to_bits());
+                assert!(cycles <= ZERO_MAX, "{ctx}: {cycles} cycles, not the zero path");
+                zeros += 1;
+            }
             if a.is_normal() && b.is_normal() && (ieee.is_normal() || ieee == 0.0) {
                 assert_eq!(got, ieee.to_bits(), "{ctx}, IEEE {:#010x}", ieee.to_bits());
                 if (26..=252).contains(&ea) && (26..=252).contains(&eb) {
@@ -265,5 +271,6 @@ fn the_assembly_sum_and_difference_are_avr_libcs_bit_for_bit_and_ieee_where_all_
         }
     }
     assert!(fast > 60_000, "only {fast} sums took the fast path");
+    assert!(zeros > 1_000, "only {zeros} sums of a zero");
     println!("fast path: {fast} of {} sums, mean {} cycles, max {fast_max} (call to ret)", 2 * pairs.len(), fast_cycles / fast as u64);
 }
