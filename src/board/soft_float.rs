@@ -66,8 +66,10 @@ core::arch::global_asm!(
     "    ldi  r23, 0",
     "    ldi  r22, 0",
     "    ret",
-    "6:  call __mulsf3x",
-    "    jmp  __fp_round",
+    // rcall and rjmp, not call and jmp: avr-ld's relaxation of those
+    // leaves the symbols after them the wrong size (or address).
+    "6:  rcall __mulsf3x",
+    "    rjmp __fp_round",
     ".size __mill_mulsf3_off_path, . - __mill_mulsf3_off_path",
     // a: r25:r22, b: r21:r18 (sign, 8-bit exponent, 23-bit fraction).
     "__wrap___mulsf3:",
@@ -230,8 +232,9 @@ core::arch::global_asm!(
     "    movw r22, r18", // ±0 + normal b = b
     "    movw r24, r20",
     "    ret",
-    // rcall and rjmp, not call and jmp: avr-ld's relaxation of those puts
-    // the second of two symbols that follow at the first one's address.
+    // rcall and rjmp, as in the multiply's (avr-ld's relaxation of call
+    // and jmp put the second of two symbols that follow at the first one's
+    // address).
     "2:  ldi  r26, 0", // what avr-libc's __addsf3 clears first
     "    ldi  r27, 0",
     "    rcall __addsf3x",
@@ -241,6 +244,7 @@ core::arch::global_asm!(
     ".type __wrap___subsf3, @function",
     "__wrap___subsf3:",
     "    subi r21, 0x80",
+    ".size __wrap___subsf3, 2",
     ".global __wrap___addsf3",
     ".type __wrap___addsf3, @function",
     // a: r25:r22, b: r21:r18.

@@ -18,7 +18,7 @@
 //! `--feed F` runs the default job at F mm/min (the axes' M203 limit
 //! raised above 3000), to profile it where the CPU is the limit; `--accel
 //! A` at A mm/s² on X and Y (the benchmark's CPU row: F12000, 5000).
-//! `--hist NAME` (with `--trace`) also prints the traced cycles per
+//! `--hist NAME` (with `--trace`; `?` for code no symbol covers) also prints the traced cycles per
 //! instruction address inside the functions whose name contains NAME, to
 //! read against `avr-objdump -d`.
 //! `--under NAME` (with `--trace`) counts the self cycles only while a
@@ -231,8 +231,13 @@ fn main() {
                 if counted {
                     *tself.entry(prev_pc_fn).or_default() += c - c0;
                 }
-                if let (Some(h), Some(k)) = (&hist_name, prev_pc_fn) {
-                    if syms[k].2.contains(h.as_str()) {
+                if let Some(h) = &hist_name {
+                    // `?`: the addresses no symbol covers.
+                    let hit = match prev_pc_fn {
+                        Some(k) => syms[k].2.contains(h.as_str()),
+                        None => h == "?",
+                    };
+                    if hit {
                         *hist.entry(prev_pc).or_default() += c - c0;
                     }
                 }
