@@ -624,7 +624,7 @@ unsafe fn stop_event(st: &mut Isr) {
 
 /// The event after its rising edges: switches, the next segment, the next
 /// event, the falling edges.
-// speed: in both interrupt paths, not a call from them
+// speed: in the interrupt's Rust path, not a call from it
 #[inline(always)]
 unsafe fn after_rise(st: &mut Isr, p: u8) {
     // SAFETY: called from the step interrupt only (see `step_slow`).

@@ -6,7 +6,7 @@ use super::{motion, pins, step_slow, step_tripped, Chunk, Isr, MOTION, ST};
 
 // One step event, the usual one, in assembly: not stopped, nothing homed
 // or probed, the running segment not used up (so no segment to load). It
-// does what the Rust path below does for that case, with 11 registers
+// does what the Rust path (`step_slow`) does for that case, with 11 registers
 // saved instead of 17 and the switch test written out: rising edges, the
 // hard-limit switches of the running chunk (a closed one: the Rust path
 // `step_tripped` takes over), the next event (`tick`'s Bresenham,
