@@ -43,11 +43,117 @@ pub fn fabsf(x: f32) -> f32 {
 /// Round to nearest, halves away from zero, as an i32 (saturating; NaN → 0):
 /// `x ± 0.5` in f32, truncated (so the f32 addition's own rounding shows:
 /// 0.49999997 gives 1, as it always did). Worked out on the bit pattern
-/// with integer shifts, no soft-float addition or conversion: ~190 cycles
-/// on the AVR instead of ~280 (`round_i32_plain`, the reference:
-/// `round_i32_matches_its_float_reference`).
+/// with integer shifts, no soft-float addition or conversion
+/// (`round_i32_plain`, the reference: `round_i32_matches_its_float_reference`).
+/// On the AVR the usual case (|x| below 2²³) is assembly, a call: ~60
+/// cycles instead of ~200 for the compiled shifts (`tests/soft_float.rs`
+/// calls it in the real ELF against this twin).
 #[inline]
 pub fn round_i32(x: f32) -> i32 {
+    #[cfg(target_arch = "avr")]
+    {
+        round_i32_avr(x)
+    }
+    #[cfg(not(target_arch = "avr"))]
+    {
+        round_i32_bits(x)
+    }
+}
+
+/// [`round_i32`] on the AVR: for 0.5 ≤ |x| < 2²³ (the biased exponent
+/// 126..=149) the twin's own steps in assembly: the significand shifted
+/// right by 149 − exponent, whole bytes first, then t → (t + 1) >> 1 and
+/// the sign; [`round_i32_bits`] for the rest. A function of its own, so
+/// that the test can call it by name.
+#[cfg(target_arch = "avr")]
+#[export_name = "mill_round_i32"]
+#[inline(never)]
+extern "C" fn round_i32_avr(x: f32) -> i32 {
+    let b = x.to_bits();
+    let (mut lo, mut hi) = (b as u16, (b >> 16) as u16);
+    let ok: u8;
+    // SAFETY: register arithmetic only (T is SREG's, which asm may change).
+    unsafe {
+        core::arch::asm!(
+            "mov {e}, {hi:l}",
+            "lsl {e}",
+            "mov {e}, {hi:h}",
+            "rol {e}", // the biased exponent
+            "ldi {ok}, 0",
+            "subi {e}, 126",
+            "cpi {e}, 24",
+            "brsh 9f",
+            "bst {hi:h}, 7", // T: the sign
+            "ldi {s}, 0x80",
+            "or {hi:l}, {s}", // the hidden bit
+            "clr {hi:h}",
+            "ldi {s}, 23",
+            "sub {s}, {e}", // the shift, 0..=23
+            "cpi {s}, 16",
+            "brlo 1f",
+            "mov {lo:l}, {hi:l}",
+            "clr {lo:h}",
+            "clr {hi:l}",
+            "subi {s}, 16",
+            "rjmp 2f",
+            "1: cpi {s}, 8",
+            "brlo 2f",
+            "mov {lo:l}, {lo:h}",
+            "mov {lo:h}, {hi:l}",
+            "clr {hi:l}",
+            "subi {s}, 8",
+            "2: subi {s}, 1",
+            "brcs 3f",
+            "lsr {hi:l}",
+            "ror {lo:h}",
+            "ror {lo:l}",
+            "rjmp 2b",
+            "3: sec", // (t + 1) >> 1
+            "adc {lo:l}, r1",
+            "adc {lo:h}, r1",
+            "adc {hi:l}, r1",
+            "adc {hi:h}, r1",
+            "lsr {hi:h}",
+            "ror {hi:l}",
+            "ror {lo:h}",
+            "ror {lo:l}",
+            "brtc 4f",
+            "com {lo:l}", // − r
+            "com {lo:h}",
+            "com {hi:l}",
+            "com {hi:h}",
+            "sec",
+            "adc {lo:l}, r1",
+            "adc {lo:h}, r1",
+            "adc {hi:l}, r1",
+            "adc {hi:h}, r1",
+            "4: ldi {ok}, 1",
+            "9:",
+            lo = inout(reg_pair) lo,
+            hi = inout(reg_pair) hi,
+            e = out(reg_upper) _,
+            s = out(reg_upper) _,
+            ok = out(reg_upper) ok,
+            options(pure, nomem, nostack),
+        );
+    }
+    if ok == 0 {
+        return round_i32_cold(x);
+    }
+    ((hi as u32) << 16 | lo as u32) as i32
+}
+
+/// [`round_i32_bits`] as a call, for the rare cases of `round_i32_avr`.
+#[cfg(target_arch = "avr")]
+#[inline(never)]
+fn round_i32_cold(x: f32) -> i32 {
+    round_i32_bits(x)
+}
+
+/// [`round_i32`] in Rust: the host's, the AVR's rare cases, and the twin
+/// of the AVR's assembly.
+#[cfg_attr(target_arch = "avr", inline(always))]
+pub fn round_i32_bits(x: f32) -> i32 {
     let b = x.to_bits();
     let mag = b & 0x7FFF_FFFF;
     if mag > 0x7F80_0000 {

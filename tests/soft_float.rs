@@ -1,5 +1,8 @@
-//! The firmware's assembly f32 multiply (`src/board/soft_float.rs`, every
-//! `*` on the AVR) against the routine it replaces, avr-libc's `__mulsf3`
+//! The firmware's assembly f32 routines against the code they replace,
+//! called in the real ELF in the virtual machine. The multiply, sum and
+//! difference (`src/board/soft_float.rs`, every `*`, `+` and `-` on the
+//! AVR) against avr-libc's routines; `math::round_i32` against its host
+//! twin. The multiply against the routine it replaces, avr-libc's `__mulsf3`
 //! (`__mulsf3x`, then `__fp_round`: what avr-libc's `__mulsf3` runs), both
 //! called in the real ELF in the virtual machine, bit for bit, on random and
 //! edge operands. Where both operands and the product are normal, both must
@@ -21,6 +24,8 @@ const FAST_MAX: u64 = 110;
 const ZERO_MAX: u64 = 45;
 /// The sum's fast path's longest run.
 const ADD_FAST_MAX: u64 = 200;
+/// The rounding's fast path's longest run.
+const ROUND_FAST_MAX: u64 = 120;
 
 /// The routines of the ELF, called in one virtual machine.
 struct Routines {
@@ -273,4 +278,44 @@ fn the_assembly_sum_and_difference_are_avr_libcs_bit_for_bit_and_ieee_where_all_
     assert!(fast > 60_000, "only {fast} sums took the fast path");
     assert!(zeros > 1_000, "only {zeros} sums of a zero");
     println!("fast path: {fast} of {} sums, mean {} cycles, max {fast_max} (call to ret)", 2 * pairs.len(), fast_cycles / fast as u64);
+}
+
+/// Floats to round: any bit pattern, every exponent from 2⁻⁸ to 2³² with a
+/// random significand, halves (k + ½, the ties), and the steps a move
+/// ends on (mm × steps/mm).
+fn to_round(rng: &mut Rng, i: u32) -> f32 {
+    match i % 4 {
+        0 => f32::from_bits(rng.next()),
+        1 => {
+            let e = 119 + rng.next() % 40;
+            f32::from_bits((rng.next() & 0x8000_0000) | (e << 23) | (rng.next() & 0x7F_FFFF))
+        }
+        2 => ((rng.next() % 20_000_000) as i32 - 10_000_000) as f32 + 0.5,
+        _ => ((rng.next() % 2_000_000) as f32 / 1000.0 - 1000.0) * [100.0, 80.0, 400.0, 3200.0][(rng.next() % 4) as usize],
+    }
+}
+
+#[test]
+fn the_assembly_rounding_is_its_host_twins_on_floats_of_every_kind() {
+    let mut m = Routines::new();
+    let f = m.addr("mill_round_i32");
+    let mut rng = Rng(0x0123_4567);
+    let mut xs =
+        vec![0.0f32, -0.0, 0.5, -0.5, 0.499_999_97, 1.5, 2.5, -2.5, 8_388_607.5, 8_388_608.0, 2_147_483_520.0, -2_147_483_648.0, 3e9, -3e9];
+    xs.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::MIN_POSITIVE, 1e-45]);
+    xs.extend((0..40_000).map(|i| to_round(&mut rng, i)));
+    let (mut fast, mut fast_cycles, mut fast_max) = (0u32, 0u64, 0u64);
+    for &x in &xs {
+        let (got, cycles) = m.ours(f, x, 0.0);
+        let want = mill::math::round_i32(x);
+        assert_eq!(got as i32, want, "round_i32({x:e}) ({:#010x}): {got}, the twin {want}", x.to_bits());
+        if (126..=149).contains(&((x.to_bits() >> 23) & 0xFF)) {
+            assert!(cycles <= ROUND_FAST_MAX, "round_i32({x:e}): {cycles} cycles, not the fast path");
+            fast += 1;
+            fast_cycles += cycles;
+            fast_max = fast_max.max(cycles);
+        }
+    }
+    assert!(fast > 15_000, "only {fast} roundings took the fast path");
+    println!("fast path: {fast} of {} roundings, mean {} cycles, max {fast_max} (call to ret)", xs.len(), fast_cycles / fast as u64);
 }
