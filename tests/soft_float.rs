@@ -75,21 +75,39 @@ fn is_normal_or_zero(x: f32) -> bool {
     x.is_normal() || x == 0.0
 }
 
+/// A normal float of biased exponent `e`: a random sign, random bits
+/// where `frac_mask` has them.
+fn normal(rng: &mut Rng, e: u32, frac_mask: u32) -> f32 {
+    let sign = rng.next() & 0x8000_0000;
+    f32::from_bits(sign | (e << 23) | (rng.next() & frac_mask))
+}
+
+/// Two floats: any bit patterns, or normal numbers of any exponent.
+fn any_pair(rng: &mut Rng, normal_only: bool) -> (f32, f32) {
+    if !normal_only {
+        return (f32::from_bits(rng.next()), f32::from_bits(rng.next()));
+    }
+    let (ea, eb) = (1 + rng.next() % 254, 1 + rng.next() % 254);
+    (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
+}
+
+/// A signed zero and any bit pattern, in either order.
+fn zero_and_any(rng: &mut Rng) -> (f32, f32) {
+    let z = f32::from_bits(rng.next() & 0x8000_0000);
+    if rng.next() & 1 == 0 {
+        (z, f32::from_bits(rng.next()))
+    } else {
+        (f32::from_bits(rng.next()), z)
+    }
+}
+
 /// Factors of every kind: any bit pattern (zeros, subnormals, infinities,
 /// NaN among them), normal numbers of any exponent, exponent sums at the
 /// fast path's limits, and short significands (their products are ties
 /// and carries out of the rounding more often than random ones).
 fn factors(rng: &mut Rng, i: u32) -> (f32, f32) {
-    let normal = |rng: &mut Rng, e: u32, frac_mask: u32| {
-        let sign = rng.next() & 0x8000_0000;
-        f32::from_bits(sign | (e << 23) | (rng.next() & frac_mask))
-    };
     match i % 7 {
-        0 => (f32::from_bits(rng.next()), f32::from_bits(rng.next())),
-        1 => {
-            let (ea, eb) = (1 + rng.next() % 254, 1 + rng.next() % 254);
-            (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
-        }
+        k @ (0 | 1) => any_pair(rng, k == 1),
         2 => {
             // ea + eb − 128 around 0 and around 251.
             let ea = 1 + rng.next() % 254;
@@ -114,15 +132,7 @@ fn factors(rng: &mut Rng, i: u32) -> (f32, f32) {
             let a = f32::from_bits(normal(rng, ea, 0).to_bits() | fa);
             (a, f32::from_bits(normal(rng, eb, 0).to_bits() | fb))
         }
-        5 => {
-            // A zero.
-            let z = f32::from_bits(rng.next() & 0x8000_0000);
-            if rng.next() & 1 == 0 {
-                (z, f32::from_bits(rng.next()))
-            } else {
-                (f32::from_bits(rng.next()), z)
-            }
-        }
+        5 => zero_and_any(rng),
         _ => {
             // The values a streamed line multiplies: mm, steps/mm, speeds.
             let x = (rng.next() % 2_000_000) as f32 / 1000.0 - 1000.0;
@@ -174,17 +184,9 @@ fn the_assembly_multiply_is_avr_libcs_bit_for_bit_and_ieee_where_both_are_normal
 /// of two less the smallest terms that change them, and the values a
 /// streamed line adds.
 fn terms(rng: &mut Rng, i: u32) -> (f32, f32) {
-    let normal = |rng: &mut Rng, e: u32, frac_mask: u32| {
-        let sign = rng.next() & 0x8000_0000;
-        f32::from_bits(sign | (e << 23) | (rng.next() & frac_mask))
-    };
     let near = |rng: &mut Rng, e: u32| (e as i32 + (rng.next() % 61) as i32 - 30).clamp(1, 254) as u32;
     match i % 9 {
-        0 => (f32::from_bits(rng.next()), f32::from_bits(rng.next())),
-        1 => {
-            let (ea, eb) = (1 + rng.next() % 254, 1 + rng.next() % 254);
-            (normal(rng, ea, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
-        }
+        k @ (0 | 1) => any_pair(rng, k == 1),
         2 => {
             let ea = 1 + rng.next() % 254;
             let eb = near(rng, ea);
@@ -211,14 +213,7 @@ fn terms(rng: &mut Rng, i: u32) -> (f32, f32) {
             let eb = near(rng, e).min(254);
             (normal(rng, e, 0x7F_FFFF), normal(rng, eb, 0x7F_FFFF))
         }
-        6 => {
-            let z = f32::from_bits(rng.next() & 0x8000_0000);
-            if rng.next() & 1 == 0 {
-                (z, f32::from_bits(rng.next()))
-            } else {
-                (f32::from_bits(rng.next()), z)
-            }
-        }
+        6 => zero_and_any(rng),
         7 => {
             // A power of two less a term 22 to 27 exponents below it: the
             // difference may drop to the next binade (the smallest terms

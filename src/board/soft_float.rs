@@ -28,6 +28,13 @@
 //! results.
 
 core::arch::global_asm!(
+    // \dst = the biased exponent of the float whose top bytes are \hi:\mid.
+    ".macro f32_exp dst, hi, mid",
+    "    mov  \\dst, \\mid",
+    "    lsl  \\dst",
+    "    mov  \\dst, \\hi",
+    "    rol  \\dst",
+    ".endm",
     ".pushsection .text.__wrap___mulsf3,\"ax\",@progbits",
     ".global __wrap___mulsf3",
     ".type __wrap___mulsf3, @function",
@@ -74,17 +81,11 @@ core::arch::global_asm!(
     // a: r25:r22, b: r21:r18 (sign, 8-bit exponent, 23-bit fraction).
     "__wrap___mulsf3:",
     // Each biased exponent must be 1..254 (normal): e − 1 < 254.
-    "    mov  r26, r24",
-    "    lsl  r26",
-    "    mov  r26, r25",
-    "    rol  r26",
+    "    f32_exp r26, r25, r24",
     "    subi r26, 1",
     "    cpi  r26, 254",
     "    brsh .Lmul_slow",
-    "    mov  r27, r20",
-    "    lsl  r27",
-    "    mov  r27, r21",
-    "    rol  r27",
+    "    f32_exp r27, r21, r20",
     "    subi r27, 1",
     "    cpi  r27, 254",
     "    brsh .Lmul_slow",
@@ -182,19 +183,16 @@ core::arch::global_asm!(
     "    ret",
     ".size __wrap___mulsf3, . - __wrap___mulsf3",
     ".popsection",
-);
-
-// The f32 sum (`__addsf3`) and difference (`__subsf3`, which flips b's
-// sign and adds): a fast path for two normal numbers of exponents 26..252
-// (|x| from 6.7e-32 to 1.7e38), avr-libc's `__addsf3x` and `__fp_round`
-// for the rest, as avr-libc's `__addsf3` runs them. The larger-exponent
-// operand x keeps its place; y's significand is shifted right by the
-// exponent difference into three bytes and a guard byte, whose last bit
-// is set when anything nonzero was shifted out (the sticky bit: round to
-// nearest even needs no more); then added or subtracted, normalized,
-// rounded and packed. An exponent difference above 25 leaves x as it is
-// (y is below a quarter of x's last place).
-core::arch::global_asm!(
+    // The f32 sum (`__addsf3`) and difference (`__subsf3`, which flips b's
+    // sign and adds): a fast path for two normal numbers of exponents 26..252
+    // (|x| from 6.7e-32 to 1.7e38), avr-libc's `__addsf3x` and `__fp_round`
+    // for the rest, as avr-libc's `__addsf3` runs them. The larger-exponent
+    // operand x keeps its place; y's significand is shifted right by the
+    // exponent difference into three bytes and a guard byte, whose last bit
+    // is set when anything nonzero was shifted out (the sticky bit: round to
+    // nearest even needs no more); then added or subtracted, normalized,
+    // rounded and packed. An exponent difference above 25 leaves x as it is
+    // (y is below a quarter of x's last place).
     ".pushsection .text.__wrap___addsf3,\"ax\",@progbits",
     ".global __mill_addsf3_off_path",
     ".type __mill_addsf3_off_path, @function",
@@ -208,10 +206,7 @@ core::arch::global_asm!(
     "    or   r26, r19",
     "    or   r26, r18",
     "    brne 1f", // b is not ±0
-    "    mov  r27, r24",
-    "    lsl  r27",
-    "    mov  r27, r25",
-    "    rol  r27",
+    "    f32_exp r27, r25, r24",
     "    subi r27, 1",
     "    cpi  r27, 254",
     "    brsh 2f",
@@ -222,10 +217,7 @@ core::arch::global_asm!(
     "    or   r26, r23",
     "    or   r26, r22",
     "    brne 2f", // a is not ±0
-    "    mov  r27, r20",
-    "    lsl  r27",
-    "    mov  r27, r21",
-    "    rol  r27",
+    "    f32_exp r27, r21, r20",
     "    subi r27, 1",
     "    cpi  r27, 254",
     "    brsh 2f",
@@ -249,18 +241,12 @@ core::arch::global_asm!(
     ".type __wrap___addsf3, @function",
     // a: r25:r22, b: r21:r18.
     "__wrap___addsf3:",
-    "    mov  r26, r24",
-    "    lsl  r26",
-    "    mov  r26, r25",
-    "    rol  r26", // ea
+    "    f32_exp r26, r25, r24", // ea
     "    cpi  r26, 26",
     "    brlo .Ladd_slow",
     "    cpi  r26, 253",
     "    brsh .Ladd_slow",
-    "    mov  r27, r20",
-    "    lsl  r27",
-    "    mov  r27, r21",
-    "    rol  r27", // eb
+    "    f32_exp r27, r21, r20", // eb
     "    cpi  r27, 26",
     "    brlo .Ladd_slow",
     "    cpi  r27, 253",
