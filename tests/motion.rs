@@ -482,3 +482,67 @@ fn a_target_outside_travel_is_refused_with_nothing_moved_and_no_state_changed() 
     assert!(!vm.output().contains("ALARM"), "{}", vm.output());
     assert_no_violations(&vm);
 }
+
+// ------------------------------------------ the step interrupt's two paths
+
+/// The job's steps, (axis, position, cycles after its first step), and the
+/// step interrupt's mean cycles over the job. With `rust_only` every event
+/// takes the interrupt's Rust path (`board::stepper::step_slow`), the
+/// reference of its assembly (`board/stepper/fast.rs`): the probe is
+/// watched, which sends the assembly to the Rust path, with the input's
+/// `$5` inversion bit poked to its idle level so that it never trips. The
+/// offsets are `board::stepper::Isr`'s (`repr(C)`).
+fn steps_of_job(lines: &[&str], rust_only: bool) -> (Vec<(Axis, i64, u64)>, f64) {
+    const ARMED: u16 = 10;
+    const PROBE: u16 = 12;
+    const INVERT: u16 = 15;
+    const PROBE_BIT: u8 = 1 << 3;
+    const SETTER_INVERT: u8 = 1 << 4;
+    let mut vm = boot_homed();
+    if rust_only {
+        let st = vm
+            .symbols()
+            .find("7stepper2ST")
+            .into_iter()
+            .find(|s| s.name.ends_with("7stepper2ST"))
+            .expect("the step interrupt's state")
+            .addr as u16;
+        // The tool setter's input: PD2 (PIND, data address 0x29).
+        let idle_high = vm.read_u8(0x29) & (1 << 2) != 0;
+        let invert = vm.read_u8(st + INVERT) & !SETTER_INVERT | if idle_high { SETTER_INVERT } else { 0 };
+        vm.write_ram(st + INVERT, &[invert]);
+        vm.write_ram(st + PROBE, &[PROBE_BIT]);
+        let armed = vm.read_u8(st + ARMED) | PROBE_BIT;
+        vm.write_ram(st + ARMED, &[armed]);
+    }
+    let before = vm.stepper_isr_stats().expect("the step interrupt ran");
+    for l in lines {
+        ok(&mut vm, l);
+    }
+    ok(&mut vm, "M400");
+    assert_no_violations(&vm);
+    let after = vm.stepper_isr_stats().unwrap();
+    let mean = (after.total_cycles - before.total_cycles) as f64 / (after.count - before.count) as f64;
+    let tr = vm.recorder().trace();
+    let t0 = tr.first().expect("the job moved").cycle;
+    (tr.iter().map(|t| (t.axis, t.position, t.cycle - t0)).collect(), mean)
+}
+
+#[test]
+fn the_step_interrupts_assembly_makes_the_steps_its_rust_path_makes() {
+    // Partial axes of every kind, segments and chunks of all lengths,
+    // accelerations and a full stop, an arc.
+    let job =
+        ["G1 X10.37 Y7.13 Z-1.91 F1500", "G1 X2.5 Y11 Z-0.4 F3000", "G2 X8.5 Y11 I3 J0 F1200", "G1 X8.52 Y10.99 F300", "G0 X1 Y1 Z-1"];
+    let (fast, fast_mean) = steps_of_job(&job, false);
+    let (rust, rust_mean) = steps_of_job(&job, true);
+    assert!(fast.len() > 3_000, "{} steps", fast.len());
+    assert!(fast_mean + 15.0 < rust_mean, "the assembly did not run: {fast_mean:.0} vs {rust_mean:.0} cycles an event");
+    assert_eq!(fast.len(), rust.len(), "step counts");
+    for (i, (f, r)) in fast.iter().zip(&rust).enumerate() {
+        assert_eq!((f.0, f.1), (r.0, r.1), "step {i}: the assembly's {f:?}, the Rust path's {r:?}");
+        // The same timer instants: an edge moves only by the paths' cycles
+        // (and an interrupt that lands in the longer one; 258 at most).
+        assert!(f.2.abs_diff(r.2) <= 400, "step {i}: at {} and {} cycles", f.2, r.2);
+    }
+}

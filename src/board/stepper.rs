@@ -90,7 +90,10 @@ pub mod motion {
 /// Bits of [`motion`].
 pub static MOTION: AtomicU8 = AtomicU8::new(0);
 
-/// The ISR's state: one static, addressed directly (`lds`/`sts`).
+/// The ISR's state: one static, addressed directly (`lds`/`sts`; the
+/// assembly in `fast` by these fields' offsets, and `tests/motion.rs`
+/// pokes `armed`, `probe` and `invert` by theirs to run a job on the Rust
+/// path alone).
 #[repr(C)]
 struct Isr {
     /// Step-output bits of the event computed last time, output next time.
