@@ -135,13 +135,8 @@ mod tests {
 
     #[test]
     fn lt_of_positive_matches_the_float_compare() {
-        let mut r = 0x2545_F491u32;
-        let mut next = move || {
-            r ^= r << 13;
-            r ^= r >> 17;
-            r ^= r << 5;
-            r
-        };
+        let mut rng = crate::test_util::XorShift(0x2545_F491);
+        let mut next = move || rng.next();
         let edges =
             [0u32, 1, 0x0080_0000, 0x3F80_0000, 0x7F7F_FFFF, 0x7F80_0000, 0x7FC0_0000, 0x8000_0000, 0x8000_0001, 0xBF80_0000, 0xFF80_0000];
         let mut checked = 0;

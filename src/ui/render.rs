@@ -256,11 +256,9 @@ mod tests {
     #[test]
     fn micrometres_and_integers_print_as_with_format() {
         let mut vals = vec![0, 1, -1, 5, 999, 1000, -1000, 1001, 12345, -12345, 99_999, i32::MAX, i32::MIN, i32::MIN + 1];
-        let mut x = 0x2468_ACE1_u32;
+        let mut rng = crate::test_util::XorShift(0x2468_ACE1);
         for _ in 0..5000 {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
+            let x = rng.next();
             vals.push(x as i32 >> (x % 28));
         }
         for um in vals {

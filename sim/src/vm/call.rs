@@ -8,11 +8,11 @@ use super::{Vm, VmError};
 use simavr_ffi as ffi;
 use std::os::raw::c_int;
 
-/// Data-space addresses of the stack pointer (ATmega2560 datasheet §7.6).
-const SPL: usize = 0x5D;
-const SPH: usize = 0x5E;
-/// Where the stack of a call starts: low in SRAM, below the firmware's
-/// statics' end is not needed (no interrupt runs, nothing else is live).
+/// Data-space address of the stack pointer (SPL; SPH follows, ATmega2560
+/// datasheet §7.6).
+const SPL: u16 = 0x5D;
+/// Where a call's stack starts: the top of SRAM less a margin (no interrupt
+/// runs and nothing else of the firmware is live during calls).
 const CALL_STACK_TOP: u16 = 0x2100;
 /// Byte address the routine returns to: the last word of flash, made an
 /// `rjmp .-2`.
@@ -26,29 +26,24 @@ impl Vm {
     /// after `max_cycles`. Read the results with [`Vm::reg`] and
     /// [`Vm::sreg_t`].
     pub fn call(&mut self, addr: u32, regs: &[(u8, u8)], max_cycles: u64) -> Result<u64, VmError> {
+        self.write_ram(1, &[0]);
+        for &(r, v) in regs {
+            assert!(r < 32, "r{r}");
+            self.write_ram(r as u16, &[v]);
+        }
+        // The return address, pushed as `call` does on a 3-byte PC: the
+        // word address, low byte at SP, then SP moves down by 3.
+        let ret = RETURN_ADDR >> 1;
+        let sp = CALL_STACK_TOP - 3;
+        self.write_ram(sp + 1, &[(ret >> 16) as u8, (ret >> 8) as u8, ret as u8]);
+        self.write_ram(SPL, &sp.to_le_bytes());
         let avr = self.avr;
-        let data = self.inner().data();
-        // SAFETY: avr is live and not running; data has RAMEND + 1 bytes and
-        // flash flashend + 1 (≥ RETURN_ADDR + 2 on the ATmega2560).
+        // SAFETY: avr is live and not running; flash has flashend + 1 bytes
+        // (≥ RETURN_ADDR + 2 on the ATmega2560).
         unsafe {
             *(*avr).flash.add(RETURN_ADDR as usize) = 0xFF;
             *(*avr).flash.add(RETURN_ADDR as usize + 1) = 0xCF;
-            *data.add(1) = 0;
-            for &(r, v) in regs {
-                assert!(r < 32, "r{r}");
-                *data.add(r as usize) = v;
-            }
             (*avr).sreg[7] = 0;
-            // The return address, pushed as `call` does on a 3-byte PC:
-            // the word address, low byte at SP, then SP moves down by 3.
-            let ret = RETURN_ADDR >> 1;
-            let sp = CALL_STACK_TOP as usize;
-            *data.add(sp) = ret as u8;
-            *data.add(sp - 1) = (ret >> 8) as u8;
-            *data.add(sp - 2) = (ret >> 16) as u8;
-            let sp = sp - 3;
-            *data.add(SPL) = sp as u8;
-            *data.add(SPH) = (sp >> 8) as u8;
             (*avr).pc = addr;
             (*avr).state = ffi::cpu_Running as c_int;
             let limit = (*avr).run_cycle_limit;
