@@ -349,7 +349,16 @@ impl Settings {
     /// Serialise to the EEPROM image: version, the f32 fields (little
     /// endian, in [`Settings::f32_fields`] order), the flags, checksum.
     pub fn to_bytes(&self) -> [u8; Self::IMAGE_LEN] {
-        let mut w = Writer { buf: [0; Self::IMAGE_LEN], at: 0 };
+        let mut img = [0; Self::IMAGE_LEN];
+        self.write_image(&mut img);
+        img
+    }
+
+    /// [`Settings::to_bytes`] into `img`: the firmware's one copy of the
+    /// image (returned by value it was two on the AVR, 250 B more stack on
+    /// the deepest path, `$n=`).
+    pub fn write_image(&self, img: &mut [u8; Self::IMAGE_LEN]) {
+        let mut w = Writer { buf: img, at: 0 };
         w.u8(SETTINGS_VERSION);
         for part in self.f32_fields() {
             for &v in part {
@@ -378,7 +387,6 @@ impl Settings {
         let sum = checksum(&w.buf[..w.at]);
         w.u8(sum);
         debug_assert_eq!(w.at, Self::IMAGE_LEN);
-        w.buf
     }
 
     /// Parse an EEPROM image. `None` if blank, of another version, corrupt,
@@ -581,12 +589,12 @@ fn checksum(b: &[u8]) -> u8 {
     b.iter().fold(0x5Au8, |s, &x| s.rotate_left(1) ^ x)
 }
 
-struct Writer<const N: usize> {
-    buf: [u8; N],
+struct Writer<'a, const N: usize> {
+    buf: &'a mut [u8; N],
     at: usize,
 }
 
-impl<const N: usize> Writer<N> {
+impl<const N: usize> Writer<'_, N> {
     fn u8(&mut self, v: u8) {
         self.buf[self.at] = v;
         self.at += 1;

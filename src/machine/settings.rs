@@ -31,11 +31,28 @@ impl Machine {
         if !s.is_sane() {
             return Err(interp::Error::BadWord(F!("value out of range")));
         }
-        self.replace_settings(s, io)
+        self.replace_settings(&s, io);
+        Ok(())
     }
 
-    /// `$<n>=<v>`: check the value, then store all settings at once.
+    /// `$<n>=<v>`: check the value (a bad one is refused at once, even
+    /// while moving), wait until the machine is still, put it in force,
+    /// then store all settings at once.
     pub fn set_setting(&mut self, io: &mut impl Io, n: u8, v: f32) -> CmdResult {
+        self.put_setting(io, n, v, false)?;
+        self.still_for_settings(io)?;
+        self.put_setting(io, n, v, true)?;
+        self.save_settings(io);
+        Ok(())
+    }
+
+    /// `$<n>=<v>` on a copy of the settings, checked; with `apply`, the copy
+    /// is then put in force. Not inlined: its frame, with the copy, is
+    /// gone before the wait and before `save_settings` builds the EEPROM
+    /// image.
+    // stack: `$n=` was the deepest path (docs/ARCHITECTURE.md, RAM)
+    #[inline(never)]
+    fn put_setting(&mut self, io: &mut impl Io, n: u8, v: f32, apply: bool) -> CmdResult {
         let bad = |e: dollar::DollarError| interp::Error::BadWord(e.message());
         let mut s = self.settings;
         dollar::set(&mut s, n, v).map_err(bad)?;
@@ -49,8 +66,9 @@ impl Machine {
         if let Some((setting, axis)) = s.station.outside(&s.travel_mm).filter(|_| (170..=175).contains(&n)) {
             return Err(interp::Error::StationOutside { setting, axis: axis as u8 });
         }
-        self.replace_settings(s, io)?;
-        self.save_settings(io);
+        if apply {
+            self.replace_settings(&s, io);
+        }
         Ok(())
     }
 
@@ -74,6 +92,7 @@ impl Machine {
     /// stored at once, as grbl does. The tool table and the changer's
     /// state are kept: they describe the machine as it physically is.
     pub(super) fn restore(&mut self, io: &mut impl Io, what: u8) -> CmdResult {
+        self.still_for_settings(io)?;
         let mut s = Settings::defaults();
         self.interp.store_settings(&mut self.settings);
         if what == b'#' {
@@ -87,30 +106,38 @@ impl Machine {
         if what == b'*' {
             startup::clear(io);
         }
-        self.replace_settings(s, io)?;
+        self.replace_settings(&s, io);
         self.interp.load_settings(&self.settings);
         self.save_settings(io);
         uwriteln!(io, "{}", F!("[MSG:Restoring defaults]")).ok();
         Ok(())
     }
 
-    /// Put new settings in force once the machine is still (M92, M201, M203,
-    /// `$n=`): the step counters are rescaled so that a steps/mm change keeps
-    /// the physical position, and the ISR's watch list follows the limits and
-    /// direction settings.
-    pub fn replace_settings(&mut self, s: Settings, io: &mut impl Io) -> CmdResult {
-        // In an alarm nothing moves (it stopped the steps and dropped the
-        // queue): settings such as `$21=0` may change at once.
+    /// Wait until the machine is still, before a settings change. In an
+    /// alarm nothing moves (it stopped the steps and dropped the queue):
+    /// settings such as `$21=0` may change at once. The callers wait before
+    /// they copy the settings: a copy (250 B) held across the wait lies
+    /// under the main loop's frames (the display's, ~270 B), and `$n=` was
+    /// the deepest stack path that way.
+    fn still_for_settings(&mut self, io: &mut impl Io) -> CmdResult {
         if self.alarm.is_none() {
             self.wait_idle(io)?;
         }
+        Ok(())
+    }
+
+    /// Put new settings in force, the machine still (M92, M201, M203,
+    /// `$n=`, `$RST`; the caller waited: [`Machine::still_for_settings`]):
+    /// the step counters are rescaled so that a steps/mm change keeps
+    /// the physical position, and the ISR's watch list follows the limits and
+    /// direction settings.
+    pub fn replace_settings(&mut self, s: &Settings, io: &mut impl Io) {
         let mm = self.steps_to_mm(io.stepper().position);
-        self.set_settings(s);
+        self.set_settings(*s);
         let new = self.interp.steps_of(&self.settings, &mm);
         io.set_stepper_position(new);
         self.planner.set_position(new);
         self.apply_watch(io, 0, false);
-        Ok(())
     }
 
     /// Put `s` in force as the settings (the planner and the interpreter's
@@ -130,7 +157,8 @@ impl Machine {
     /// Save the settings image to EEPROM (M500).
     pub fn save_settings(&mut self, io: &mut impl Storage) {
         self.interp.store_settings(&mut self.settings);
-        let img = self.settings.to_bytes();
+        let mut img = [0; Settings::IMAGE_LEN];
+        self.settings.write_image(&mut img);
         io.eeprom_write(EEPROM_SETTINGS_ADDR, &img);
     }
 

@@ -48,6 +48,9 @@ impl Block {
     /// override.
     pub const RAPID: u8 = 1 << 1;
 
+    /// A block of nothing: what [`Planner::new`](super::Planner::new)'s
+    /// zeroed blocks are.
+    #[cfg(test)]
     pub(super) const EMPTY: Block = Block {
         steps: [0; N_AXES],
         step_event_count: 0,

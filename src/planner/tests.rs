@@ -42,6 +42,17 @@ const _: () = assert!(BLOCK_BUFFER_LEN >= 16, "SPEC §6: at least 16 blocks");
 const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
 
 #[test]
+fn new_blocks_are_empty() {
+    // `Planner::new` zeroes its blocks (see there): each is `Block::EMPTY`,
+    // field for field and bit for bit.
+    let p = Planner::new();
+    for b in &p.blocks {
+        assert_eq!(*b, Block::EMPTY);
+        assert_eq!(b.millimeters.to_bits() | b.entry_speed_sqr.to_bits() | b.max_delta_speed_sqr.to_bits(), 0);
+    }
+}
+
+#[test]
 fn a_straight_continuation_keeps_its_speed_through_the_junction() {
     let mut p = Planner::new();
     p.push_line([1000, 0, 0, 0], 3000.0, false, &s()).unwrap();
