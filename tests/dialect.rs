@@ -304,6 +304,10 @@ mod comp {
             let worst = check_against(&vm, &r, 1.5);
             println!("{side} {d}: worst deviation {worst:.2} steps");
             assert!(vm.violations().is_empty(), "{:?}", vm.violations());
+            // Compensated arcs and their corners are the deepest stack
+            // path of a job (`Interp::comp_move`'s frame, the arc's limit
+            // checks).
+            ram_within_budget(&vm, &format!("{side} {d} corners"));
         }
     }
 

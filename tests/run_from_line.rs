@@ -70,15 +70,6 @@ fn recorded_line(vm: &Vm, size: usize) -> Option<u32> {
     (0..8).map(|i| u32::from_le_bytes(e[SLOTS + 4 * i..SLOTS + 4 * i + 4].try_into().unwrap())).filter(|&v| v != u32::MAX).max()
 }
 
-/// Static RAM plus the stack's high-water mark so far within the 7 KiB
-/// budget (as tests/ui.rs prints it).
-fn ram_within_budget(vm: &Vm) {
-    let stack = vm.stack_high_water_bytes().unwrap();
-    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
-    println!("static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
-    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
-}
-
 /// From the status screen: Run from SD, the file, the Run screen.
 fn open_run_screen(vm: &mut Vm) {
     press(vm);
@@ -198,7 +189,7 @@ fn after_an_abort_run_from_line_proposes_the_line_and_finishes_the_job_as_the_fu
     // Done: nothing left to resume.
     assert_eq!(recorded_line(&vm, text.len()), None);
     assert_eq!(vm.eeprom()[REC], 0);
-    ram_within_budget(&vm);
+    ram_within_budget(&vm, "run from line");
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 
@@ -263,7 +254,7 @@ fn after_a_power_cut_run_from_line_is_refused_until_homed_then_goes_on_from_the_
     press(&mut vm);
     wait_for(&mut vm, |l| l == "Done printing file", 60.0);
     check_approach(&vm, pressed, &reference, duty, 100);
-    ram_within_budget(&vm);
+    ram_within_budget(&vm, "run from line");
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 
@@ -373,6 +364,6 @@ fn after_a_card_pull_the_line_named_is_proposed_a_scan_stops_cleanly_on_a_pull_o
     assert_eq!(open_from_line(&mut vm), 1);
     assert_eq!(screen(&vm)[1..3], [" File changed since", " its last run: line 1"], "{:?}", screen(&vm));
     golden(&vm, "run_from_line_file_changed");
-    ram_within_budget(&vm);
+    ram_within_budget(&vm, "run from line");
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }

@@ -914,12 +914,7 @@ fn ram_with_sd_display_and_menu_in_use_stays_within_the_budget() {
     ok(&mut vm, "M28 B.NC");
     ok(&mut vm, "G1 X1");
     ok(&mut vm, "M29");
-    let stack = vm.stack_high_water_bytes().unwrap();
-    let data_start = 0x200u32;
-    let bss_end = vm.symbol_addr("__bss_end").unwrap() & 0xFFFF;
-    let statics = bss_end - data_start;
-    println!("static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
-    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
+    ram_within_budget(&vm, "SD job from the menu, M20, M28/M29");
 }
 
 #[test]
@@ -1051,10 +1046,7 @@ fn tools_menu_changes_to_t2_through_the_same_path_as_serial_t2() {
     assert_eq!(total_steps(&vm), n);
     assert_eq!(spindle_tool(&vm), 2);
     // RAM: a change run from the menu, drawing its reply screen meanwhile.
-    let stack = vm.stack_high_water_bytes().unwrap();
-    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
-    println!("tool change from the menu: static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
-    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
+    ram_within_budget(&vm, "tool change from the menu");
 }
 
 #[test]
@@ -1165,16 +1157,6 @@ fn homed_by_the_menu(vm: &mut Vm) {
         last = now;
     }
     panic!("not homed: {:?}", vm.positions());
-}
-
-/// Static RAM plus the stack's high-water mark so far within the 7 KiB
-/// budget; returns the total.
-fn ram_within_budget(vm: &Vm) -> u32 {
-    let stack = vm.stack_high_water_bytes().unwrap();
-    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
-    println!("static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
-    assert!(statics + stack <= 7168, "static {statics} + stack {stack}");
-    statics + stack
 }
 
 /// The operator's hands: every press and detent goes through here and is
@@ -1308,7 +1290,7 @@ fn after_a_hard_limit_the_alarm_menu_jogs_off_the_closed_switch_then_homes() {
         hands.detents
     );
     assert_eq!((hands.presses, hands.detents), (7, 13));
-    ram_within_budget(&vm);
+    ram_within_budget(&vm, "hard limit, jogged off the switch then homed");
     // X is watched again: the hard limit trips on the switch.
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
@@ -1393,7 +1375,7 @@ fn a_card_pulled_mid_job_stops_retracts_then_stops_the_spindle_and_names_the_lin
     assert_eq!(vm.positions(), still);
     assert_eq!(ok(&mut vm, "M27")[0], "Not SD printing");
     assert_eq!(eeprom_but_the_job_record(&vm), eeprom, "EEPROM untouched but for the job record");
-    ram_within_budget(&vm);
+    ram_within_budget(&vm, "card pulled");
     assert!(vm.violations().is_empty(), "{:?}", vm.violations());
 }
 

@@ -18,6 +18,16 @@ pub fn boot_with(cfg: VmConfig) -> Vm {
     vm
 }
 
+/// Static RAM plus the stack's high-water mark so far, printed with
+/// `what`, asserted within the 7 KiB budget of SPEC §11. Returns the sum.
+pub fn ram_within_budget(vm: &Vm, what: &str) -> u32 {
+    let stack = vm.stack_high_water_bytes().unwrap();
+    let statics = (vm.symbol_addr("__bss_end").unwrap() & 0xFFFF) - 0x200;
+    println!("{what}: static RAM {statics} B + stack high-water {stack} B = {} B of 7168", statics + stack);
+    assert!(statics + stack <= 7168, "{what}: static {statics} + stack {stack}");
+    statics + stack
+}
+
 /// A board as sold: the stock Mega2560 bootloader in front of the firmware
 /// (Debian's `arduino-core-avr`, installed by `tools/setup`), as the real
 /// hosts meet it.
