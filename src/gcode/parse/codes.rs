@@ -161,8 +161,16 @@ pub enum Spindle {
     Off,
 }
 
-/// M codes outside the stopping, tool-change and spindle groups: at most one
-/// of them per line, in [`Line::other_m`]. Add new ones here.
-pub const OTHER_M_CODES: &[u16] = &[
-    17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220, 400, 500, 501, 502, 503, 999, 31,
-];
+crate::in_flash! {
+    /// M codes outside the stopping, tool-change and spindle groups: at most
+    /// one of them per line, in [`Line::other_m`]. Add new ones here. In
+    /// flash: as a `const` slice it was a 60-byte table in RAM (`.data`).
+    pub static OTHER_M_CODES: [u16; 30] = [
+        17, 18, 20, 23, 24, 25, 26, 27, 28, 29, 61, 84, 92, 105, 108, 110, 112, 114, 115, 119, 201, 203, 220, 400, 500, 501, 502, 503, 999, 31,
+    ];
+}
+
+/// `code` is one of [`OTHER_M_CODES`].
+pub fn is_other_m(code: u16) -> bool {
+    (0..).map_while(|i| OTHER_M_CODES.row(i)).any(|m| m == code)
+}

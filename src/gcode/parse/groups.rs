@@ -3,7 +3,7 @@
 //! same group).
 
 use super::codes::{
-    Coolant, CutterComp, Distance, FeedMode, Motion, NonModal, PathMode, Plane, Spindle, Stopping, ToolLength, Units, OTHER_M_CODES,
+    is_other_m, Coolant, CutterComp, Distance, FeedMode, Motion, NonModal, PathMode, Plane, Spindle, Stopping, ToolLength, Units,
 };
 use super::error::{err, ParseError, ParseErrorKind};
 use super::line::Line;
@@ -95,7 +95,7 @@ pub(super) fn apply_m(line: &mut Line, code: u16, col: u8) -> Result<(), ParseEr
             line.tool_change = true;
             Ok(())
         }
-        _ if OTHER_M_CODES.contains(&code) => set_group(&mut line.other_m, code, col),
+        _ if is_other_m(code) => set_group(&mut line.other_m, code, col),
         62..=65 => err(ParseErrorKind::NoOutputs, col),
         _ => err(ParseErrorKind::UnsupportedCode, col),
     }
