@@ -47,22 +47,23 @@ impl Interp {
         // G18 and G19 contain Z: mirrored into the internal frame, they turn the other way.
         let cw = frame::internal_clockwise(mo == Motion::ArcCw, g.plane != Plane::Xy);
         let plan = new_arc(start, end, spec, (a0, a1, a2), cw, cx.settings.arc_tolerance_mm)?;
-        self.check_arc_limits(cx, &plan)?;
+        let (lo, hi) = plan.bounds();
+        self.check_arc_limits(cx, &lo, &hi)?;
         self.run.target = target;
         self.commit_line(g, Some(mo));
         self.run.progress = Progress::Arc(plan, end);
         Ok(None)
     }
 
-    /// Every chord end stays inside the arc's bounding box; check it.
+    /// Every chord end of an arc stays inside its bounding box (`lo`,
+    /// `hi`: [`arc::Arc::bounds`]); check the box.
     // flash: the arc helpers inlined cost +1 760 B for no speed-up (Interp::start's doc)
     #[inline(never)]
-    pub(super) fn check_arc_limits(&mut self, cx: &Ctx, plan: &arc::Arc) -> Result<(), Error> {
-        let (lo, hi) = plan.bounds();
+    pub(super) fn check_arc_limits(&mut self, cx: &Ctx, lo: &[f32; 3], hi: &[f32; 3]) -> Result<(), Error> {
         let mut lo4 = self.pos_mm;
         let mut hi4 = self.pos_mm;
-        lo4[..3].copy_from_slice(&lo);
-        hi4[..3].copy_from_slice(&hi);
+        lo4[..3].copy_from_slice(lo);
+        hi4[..3].copy_from_slice(hi);
         self.check_soft_limits(cx.settings, &lo4)?;
         self.check_soft_limits(cx.settings, &hi4)?;
         keep_out_box(cx.settings, &self.pos_mm, &lo4, &hi4)

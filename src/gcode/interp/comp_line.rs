@@ -213,8 +213,8 @@ impl Interp {
 
     /// Set up the held move `h` to run to `end` (its own end, or an inside
     /// corner's point), then phase `then`.
-    // correctness: f32 and point arguments miscompiled as a call on the AVR (the note in comp.rs)
-    #[inline(always)]
+    // stack: a frame of its own; inlined into comp_line and comp_move, its arc and temporaries were in both frames (the deepest stack path)
+    #[inline(never)]
     fn comp_flush(&mut self, cx: &Ctx, h: &Held, end: &P2, then: Phase) -> Result<(), Error> {
         let end3 = [end[0], end[1], h.z];
         self.run.chord_feed = h.feed;
@@ -239,8 +239,14 @@ impl Interp {
             }
             let off = [h.seg.centre[0] - start[0], h.seg.centre[1] - start[1], 0.0];
             let plan = new_arc(start, end3, arc::Centre::Offset(off), (0, 1, 2), h.seg.turn < 0, cx.settings.arc_tolerance_mm)?;
-            self.check_arc_limits(cx, &plan)?;
+            // The arc goes in place first, then its box is checked: one
+            // copy of it in this frame, not three (the deepest stack path).
+            let (lo, hi) = plan.bounds();
             self.run.progress = Progress::Arc(plan, end3);
+            if let Err(e) = self.check_arc_limits(cx, &lo, &hi) {
+                self.run.progress = Progress::None;
+                return Err(e);
+            }
         }
         self.run.phase = Phase::CompFlush;
         Ok(())
