@@ -61,7 +61,7 @@
 //! and an X/Y/Z move whose time per mm can meet neither step-rate limit
 //! (`AxisCache::rate_free_inv_feed`) skips that test. `reference` (tests)
 //! holds all of it to a plain f64 planner within 1 %.
-//! RAM on AVR: `Block` 50 B, 25 of them (`ring`).
+//! RAM on AVR: `Block` 50 B, 28 of them (`ring`).
 //!
 //! **Files**: `block` the block and the results of queuing one, `ring` the
 //! ring and the planner's state, `queue` queuing a move, `junction` the

@@ -9,20 +9,20 @@ use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
-/// Blocks in the ring. RAM: 50 B a block on AVR (25 × 50 = 1 250 B).
+/// Blocks in the ring. RAM: 50 B a block on AVR (28 × 50 = 1 400 B).
 /// grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md §11). The newest
 /// block must be able to stop, so with n blocks of 0.1 mm behind the
 /// executing one at 1000 mm/s² it runs at most √(2 · 1000 · n · 0.1) mm/s:
-/// 24 blocks ahead allow 69 mm/s, 690 lines/s (20 allowed 630). 25 is what
+/// 27 blocks ahead allow 73 mm/s, 730 lines/s (20 allowed 630). 28 is what
 /// the RAM freed from the stack's deepest paths and from `.data` pays for:
 /// the deepest measured path (compensated arcs, `tests/dialect.rs`) stays
 /// about as far within the budget as the deepest one did with 21
 /// (docs/ARCHITECTURE.md "RAM"). Any length works: indices
 /// wrap by compares ([`next_index`], [`prev_index`]), not masks.
-pub const BLOCK_BUFFER_LEN: usize = 25;
+pub const BLOCK_BUFFER_LEN: usize = 28;
 
 /// RAM budget of the whole planner (ring + state), bytes.
-pub const PLANNER_RAM_BUDGET: usize = 1900;
+pub const PLANNER_RAM_BUDGET: usize = 2050;
 
 const _: () = assert!(size_of::<Block>() * BLOCK_BUFFER_LEN <= 1536);
 const _: () = assert!(size_of::<Planner>() <= PLANNER_RAM_BUDGET);
