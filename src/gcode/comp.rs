@@ -159,12 +159,18 @@ pub enum Corner {
     Inside(P2),
 }
 
-// Everything here is inlined into its one caller (`Interp::comp_move`): on
-// the AVR, calls that took two points by reference and an `f32`, or
-// returned a point, came back wrong in simavr (`a[1] + v[1] * k` lost its
-// product; the callee read the `f32` from its stack while the caller passed
-// it in registers). The host twin is the same code, so the host tests still
-// check it; tests/dialect.rs checks the AVR build against the reference.
+// Everything here but `along` is inlined into its one caller
+// (`Interp::comp_move`): on the AVR, calls that took two points by
+// reference and an `f32`, or returned a point, came back wrong in simavr
+// (`a[1] + v[1] * k` lost its product; the callee read the `f32` from its
+// stack while the caller passed it in registers). The cause found since:
+// LLVM-AVR reads arguments passed on the stack one byte off on the
+// ATmega2560 (3-byte return addresses), and `tools/stack-args` fails the
+// tests on any function that does (it caught `corner` as a call). `along`
+// takes three references and returns an `f32`, all in registers: a call,
+// checked by that tool. The host twin is the same code, so the host tests
+// still check it; tests/dialect.rs checks the AVR build against the
+// reference.
 
 // correctness: inlined into its one caller (the note above)
 #[inline(always)]
@@ -339,8 +345,8 @@ pub fn corner(side: Side, p: &P2, held_start: &P2, held: &Seg, next_start: &P2, 
 
 /// How far along `seg` (from `start`) the point `x` (on its path) lies: mm
 /// for a line, radians of sweep for an arc (a full circle sweeps 2π).
-// correctness: inlined into its one caller (the note above)
-#[inline(always)]
+// flash: a call (references in, an f32 out), not four inlined copies in `corner`
+#[inline(never)]
 fn along(start: &P2, seg: &Seg, x: &P2) -> f32 {
     if seg.turn == 0 {
         return dot(&sub(x, start), &unit(&sub(&seg.end, start)));
