@@ -485,8 +485,10 @@ fn a_move_that_waits_for_planner_room_is_acknowledged_once_it_is_queued() {
     vm.wait_line(|l| l == "ok", 5.0).expect("reply");
     let lines = vm.take_lines();
     assert!(lines.iter().any(|l| l.contains("soft limit")), "{lines:?}");
-    // One ok per line: an ok left over would end M400's wait early.
-    ok(&mut vm, "M400");
+    // One ok per line: an ok left over would end M400's wait early. (It
+    // waits for the planner's worth of 2.5-s moves: more than `ok`'s 60 s.)
+    let r = vm.command_timeout("M400", 2.5 * (BLOCK_BUFFER_LEN + 4) as f64).unwrap();
+    assert!(r.last().is_some_and(|l| l == "ok") && !r.iter().any(|l| l.starts_with("Error")), "{r:?}");
     assert_eq!(moved(&vm, p0)[0], (BLOCK_BUFFER_LEN as i64 + 2) * 100);
 }
 
@@ -514,6 +516,8 @@ fn a_line_waiting_for_room_in_the_planner_keeps_the_host_alive() {
         oks += (l == "ok") as usize;
     }
     assert!(!busy_times(&vm, c0).is_empty());
-    ok(&mut vm, "M400");
+    // M400 waits for the planner's worth of 2.5-s moves: more than `ok`'s 60 s.
+    let r = vm.command_timeout("M400", 2.5 * (n + 2) as f64).unwrap();
+    assert!(r.last().is_some_and(|l| l == "ok") && !r.iter().any(|l| l.starts_with("Error")), "{r:?}");
     assert_eq!(moved(&vm, p0)[0], n as i64 * 100);
 }
