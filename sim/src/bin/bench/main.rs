@@ -35,6 +35,10 @@
 //!    square at F3000 and a full reversal: measured acceleration (the
 //!    recorder's 20 ms-window estimate from step timing) against the
 //!    1000 mm/s² setting; the 0.1 mm stream is measured too.
+//! 5. **compensated contour**: a contour with every corner kind under
+//!    G42 (tests/dialect.rs's shape, the tool radius set by `G10 L1`): the
+//!    deepest stack path the tests know (docs/ARCHITECTURE.md "RAM"), so
+//!    that the SRAM row counts it.
 //!
 //! Stepper ISR cycles are accumulated over all runs. Flash and static RAM come
 //! from `avr-size`, the stack high-water from the VM (largest over the runs).
@@ -374,6 +378,32 @@ impl Bench {
         Ok(())
     }
 
+    /// A contour under cutter compensation (G42, a 1.25 mm radius): the
+    /// held moves, their flushed arcs and the corner checks are the
+    /// deepest stack path the tests know; run for the SRAM row.
+    fn compensated_contour(&mut self) -> Result<(), String> {
+        let mut vm = self.boot()?;
+        for l in [
+            "G21 G90 G17",
+            "G10 L1 P2 R1.25",
+            "G0 X5 Y5 Z-5",
+            "G42 D2 G1 X10 Y10 F1200",
+            "G1 X20 Y10",
+            "G1 X22 Y14",
+            "G2 X30 Y14 I4 J0",
+            "G1 X25 Y8",
+            "G1 X12 Y8",
+            "G2 X12 Y14 I0 J3",
+            "G1 X18 Y16",
+            "G40 G0 X5 Y5",
+            "M400",
+        ] {
+            self.cmd(&mut vm, l)?;
+        }
+        self.account(&vm);
+        Ok(())
+    }
+
     fn sizes(&mut self) -> Result<(), String> {
         let out = Command::new("avr-size").arg(&self.elf).output().map_err(|e| format!("avr-size: {e}"))?;
         let text = String::from_utf8_lossy(&out.stdout);
@@ -511,13 +541,14 @@ fn main() -> ExitCode {
     };
     let mut b = Bench { elf: args.elf.clone(), feed: args.feed, r: Results { accel_setting: 1000.0, ..Results::default() }, isr_total: 0 };
     type Run = fn(&mut Bench) -> Result<(), String>;
-    let runs: [(&str, Run); 7] = [
+    let runs: [(&str, Run); 8] = [
         ("single axis", Bench::single_axis),
         ("four axes", Bench::four_axes),
         ("stream, ping-pong", Bench::stream_pingpong),
         ("stream, 254 B in flight", Bench::stream_count),
         ("the same job from SD", Bench::stream_sd),
         ("corners", Bench::corners),
+        ("compensated contour", Bench::compensated_contour),
         ("sizes", Bench::sizes),
     ];
     if args.table {
