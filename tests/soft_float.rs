@@ -101,6 +101,14 @@ fn zero_and_any(rng: &mut Rng) -> (f32, f32) {
     }
 }
 
+/// Every pair of the edge values both routines are tried on first: zeros
+/// of both signs, ones, a power of two, the extremes, the smallest
+/// subnormal, the infinities and a NaN.
+fn special_pairs() -> Vec<(f32, f32)> {
+    let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+    specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect()
+}
+
 /// Factors of every kind: any bit pattern (zeros, subnormals, infinities,
 /// NaN among them), normal numbers of any exponent, exponent sums at the
 /// fast path's limits, and short significands (their products are ties
@@ -147,8 +155,7 @@ fn the_assembly_multiply_is_avr_libcs_bit_for_bit_and_ieee_where_both_are_normal
     let mut m = Routines::new();
     let (ours, mulx, round) = (m.addr("__wrap___mulsf3"), m.addr("__mulsf3x"), m.addr("__fp_round"));
     let mut rng = Rng(0x5EED_F10A);
-    let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
-    let mut pairs: Vec<(f32, f32)> = specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect();
+    let mut pairs = special_pairs();
     pairs.extend((0..60_000).map(|i| factors(&mut rng, i)));
     let (mut fast, mut fast_cycles, mut fast_max, mut zeros) = (0u32, 0u64, 0u64, 0u32);
     for &(a, b) in &pairs {
@@ -238,8 +245,7 @@ fn the_assembly_sum_and_difference_are_avr_libcs_bit_for_bit_and_ieee_where_all_
     let mut m = Routines::new();
     let (add, sub, addx, round) = (m.addr("__wrap___addsf3"), m.addr("__wrap___subsf3"), m.addr("__addsf3x"), m.addr("__fp_round"));
     let mut rng = Rng(0xADD5_0B7A);
-    let specials = [0.0f32, -0.0, 1.0, -1.0, 2.0, 0.5, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
-    let mut pairs: Vec<(f32, f32)> = specials.iter().flat_map(|&a| specials.iter().map(move |&b| (a, b))).collect();
+    let mut pairs = special_pairs();
     pairs.extend((0..60_000).map(|i| terms(&mut rng, i)));
     let (mut fast, mut fast_cycles, mut fast_max, mut zeros) = (0u32, 0u64, 0u64, 0u32);
     for &(a, b) in &pairs {
