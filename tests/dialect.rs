@@ -285,13 +285,9 @@ mod comp {
 
     #[test]
     fn outside_and_inside_corners_of_lines_and_arcs_follow_the_reference() {
-        // A contour with every corner kind: line-line, line-arc and
-        // arc-line corners turning both ways (inside for one side, outside
-        // for the other), tangent junctions, arcs with the tool inside and
-        // outside.
-        let shape = "G1 X20 Y10 F1200\nG1 X22 Y14\nG2 X30 Y14 I4 J0\nG1 X25 Y8\nG1 X12 Y8\nG2 X12 Y14 I0 J3\nG1 X18 Y16\n";
+        // A contour with every corner kind (`sim::contour`).
         for (side, d) in [("G41", "D1"), ("G42", "D2"), ("G41.1", "D1.6")] {
-            let job = format!("G21 G90 G17\nG0 X5 Y5 Z-5\n{side} {d} G1 X10 Y10 F1200\n{shape}G40 G0 X5 Y5\n");
+            let job = sim::contour::job(&format!("{side} {d}"));
             let mut vm = boot_homed();
             ok(&mut vm, "G10 L1 P1 R0.5");
             ok(&mut vm, "G10 L1 P2 R1.25");

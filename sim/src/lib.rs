@@ -46,6 +46,7 @@
 pub mod atc;
 pub mod boot;
 pub mod circle;
+pub mod contour;
 pub mod elf;
 pub mod host;
 pub mod isr;

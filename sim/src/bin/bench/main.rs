@@ -35,8 +35,9 @@
 //!    square at F3000 and a full reversal: measured acceleration (the
 //!    recorder's 20 ms-window estimate from step timing) against the
 //!    1000 mm/s² setting; the 0.1 mm stream is measured too.
-//! 5. **compensated contour**: a contour with every corner kind under
-//!    G42 (tests/dialect.rs's shape, the tool radius set by `G10 L1`): the
+//! 5. **compensated contour**: `sim::contour`'s contour with every corner
+//!    kind under G42 (the tool radius set by `G10 L1`), as tests/dialect.rs
+//!    runs it: the
 //!    deepest stack path the tests know (docs/ARCHITECTURE.md "RAM"), so
 //!    that the SRAM row counts it.
 //!
@@ -383,23 +384,11 @@ impl Bench {
     /// deepest stack path the tests know; run for the SRAM row.
     fn compensated_contour(&mut self) -> Result<(), String> {
         let mut vm = self.boot()?;
-        for l in [
-            "G21 G90 G17",
-            "G10 L1 P2 R1.25",
-            "G0 X5 Y5 Z-5",
-            "G42 D2 G1 X10 Y10 F1200",
-            "G1 X20 Y10",
-            "G1 X22 Y14",
-            "G2 X30 Y14 I4 J0",
-            "G1 X25 Y8",
-            "G1 X12 Y8",
-            "G2 X12 Y14 I0 J3",
-            "G1 X18 Y16",
-            "G40 G0 X5 Y5",
-            "M400",
-        ] {
+        self.cmd(&mut vm, "G10 L1 P2 R1.25")?;
+        for l in sim::contour::job("G42 D2").lines() {
             self.cmd(&mut vm, l)?;
         }
+        self.cmd(&mut vm, "M400")?;
         self.account(&vm);
         Ok(())
     }
