@@ -57,7 +57,14 @@ pub fn tools_and_setter() -> VmConfig {
 /// Send a command and return its reply lines, asserting it ends with `ok`
 /// and carries no error.
 pub fn ok(vm: &mut Vm, line: &str) -> Vec<String> {
-    let r = vm.command(line).unwrap_or_else(|e| panic!("{line}: {e}"));
+    let t = vm.config().command_timeout_s;
+    ok_within(vm, line, t)
+}
+
+/// [`ok`] for a command that may take longer than the VM's command
+/// timeout (an M400 behind a long queue): `timeout_s` simulated seconds.
+pub fn ok_within(vm: &mut Vm, line: &str, timeout_s: f64) -> Vec<String> {
+    let r = vm.command_timeout(line, timeout_s).unwrap_or_else(|e| panic!("{line}: {e}"));
     assert_eq!(r.last().map(String::as_str), Some("ok"), "{line}: {r:?}");
     assert!(!r.iter().any(|l| l.starts_with("Error")), "{line}: {r:?}");
     r
