@@ -4,7 +4,7 @@
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::Block;
-use super::junction::junction_sqr;
+use super::junction::{junction_sqr, reversing};
 use super::ring::{next_index, Planner};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn};
@@ -32,7 +32,7 @@ impl Planner {
         self.rapid_pct = rapid_pct;
         self.feed_cache = (0, 0.0, 0);
         let ax = &self.axis;
-        let mut prev: Option<([f32; N_AXES], f32, f32)> = None;
+        let mut prev: Option<([f32; N_AXES], f32, f32, u8)> = None;
         let mut i = self.tail;
         for _ in 0..self.len {
             let b = &mut self.blocks[i as usize];
@@ -77,19 +77,22 @@ impl Planner {
                 b.nominal_speed_sqr = v * v;
             }
             let nominal = b.nominal_speed_sqr;
-            if let (Some((pu, pa, pn)), true) = (prev, i != self.tail) {
+            let dir = b.direction_bits & moving;
+            if let (Some((pu, pa, pn, p_axes)), true) = (prev, i != self.tail) {
                 let mut same_dir = true;
                 for a in 0..N_AXES {
                     same_dir &= unit[a].to_bits() == pu[a].to_bits();
                 }
                 let cap = min_nn(nominal, pn);
-                let j = junction_sqr(same_dir, &pu, &unit, moving, (b.acceleration, pa), cap, &mut self.cap_sqr_cache, s);
+                let (p_moving, p_dir) = (p_axes & 0x0F, p_axes >> 4);
+                let reversing = reversing((p_moving, p_dir), (moving, dir));
+                let j = junction_sqr(same_dir, &pu, &unit, moving, reversing, (b.acceleration, pa), cap, &mut self.cap_sqr_cache, s);
                 b.max_entry_speed_sqr = min_nn(j, cap);
             }
-            prev = Some((unit, b.acceleration, nominal));
+            prev = Some((unit, b.acceleration, nominal, moving | dir << 4));
             i = next_index(i);
         }
-        if let Some((_, _, n)) = prev {
+        if let Some((_, _, n, _)) = prev {
             self.previous_nominal_speed_sqr = n;
         }
         self.replan();

@@ -7,7 +7,7 @@
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::{Block, PlanError, Push, Speed};
-use super::junction::junction_sqr;
+use super::junction::{junction_sqr, reversing};
 use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
@@ -333,10 +333,9 @@ impl Planner {
                 }
             }
         }
-        let mut same_dir = prev_valid;
-        for i in 0..N_AXES {
-            same_dir &= unit[i].to_bits() == self.previous_unit_vec[i].to_bits();
-        }
+        // Stops at the first axis that differs: a stream of chords changes
+        // direction on every move (~110 cycles a line on the AVR).
+        let same_dir = prev_valid && unit.iter().zip(&self.previous_unit_vec).all(|(u, p)| u.to_bits() == p.to_bits());
 
         // Per-axis limits: the path may go at most as fast (and accelerate at most
         // as hard) as the slowest axis allows, scaled by its share of the motion.
@@ -415,8 +414,18 @@ impl Planner {
             0.0
         } else {
             let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
-            let junction_sqr =
-                junction_sqr(same_dir, &self.previous_unit_vec, &unit, moving, (acceleration, prev_accel), cap, &mut self.cap_sqr_cache, s);
+            let reversing = reversing(self.previous_axes, (moving, dir));
+            let junction_sqr = junction_sqr(
+                same_dir,
+                &self.previous_unit_vec,
+                &unit,
+                moving,
+                reversing,
+                (acceleration, prev_accel),
+                cap,
+                &mut self.cap_sqr_cache,
+                s,
+            );
             min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
         };
         b.millimeters = mm;
@@ -428,6 +437,7 @@ impl Planner {
         };
 
         crate::math::copy16(&mut self.previous_unit_vec, &unit);
+        self.previous_axes = (moving, dir);
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
         self.previous_acceleration = acceleration;
         self.previous_t_axes = t_axes;

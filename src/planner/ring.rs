@@ -104,6 +104,10 @@ pub struct Planner {
     pub(super) backlash_offset: [i32; 3],
     /// Unit vector of the last queued block.
     pub(super) previous_unit_vec: [f32; N_AXES],
+    /// (moving axes, their negative directions) of the last queued block,
+    /// in axis bits: the axes `previous_unit_vec` has non-zero, and their
+    /// signs.
+    pub(super) previous_axes: (u8, u8),
     /// Nominal speed² of the last queued block, (mm/s)².
     pub(super) previous_nominal_speed_sqr: f32,
     /// Acceleration of the last queued block, mm/s².
@@ -185,6 +189,7 @@ impl Planner {
             position: [0; N_AXES],
             backlash_offset: [0; 3],
             previous_unit_vec: [0.0; N_AXES],
+            previous_axes: (0, 0),
             previous_nominal_speed_sqr: 0.0,
             previous_acceleration: 0.0,
             previous_t_axes: 0.0,
@@ -347,6 +352,7 @@ impl Planner {
         self.exec_replanned = false;
         self.dir_known = 0;
         self.previous_unit_vec = [0.0; N_AXES];
+        self.previous_axes = (0, 0);
         self.previous_nominal_speed_sqr = 0.0;
         self.previous_acceleration = 0.0;
         self.previous_limits_valid = false;

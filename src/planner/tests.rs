@@ -777,6 +777,49 @@ fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
     assert!(zero > 1000 && nonzero > 100_000, "{zero} zero, {nonzero} not");
 }
 
+/// The junction's reversing axes from the moving axes and directions the
+/// planner keeps ([`junction::reversing`]) are what the plain reading of
+/// the two unit vectors gives ([`junction::reversing_plain`]), on random
+/// moves of one to four axes, short and long (both of `queue_block`'s
+/// unit-vector routes), either sign, E included.
+#[test]
+fn reversing_from_the_bits_is_reversing_from_the_units() {
+    use super::junction::{reversing, reversing_plain};
+    let mut rng = crate::test_util::XorShift(777);
+    let st = s();
+    let mut p = Planner::new();
+    let mut target = [0i32; N_AXES];
+    let (mut some, mut none) = (0, 0);
+    for k in 0..20_000 {
+        for a in 0..N_AXES {
+            let r = rng.next();
+            let reach = if k % 3 == 0 { 5_000 } else { 40 };
+            target[a] = match r % 3 {
+                0 => target[a],
+                _ => ((r >> 8) % (2 * reach + 1)) as i32 - reach as i32,
+            };
+        }
+        let (before_axes, before_unit) = (p.previous_axes, p.previous_unit_vec);
+        let queued = p.push_line(target, 3000.0, k % 7 == 0, &st).unwrap().queued;
+        if p.len as usize == BLOCK_BUFFER_LEN {
+            p.clear();
+            p.set_position(target);
+            continue;
+        }
+        if queued != 1 {
+            continue;
+        }
+        let (fast, plain) = (reversing(before_axes, p.previous_axes), reversing_plain(&before_unit, &p.previous_unit_vec));
+        assert_eq!(fast, plain, "move {k}: {before_unit:?} → {:?}", p.previous_unit_vec);
+        if plain != 0 {
+            some += 1;
+        } else {
+            none += 1;
+        }
+    }
+    assert!(some > 2000 && none > 2000, "{some} reversing, {none} not");
+}
+
 /// The short-move cache ([`ring::Short`]) against the values computed
 /// without it (square root, division, the unit vector's largest component,
 /// a₀·√S·(1/n) or a₀/|u|max): bit for bit, on its hits and its misses
