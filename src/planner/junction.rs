@@ -63,7 +63,8 @@ pub(super) fn junction_sqr(
     } else if beyond {
         JUNCTION_SPEED_SQR_STRAIGHT
     } else {
-        let h = half(1.0 - cos_theta); // sin²(θ/2)
+        // sin²(θ/2)
+        let h = half(1.0 - cos_theta);
         // The deviation rule gives v² = a·δ·s / (1 − s), s = sin(θ/2).
         // It reaches the cap L = min(nominal²) when s ≥ L / (a·δ + L),
         // i.e. h·(a·δ + L)² ≥ L²: then skip the square root and the

@@ -275,7 +275,8 @@ fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
             let (a0, a1) = (a_floor * (1.0 + next().abs()), a_floor * (1.0 + next().abs()));
             let cap = [2500.0f64, 900.0, 40.0][k % 3];
             let (pf, uf) = (prev.map(|x| x as f32), u.map(|x| x as f32));
-            let got = junction_sqr(false, &pf, &uf, moving, reversing_plain(&pf, &uf), (a0 as f32, a1 as f32), cap as f32, &mut cache, &st).min(cap as f32);
+            let got = junction_sqr(false, &pf, &uf, moving, reversing_plain(&pf, &uf), (a0 as f32, a1 as f32), cap as f32, &mut cache, &st)
+                .min(cap as f32);
             let want = plain_junction(&prev, &u, a0.min(a1), cap, &st);
             assert!((got as f64 - want).abs() <= 1e-3 * want + 1e-6, "settings {v} junction {k}: {got} vs plain {want} ({prev:?} → {u:?})");
             straight += (got as f64 == cap) as u32;
