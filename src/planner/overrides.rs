@@ -32,7 +32,7 @@ impl Planner {
         self.rapid_pct = rapid_pct;
         self.feed_cache = (0, 0.0, 0);
         let ax = &self.axis;
-        let mut prev: Option<([f32; N_AXES], f32, f32, u8)> = None;
+        let mut prev: Option<([f32; N_AXES], f32, f32, (u8, u8))> = None;
         let mut i = self.tail;
         for _ in 0..self.len {
             let b = &mut self.blocks[i as usize];
@@ -84,12 +84,11 @@ impl Planner {
                     same_dir &= unit[a].to_bits() == pu[a].to_bits();
                 }
                 let cap = min_nn(nominal, pn);
-                let (p_moving, p_dir) = (p_axes & 0x0F, p_axes >> 4);
-                let reversing = reversing((p_moving, p_dir), (moving, dir));
+                let reversing = reversing(p_axes, (moving, dir));
                 let j = junction_sqr(same_dir, &pu, &unit, moving, reversing, (b.acceleration, pa), cap, &mut self.cap_sqr_cache, s);
                 b.max_entry_speed_sqr = min_nn(j, cap);
             }
-            prev = Some((unit, b.acceleration, nominal, moving | dir << 4));
+            prev = Some((unit, b.acceleration, nominal, (moving, dir)));
             i = next_index(i);
         }
         if let Some((_, _, n, _)) = prev {
