@@ -32,7 +32,9 @@ impl Planner {
         self.rapid_pct = rapid_pct;
         self.feed_cache = (0, 0.0, 0);
         let ax = &self.axis;
-        let mut prev: Option<([f32; N_AXES], f32, f32, (u8, u8))> = None;
+        // (unit vector, acceleration, nominal speed², (moving axes, directions))
+        // of the block before.
+        let mut prev: Option<([f32; N_AXES], _, _, _)> = None;
         let mut i = self.tail;
         for _ in 0..self.len {
             let b = &mut self.blocks[i as usize];
