@@ -41,7 +41,12 @@ impl Machine {
                     return Ok(());
                 }
                 Err(PlanError::Full) => self.wait_step(io)?,
-                Err(_) => return Err(interp::Error::BadFeed),
+                // More steps than a block holds: the move in pieces.
+                Err(PlanError::TooLong) => {
+                    let piece = self.planner.first_piece(target);
+                    self.queue_line(io, &piece, speed)?;
+                }
+                Err(PlanError::BadFeed) => return Err(interp::Error::BadFeed),
             }
         }
     }

@@ -5,13 +5,13 @@
 
 use crate::N_AXES;
 
-/// One linear move in the ring.
+/// One linear move in the ring. 41 B on AVR: the step counts take 3 bytes
+/// an axis, the step event count is derived from them, and the flags share
+/// the direction byte, so 34 blocks fit where 28 of 50 B did (ring.rs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Block {
-    /// Steps per axis, absolute counts, X Y Z E.
-    pub steps: [u32; N_AXES],
-    /// Step events: max of `steps`.
-    pub step_event_count: u32,
+    /// Steps per axis, absolute counts, X Y Z E ([`Block::steps`]).
+    pub(super) steps: [Steps24; N_AXES],
     /// Path length, mm (E-only moves: pitches). While the block executes, prep
     /// keeps this at the distance still to go.
     pub millimeters: f32,
@@ -28,10 +28,11 @@ pub struct Block {
     /// gain or lose, (mm/s)². Cached for the look-ahead passes; prep keeps it in
     /// step with `millimeters` while the block executes.
     pub max_delta_speed_sqr: f32,
-    /// Bit i set: axis i moves in the negative direction.
-    pub direction_bits: u8,
-    /// [`Block::TAKE_UP`] and future flags.
-    pub flags: u8,
+    /// Bits 0-3: axis i moves in the negative direction
+    /// ([`Block::direction_bits`]); above them [`Block::TAKE_UP`] and
+    /// [`Block::RAPID`]; bits 6-7: the axis with the most steps (the
+    /// first of equals), [`Block::step_event_count`].
+    pub(super) bits: u8,
     /// [`Planner::line_tag`](super::Planner::line_tag) when the block was
     /// queued (low 16 bits of the SD job's line number): which line a stop
     /// happened in.
@@ -42,29 +43,87 @@ pub struct Block {
 }
 
 impl Block {
+    /// A block moves each axis by fewer steps than this (2²³: 21 m at 400
+    /// steps/mm); a longer move is queued in pieces ([`PlanError::TooLong`]).
+    pub const MAX_STEPS: u32 = 1 << 23;
+    /// The direction bits within [`Block::bits`].
+    pub(super) const DIRECTIONS: u8 = (1 << N_AXES) - 1;
     /// Flag: a backlash take-up block (see the module doc).
-    pub const TAKE_UP: u8 = 1 << 0;
+    pub const TAKE_UP: u8 = 1 << N_AXES;
     /// Flag: a rapid move ([`Speed::Rapid`]), which follows the rapid
     /// override.
-    pub const RAPID: u8 = 1 << 1;
+    pub const RAPID: u8 = 1 << (N_AXES + 1);
+    /// Where the dominant axis' index starts in [`Block::bits`].
+    pub(super) const DOMINANT_SHIFT: u8 = N_AXES as u8 + 2;
+
+    /// Steps per axis, X Y Z E.
+    #[inline(always)]
+    pub fn steps(&self) -> [u32; N_AXES] {
+        [self.steps[0].get(), self.steps[1].get(), self.steps[2].get(), self.steps[3].get()]
+    }
+
+    /// Step events: the largest of [`Block::steps`], the dominant axis'
+    /// (its index kept in [`Block::bits`]: finding the largest took ~110
+    /// cycles a block on the AVR).
+    #[inline]
+    pub fn step_event_count(&self) -> u32 {
+        self.steps[(self.bits >> Self::DOMINANT_SHIFT) as usize].get()
+    }
+
+    /// Bit i set: axis i moves in the negative direction.
+    #[inline]
+    pub fn direction_bits(&self) -> u8 {
+        self.bits & Self::DIRECTIONS
+    }
+
+    /// `flag` ([`Block::TAKE_UP`], [`Block::RAPID`]) is set.
+    #[inline]
+    pub fn has(&self, flag: u8) -> bool {
+        self.bits & flag != 0
+    }
 
     /// A block of nothing: what [`Planner::new`](super::Planner::new)'s
     /// zeroed blocks are.
     #[cfg(test)]
     pub(super) const EMPTY: Block = Block {
-        steps: [0; N_AXES],
-        step_event_count: 0,
+        steps: [Steps24::ZERO; N_AXES],
         millimeters: 0.0,
         acceleration: 0.0,
         entry_speed_sqr: 0.0,
         max_entry_speed_sqr: 0.0,
         nominal_speed_sqr: 0.0,
         max_delta_speed_sqr: 0.0,
-        direction_bits: 0,
-        flags: 0,
+        bits: 0,
         line: 0,
         feed: 0,
     };
+}
+
+// The dominant axis' index (2 bits) fits above the directions and flags.
+const _: () = assert!(N_AXES <= 4 && Block::DOMINANT_SHIFT + 2 <= 8);
+
+/// A block's step count on one axis in 3 bytes (at most
+/// [`Block::MAX_STEPS`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Steps24([u8; 3]);
+
+impl Steps24 {
+    #[cfg(test)]
+    pub(super) const ZERO: Steps24 = Steps24([0; 3]);
+
+    /// `n` < 2²⁴ (the bits above are dropped).
+    #[inline]
+    pub(super) fn new(n: u32) -> Steps24 {
+        debug_assert!(n >> 24 == 0);
+        let [a, b, c, _] = n.to_le_bytes();
+        Steps24([a, b, c])
+    }
+
+    #[inline(always)]
+    pub(super) fn get(self) -> u32 {
+        let [a, b, c] = self.0;
+        u32::from_le_bytes([a, b, c, 0])
+    }
 }
 
 /// How fast a move goes, and which override it follows (grbl 1.1's
@@ -104,4 +163,8 @@ pub enum PlanError {
     Full,
     /// Feed ≤ 0 or not finite.
     BadFeed,
+    /// More steps on some axis than a block holds ([`Block::MAX_STEPS`]): queue
+    /// [`Planner::first_piece`](super::Planner::first_piece) first, then the
+    /// move again.
+    TooLong,
 }

@@ -38,15 +38,16 @@ impl Planner {
         let mut i = self.tail;
         for _ in 0..self.len {
             let b = &mut self.blocks[i as usize];
+            let steps = b.steps();
             // The unit vector and the length, from the steps.
             let mut unit = [0f32; N_AXES];
             let mut moving = 0u8;
             let mut xyz_sqr = 0.0f32;
             for a in 0..N_AXES {
-                if b.steps[a] != 0 {
+                if steps[a] != 0 {
                     moving |= 1 << a;
-                    let v = b.steps[a] as f32 * ax.mm_per_step[a];
-                    unit[a] = if b.direction_bits & (1 << a) != 0 { -v } else { v };
+                    let v = steps[a] as f32 * ax.mm_per_step[a];
+                    unit[a] = if b.direction_bits() & (1 << a) != 0 { -v } else { v };
                     if a < 3 {
                         xyz_sqr += v * v;
                     }
@@ -57,19 +58,19 @@ impl Planner {
             for u in unit.iter_mut() {
                 *u *= inv_mm;
             }
-            if b.flags & Block::RAPID != 0 || b.feed != 0 {
+            if b.has(Block::RAPID) || b.feed != 0 {
                 let mut t_axes = 0.0f32;
                 for a in 0..N_AXES {
                     if moving & (1 << a) != 0 {
                         t_axes = max_nn(t_axes, abs_f32(unit[a]) * ax.inv_max_speed[a]);
                     }
                 }
-                let mut t = if b.flags & Block::RAPID != 0 {
+                let mut t = if b.has(Block::RAPID) {
                     t_axes * (100.0 / rapid_pct as f32)
                 } else {
                     max_nn(t_axes, 6000.0 / (b.feed as f32 * feed_pct as f32))
                 };
-                let steps_per_mm = b.step_event_count as f32 * inv_mm;
+                let steps_per_mm = b.step_event_count() as f32 * inv_mm;
                 if lt_nn(t * MAX_STEP_RATE_HZ, steps_per_mm) {
                     t = steps_per_mm * INV_MAX_STEP_RATE;
                 } else if lt_nn(steps_per_mm, t * MIN_STEP_RATE_HZ) {
@@ -79,7 +80,7 @@ impl Planner {
                 b.nominal_speed_sqr = v * v;
             }
             let nominal = b.nominal_speed_sqr;
-            let dir = b.direction_bits & moving;
+            let dir = b.direction_bits() & moving;
             if let (Some((pu, pa, pn, p_axes)), true) = (prev, i != self.tail) {
                 let mut same_dir = true;
                 for a in 0..N_AXES {

@@ -6,7 +6,7 @@
 //! ([`Planner::accept_line`]).
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
-use super::block::{Block, PlanError, Push, Speed};
+use super::block::{Block, PlanError, Push, Speed, Steps24};
 use super::junction::{junction_sqr, reversing};
 use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
@@ -125,11 +125,15 @@ impl Planner {
         // from, now or when it is flushed: no copy.
         let mut moving = 0u8;
         let mut dir = 0u8;
+        // Non-zero when an axis moves more than a block holds
+        // (`Block::MAX_STEPS`: the top byte of d + 2²³ is zero within it).
+        let mut over = 0u8;
         // One axis, written out (as `queue_block`'s `count_axis`).
         macro_rules! delta_axis {
             ($i:literal) => {{
                 let d = target[$i].wrapping_sub(self.position[$i]);
                 self.delta[$i] = d;
+                over |= ((d as u32).wrapping_add(1 << 23) >> 24) as u8;
                 if d != 0 {
                     moving |= 1 << $i;
                     if d < 0 {
@@ -144,6 +148,9 @@ impl Planner {
         delta_axis!(3);
         if moving == 0 {
             return Ok(Push::default());
+        }
+        if over != 0 {
+            return Err(PlanError::TooLong);
         }
 
         // Backlash: axes that reverse with a known previous direction.
@@ -203,6 +210,31 @@ impl Planner {
         Ok(push)
     }
 
+    /// The first piece of a move to `target` that has more steps on some
+    /// axis than a block holds ([`PlanError::TooLong`]; [`Block::MAX_STEPS`],
+    /// 21 m at 400 steps/mm: only a runaway target without soft limits
+    /// asks for it): along its line from [`Planner::position`], the move
+    /// halved until it fits, ending within a step of the line.
+    // flash: the split stays out of the per-line path
+    #[inline(never)]
+    pub fn first_piece(&self, target: &[i32; N_AXES]) -> [i32; N_AXES] {
+        let mut shift = 1;
+        loop {
+            let mut piece = [0i32; N_AXES];
+            let mut fits = true;
+            for i in 0..N_AXES {
+                // Rounded: each axis within half a step of its share.
+                let d = (target[i] as i64 - self.position[i] as i64 + (1 << (shift - 1))) >> shift;
+                fits &= -(Block::MAX_STEPS as i64) <= d && d < Block::MAX_STEPS as i64;
+                piece[i] = (self.position[i] as i64 + d) as i32;
+            }
+            if fits {
+                return piece;
+            }
+            shift += 1;
+        }
+    }
+
     /// The settings changed: the next [`Planner::accept_line`] compares them
     /// with what the per-axis cache was made from ([`Planner::push_line`]
     /// always does).
@@ -234,13 +266,13 @@ impl Planner {
         let ax = &self.axis;
         // Built in place in its slot.
         let b = &mut self.blocks[self.head as usize];
-        b.flags = flags;
         b.feed = feed;
         b.entry_speed_sqr = 0.0;
         // Counted in registers, stored once.
         let mut moving = 0u8;
         let mut dir = 0u8;
         let mut step_event_count = 0u32;
+        let mut dominant = 0u8;
         // One axis, its index and bit constants: written out, ~100 cycles
         // a block fewer on the AVR than the loop (which indexed and
         // shifted at run time).
@@ -248,9 +280,10 @@ impl Planner {
             ($i:literal) => {{
                 let d = delta[$i];
                 let n = d.unsigned_abs();
-                b.steps[$i] = n;
+                b.steps[$i] = Steps24::new(n);
                 if n > step_event_count {
                     step_event_count = n;
+                    dominant = $i << Block::DOMINANT_SHIFT;
                 }
                 if d != 0 {
                     moving |= 1 << $i;
@@ -264,8 +297,7 @@ impl Planner {
         count_axis!(1);
         count_axis!(2);
         count_axis!(3);
-        b.step_event_count = step_event_count;
-        b.direction_bits = dir;
+        b.bits = dir | flags | dominant;
         // Path length and unit vector.
         let (mm, inv_mm, mut unit);
         // The cached values of a short move: see below.
@@ -278,7 +310,7 @@ impl Planner {
             // fewer (~1.7 k cycles on the AVR) on a hit.
             let mut sum_sqr = 0u32;
             for i in 0..3 {
-                let n = b.steps[i] as u16;
+                let n = delta[i].unsigned_abs() as u16;
                 sum_sqr += crate::math::mul_u16(n, n);
             }
             // Any entry may hold it; a miss replaces the oldest (first in,

@@ -9,17 +9,16 @@ use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
-/// Blocks in the ring. RAM: 50 B a block on AVR (28 × 50 = 1 400 B).
-/// grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md §11). The newest
-/// block must be able to stop, so with n blocks of 0.1 mm behind the
-/// executing one at 1000 mm/s² it runs at most √(2 · 1000 · n · 0.1) mm/s:
-/// 27 blocks ahead allow 73 mm/s, 730 lines/s (20 allowed 630). 28 is what
-/// the RAM freed from the stack's deepest paths and from `.data` pays for:
-/// the deepest measured path (compensated arcs, `tests/dialect.rs`) stays
-/// about as far within the budget as the deepest one did with 21
-/// (docs/ARCHITECTURE.md "RAM"). Any length works: indices
-/// wrap by compares ([`next_index`], [`prev_index`]), not masks.
-pub const BLOCK_BUFFER_LEN: usize = 28;
+/// Blocks in the ring. RAM: 41 B a block on AVR (34 × 41 = 1 394 B, where
+/// 28 blocks of 50 B were: [`Block`]). grbl-Mega keeps 36, Marlin and
+/// Repetier 16 (docs/SPEC.md §11). The newest block must be able to stop,
+/// so with n blocks of 0.1 mm behind the executing one at 1000 mm/s² it runs
+/// at most √(2 · 1000 · n · 0.1) mm/s: 33 blocks ahead allow 81 mm/s, 812
+/// lines/s (27 allowed 730). The deepest measured path (compensated arcs,
+/// `tests/dialect.rs`) stays within the budget (docs/ARCHITECTURE.md
+/// "RAM"). Any length works: indices wrap by compares ([`next_index`],
+/// [`prev_index`]), not masks.
+pub const BLOCK_BUFFER_LEN: usize = 34;
 
 /// RAM budget of the whole planner (ring + state), bytes.
 pub const PLANNER_RAM_BUDGET: usize = 2050;

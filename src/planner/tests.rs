@@ -140,9 +140,9 @@ fn a_diagonal_is_limited_by_the_slower_axis() {
     // Y may do 25 mm/s and 250 mm/s²; it is 1/√2 of the path.
     assert_close(b.nominal_speed_sqr.sqrt(), 25.0 * k, 1e-5);
     assert_close(b.acceleration, 250.0 * k, 1e-5);
-    assert_eq!(b.steps, [1000, 1000, 0, 0]);
-    assert_eq!(b.step_event_count, 1000);
-    assert_eq!(b.direction_bits, 0);
+    assert_eq!(b.steps(), [1000, 1000, 0, 0]);
+    assert_eq!(b.step_event_count(), 1000);
+    assert_eq!(b.direction_bits(), 0);
 }
 
 #[test]
@@ -153,7 +153,7 @@ fn a_rapid_uses_each_axis_max_feed() {
     p.push_line([-500, 0, 0, 0], 1.0, true, &st).unwrap();
     let b = p.current_block().unwrap();
     assert_close(b.nominal_speed_sqr.sqrt(), 40.0, 1e-5);
-    assert_eq!(b.direction_bits, 0b0001);
+    assert_eq!(b.direction_bits(), 0b0001);
 }
 
 #[test]
@@ -249,7 +249,89 @@ fn a_full_ring_refuses_until_a_block_is_discarded() {
     p.discard_current_block();
     assert_eq!(p.len(), BLOCK_BUFFER_LEN - 1);
     p.push_line([9999, 0, 0, 0], 600.0, false, &s()).unwrap();
-    assert_eq!(p.block(BLOCK_BUFFER_LEN - 1).unwrap().steps[0], 9999 - BLOCK_BUFFER_LEN as u32 * 10);
+    assert_eq!(p.block(BLOCK_BUFFER_LEN - 1).unwrap().steps()[0], 9999 - BLOCK_BUFFER_LEN as u32 * 10);
+}
+
+/// The step event count a block keeps as its dominant axis' index is the
+/// largest step count, on random moves of one to four axes.
+#[test]
+fn the_step_event_count_is_the_largest_step_count() {
+    let mut rng = crate::test_util::XorShift(0x5e7);
+    let mut p = Planner::new();
+    let mut target = [0i32; N_AXES];
+    for _ in 0..20_000 {
+        for t in target.iter_mut() {
+            if !rng.next().is_multiple_of(3) {
+                *t += (rng.next() % 2001) as i32 - 1000;
+            }
+        }
+        if p.is_full() {
+            p.discard_current_block();
+        }
+        if p.push_line(target, 600.0, false, &s()).unwrap().queued == 0 {
+            continue;
+        }
+        let b = p.block(p.len() - 1).unwrap();
+        assert_eq!(b.step_event_count(), *b.steps().iter().max().unwrap(), "{:?}", b.steps());
+    }
+}
+
+/// A move of more steps than a block holds (`Block::MAX_STEPS` on an axis) is
+/// refused as too long, and queued in the pieces `first_piece` gives: every
+/// step is there, and each piece ends within a step of the line from its
+/// start to the target.
+#[test]
+fn a_move_longer_than_a_block_holds_is_queued_in_pieces_along_its_line() {
+    let targets = [[40_000_000, -25_000_000, 3, 0], [i32::MAX, i32::MIN, 0, 0], [-30_000_000, 0, 0, 16_777_215]];
+    for target in targets {
+        let mut p = Planner::new();
+        // One slot left: the first piece goes in, the rest waits for room.
+        for i in 1..BLOCK_BUFFER_LEN as i32 {
+            p.push_line([0, 0, 0, i], 600.0, false, &s()).unwrap();
+        }
+        let start = p.position();
+        // As `Machine::queue_line` does. Every block queued, those dropped
+        // to make room first.
+        let mut queued = Vec::new();
+        let mut to = target;
+        loop {
+            match p.push_line(to, 600.0, false, &s()) {
+                Ok(_) if to == target => break,
+                Ok(_) => to = target,
+                Err(PlanError::TooLong) => to = p.first_piece(&to),
+                Err(e) => {
+                    assert_eq!(e, PlanError::Full);
+                    queued.push(*p.current_block().unwrap());
+                    p.discard_current_block();
+                }
+            }
+        }
+        assert_eq!(p.position(), target);
+        assert!(!queued.is_empty(), "{target:?}: the ring was never full");
+        queued.extend(blocks(&p));
+        let pieces: Vec<Block> = queued.into_iter().filter(|b| b.steps()[..3] != [0, 0, 0]).collect();
+        assert!(pieces.len() >= 2, "{target:?}: {} pieces", pieces.len());
+        let mut at = start.map(|v| v as i64);
+        for piece in &pieces {
+            let (steps, dir) = (piece.steps(), piece.direction_bits());
+            let from = at;
+            for a in 0..N_AXES {
+                assert!(steps[a] <= Block::MAX_STEPS);
+                let d = steps[a] as i64;
+                at[a] += if dir & (1 << a) != 0 { -d } else { d };
+            }
+            // On the line from where the piece starts to the target, within
+            // a step per axis at the dominant axis' position.
+            let k = (0..N_AXES).max_by_key(|&a| (target[a] as i64 - from[a]).abs()).unwrap();
+            let (dk, done) = (target[k] as i64 - from[k], at[k] - from[k]);
+            for a in 0..N_AXES {
+                let ideal = (target[a] as i64 - from[a]) as f64 * done as f64 / dk as f64;
+                let off = (at[a] - from[a]) as f64 - ideal;
+                assert!(off.abs() <= 1.0 + 1e-6, "{target:?}: axis {a} at {at:?}, {off} off the line");
+            }
+        }
+        assert_eq!(at, target.map(|v| v as i64), "every step queued");
+    }
 }
 
 #[test]
@@ -269,7 +351,7 @@ fn targets_are_absolute_steps_so_tiny_moves_do_not_drift() {
         p.push_line(t, 300.0, false, &st).unwrap();
         while let Some(b) = p.current_block() {
             for a in 0..N_AXES {
-                total[a] += b.steps[a];
+                total[a] += b.steps()[a];
             }
             p.discard_current_block();
         }
@@ -328,14 +410,14 @@ fn backlash_inserts_a_take_up_block_on_reversal_only() {
     assert_eq!(r.queued, 2);
     let b = blocks(&p);
     let tu = b[2];
-    assert_eq!(tu.flags & Block::TAKE_UP, Block::TAKE_UP);
-    assert_eq!(tu.steps, [5, 2, 0, 0]);
-    assert_eq!(tu.direction_bits, 0b011);
+    assert!(tu.has(Block::TAKE_UP));
+    assert_eq!(tu.steps(), [5, 2, 0, 0]);
+    assert_eq!(tu.direction_bits(), 0b011);
     // Planned like any block: a sharp corner, entered at a crawl.
     assert!(tu.max_entry_speed_sqr < 25.0);
     assert_close(tu.nominal_speed_sqr.sqrt(), 50.0 * 0.05f32.hypot(0.02) / 0.05, 1e-5);
-    assert_eq!(b[3].flags, 0);
-    assert_eq!(b[3].steps, [50, 100, 200, 0]);
+    assert!(!b[3].has(Block::TAKE_UP) && !b[3].has(Block::RAPID));
+    assert_eq!(b[3].steps(), [50, 100, 200, 0]);
     assert_eq!(p.position(), [150, 100, 0, 0]);
     assert_eq!(p.backlash_offset_steps(), [-5, -2, 0]);
     // Y continues negative, X reverses back: +5 on X only.

@@ -119,6 +119,9 @@ pub struct Prep {
     ramp: Ramp,
     /// Steps of the active block not yet put in a segment.
     steps_remaining: u32,
+    /// Step events of the active block ([`crate::planner::Block::step_event_count`],
+    /// derived from its steps: read once).
+    block_events: u32,
     /// Steps (of the dominant axis) per mm of path.
     step_per_mm: f32,
     /// Time of the step fraction carried into the next segment, s.
@@ -166,6 +169,7 @@ impl Prep {
             held: false,
             ramp: Ramp::Accel,
             steps_remaining: 0,
+            block_events: 0,
             step_per_mm: 0.0,
             dt_remainder: 0.0,
             acceleration: 0.0,
@@ -285,7 +289,8 @@ impl Prep {
                     }
                     return None;
                 };
-                self.steps_remaining = b.step_event_count;
+                self.block_events = b.step_event_count();
+                self.steps_remaining = self.block_events;
                 self.step_per_mm_valid = false;
                 self.dt_remainder = 0.0;
                 self.acceleration = b.acceleration;
@@ -309,10 +314,10 @@ impl Prep {
                 self.block_pending = false;
                 let b = pl.current_block()?;
                 return Some(StepperCmd::Block(StBlock {
-                    steps: b.steps,
-                    step_event_count: b.step_event_count,
-                    direction_bits: b.direction_bits,
-                    take_up: b.flags & crate::planner::Block::TAKE_UP != 0,
+                    steps: b.steps(),
+                    step_event_count: self.block_events,
+                    direction_bits: b.direction_bits(),
+                    take_up: b.has(crate::planner::Block::TAKE_UP),
                 }));
             }
             if pl.take_exec_replanned() {
@@ -330,7 +335,7 @@ impl Prep {
             }
             if !self.step_per_mm_valid {
                 let b = pl.current_block()?;
-                self.step_per_mm = b.step_event_count as f32 / b.millimeters;
+                self.step_per_mm = self.block_events as f32 / b.millimeters;
                 self.step_per_mm_valid = true;
             }
             if let Some(seg) = self.make_segment(pl) {

@@ -26,7 +26,7 @@ impl Prep {
         if b.entry_speed_sqr.to_bits() != nominal_bits || exit_sqr != nominal_bits || nominal_bits == 0 {
             return None;
         }
-        let (mm, n, nominal_sqr) = (b.millimeters, b.step_event_count, b.nominal_speed_sqr);
+        let (mm, n, nominal_sqr) = (b.millimeters, self.block_events, b.nominal_speed_sqr);
         let v = self.nominal_speed(nominal_sqr);
         let (cycles_per_mm, max_mm) = self.cruise_cache;
         if !(mm <= max_mm) || n == 0 || n != self.steps_remaining || n > u16::MAX as u32 {
