@@ -327,6 +327,9 @@ impl Prep {
                 return Some(StepperCmd::Run(seg));
             }
             if self.profile_stale {
+                if let Some(seg) = self.ramp_block(pl) {
+                    return Some(StepperCmd::Run(seg));
+                }
                 self.profile_stale = false;
                 self.compute_profile(pl);
             }
