@@ -81,7 +81,8 @@ pub(crate) fn half(x: f32) -> f32 {
     if e > 0x0080_0000 && e != 0x7F80_0000 {
         f32::from_bits(x.to_bits() - 0x0080_0000)
     } else {
-        0.5 * x
+        // A call: LLVM-AVR ran the multiply on every call otherwise.
+        crate::math::mul_cold(0.5, x)
     }
 }
 

@@ -22,10 +22,14 @@ impl Prep {
         if !self.profile_stale || self.holding || self.decel_override {
             return None;
         }
-        let exit_sqr = pl.exec_exit_speed_sqr().to_bits();
         let b = pl.current_block()?;
         let nominal_bits = b.nominal_speed_sqr.to_bits();
-        if b.entry_speed_sqr.to_bits() != nominal_bits || exit_sqr != nominal_bits || nominal_bits == 0 {
+        // The entry first: the exit's look-up adds the ramp's lift.
+        if b.entry_speed_sqr.to_bits() != nominal_bits || nominal_bits == 0 {
+            return None;
+        }
+        let exit_sqr = pl.exec_exit_speed_sqr().to_bits();
+        if exit_sqr != nominal_bits {
             return None;
         }
         let (mm, n, nominal_sqr) = (b.millimeters, self.block_events, b.nominal_speed_sqr);
@@ -71,7 +75,7 @@ impl Prep {
         let entry_sqr = if v0.to_bits() == self.exit_speed.to_bits() && self.exit_speed_sqr_bits != u32::MAX {
             f32::from_bits(self.exit_speed_sqr_bits)
         } else {
-            v0 * v0
+            crate::math::mul_cold(v0, v0)
         };
         let speeds = Speeds { v0, entry_sqr, exit_sqr, delta_sqr: b.max_delta_speed_sqr, nominal_sqr, vn };
         let (cycles, v1) = ramp_cycles(&speeds, inv_2a, self.cruise_cache.0)?;
