@@ -1028,7 +1028,13 @@ fn words_behave_as_a_map_of_the_present_words() {
             }
             for w in Word::ALL {
                 assert_eq!(words.get(w), map.get(&(w as u8)).copied(), "{w:?}");
+                assert_eq!(words.contains(w), map.contains_key(&(w as u8)), "{w:?}");
             }
+            // The bytes `insert` sets against the 32-bit mask of the words
+            // present.
+            let present: Vec<Word> = map.keys().map(|&i| Word::ALL[i as usize]).collect();
+            assert!(words.within(Word::mask(&present)));
+            assert_eq!(words.first_outside(0), present.first().copied());
             assert_eq!(words, rebuilt);
             if let Some((&i, &v)) = map.iter().next() {
                 let w = Word::ALL[i as usize];
