@@ -976,6 +976,35 @@ fn plain_words_read_as_the_general_route_reads_them() {
 }
 
 #[test]
+fn plain_g_reads_as_the_general_route_reads_it() {
+    // Where `plain_g` answers, `g_word` (the plain number or `lex_number`,
+    // then `code_x10`) gives the same line, result and end.
+    let alphabet = b"0123456789.-+ \tXYEeG#;(";
+    let mut rng = XorShift(0x6A11);
+    let mut answered = 0;
+    for k in 0..400_000u32 {
+        let len = (rng.next() % 6) as usize;
+        let mut s = vec![b'G'];
+        s.extend((0..len).map(|_| {
+            if k.is_multiple_of(4) {
+                (rng.next() & 0x7F) as u8
+            } else {
+                alphabet[(rng.next() as usize) % alphabet.len()]
+            }
+        }));
+        let Some((code, used)) = super::plain_g(&s, 1) else {
+            continue;
+        };
+        answered += 1;
+        let (mut fast, mut general) = (Line::default(), Line::default());
+        let fast_end = groups::apply_g(&mut fast, code, 1).map(|()| 1 + used);
+        let general_end = super::g_word(&s, 1, 1, &mut general);
+        assert_eq!((fast_end, fast), (general_end, general), "{:?}", String::from_utf8_lossy(&s));
+    }
+    assert!(answered > 50_000, "{answered}");
+}
+
+#[test]
 fn words_behave_as_a_map_of_the_present_words() {
     // Random inserts and removes against a plain map: the values, the
     // set's equality (a set rebuilt from the map), emptiness.
@@ -999,7 +1028,13 @@ fn words_behave_as_a_map_of_the_present_words() {
             }
             for w in Word::ALL {
                 assert_eq!(words.get(w), map.get(&(w as u8)).copied(), "{w:?}");
+                assert_eq!(words.contains(w), map.contains_key(&(w as u8)), "{w:?}");
             }
+            // The bytes `insert` sets against the 32-bit mask of the words
+            // present.
+            let present: Vec<Word> = map.keys().map(|&i| Word::ALL[i as usize]).collect();
+            assert!(words.within(Word::mask(&present)));
+            assert_eq!(words.first_outside(0), present.first().copied());
             assert_eq!(words, rebuilt);
             if let Some((&i, &v)) = map.iter().next() {
                 let w = Word::ALL[i as usize];
