@@ -43,8 +43,9 @@ pub struct Block {
 }
 
 impl Block {
-    /// A block moves each axis by fewer steps than this (2²³: 21 m at 400
-    /// steps/mm); a longer move is queued in pieces ([`PlanError::TooLong`]).
+    /// A block moves each axis at most this many steps back, one fewer
+    /// forward (2²³: 21 m at 400 steps/mm); a longer move is queued in
+    /// pieces ([`PlanError::TooLong`]).
     pub const MAX_STEPS: u32 = 1 << 23;
     /// The direction bits within [`Block::bits`].
     pub(super) const DIRECTIONS: u8 = (1 << N_AXES) - 1;
