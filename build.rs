@@ -32,12 +32,15 @@ fn main() {
 }
 
 /// Modules (v0-mangled path pieces) linked below the gap in the high-flash
-/// variant: the interpreter, the planner, the tool changer (its logic and
-/// its runner, the carousel's runner), the tool setter (likewise), homing,
-/// the `$` settings, the menu and screens, and the SD job (about 105 KB of
-/// ~170 KB).
+/// variant: the interpreter with its canned cycles and cutter
+/// compensation, the planner, the tool changer (its logic and its runner,
+/// the carousel's runner), the tool setter (likewise), homing, the `$`
+/// settings, the menu and screens, and the SD job (about 108 KB of
+/// ~173 KB).
 const HIGH_FLASH_LOW_MODULES: &[&str] = &[
     "4mill5gcode6interp",
+    "4mill5gcode6cycles",
+    "4mill5gcode4comp",
     "4mill7planner",
     "4mill3atc",
     "4mill10toolsetter",
