@@ -35,8 +35,10 @@ impl Machine {
     }
 
     /// A line ended in the assembler: run it, or report why it was dropped.
-    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
-    #[inline(never)]
+    // speed: inlined into its one caller, push_bytes: no call and no register
+    // save at a line's end (profile --trace 20 165 → 20 123 cycles a line,
+    // stack peak 1 542 → 1 536 B)
+    #[inline(always)]
     pub(super) fn line_end(&mut self, done: Assembled, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
         match done {
             Assembled::Line => {
@@ -100,8 +102,10 @@ impl Machine {
     /// Check N/* and run one line; always ends with exactly one `ok`.
     /// `marks`: the line may hold a `(`, `)`, `*` or `;`
     /// (`LineAssembler::has_marks`).
-    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
-    #[inline(never)]
+    // speed: inlined into its one caller, line_end: no call and no 14-register
+    // save (profile --trace 20 211 → 20 165 cycles a line, stack peak
+    // 1 547 → 1 542 B)
+    #[inline(always)]
     pub(super) fn run_raw_line(&mut self, raw: &[u8], marks: bool, io: &mut impl Io) {
         // Numbered for the resend protocol: N and a checksum (an N alone is a
         // file's block number, which the protocol does not track).
@@ -336,7 +340,8 @@ impl Machine {
     /// Run a parsed line: ask the interpreter for its commands, one at a
     /// time, and carry each out ([`Machine::dispatch`]) before asking for
     /// the next. The first error ends the line.
-    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
+    // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash;
+    // this one alone, inlined into execute, measured no faster: 20 211 → 20 209 cycles a line)
     #[inline(never)]
     pub(super) fn run_line(&mut self, l: &crate::gcode::Line, io: &mut impl Io) -> CmdResult {
         self.interp.begin_line();
