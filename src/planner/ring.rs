@@ -9,16 +9,20 @@ use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
-/// Blocks in the ring. RAM: 41 B a block on AVR (34 × 41 = 1 394 B, where
-/// 28 blocks of 50 B were: [`Block`]). grbl-Mega keeps 36, Marlin and
-/// Repetier 16 (docs/SPEC.md §11). The newest block must be able to stop,
-/// so with n blocks of 0.1 mm behind the executing one at 1000 mm/s² it runs
-/// at most √(2 · 1000 · n · 0.1) mm/s: 33 blocks ahead allow 81 mm/s, 812
-/// lines/s (27 allowed 730). The deepest measured path (compensated arcs,
-/// `tests/dialect.rs`) stays within the budget (docs/ARCHITECTURE.md
-/// "RAM"). Any length works: indices wrap by compares ([`next_index`],
-/// [`prev_index`]), not masks.
-pub const BLOCK_BUFFER_LEN: usize = 34;
+/// Blocks in the ring. RAM: 41 B a block on AVR (28 × 41 = 1 148 B;
+/// [`Block`]). grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md
+/// §11). The newest block must be able to stop, so with n blocks of 0.1 mm
+/// behind the executing one at 1000 mm/s² it runs at most
+/// √(2 · 1000 · n · 0.1) mm/s: 27 blocks ahead allow 73 mm/s, 730 lines/s.
+/// The 1 400 B that 28 blocks of 50 B took would hold 34, but with 29 or
+/// more a burst of grbl override bytes (each change re-plans the whole
+/// ring, ~0.5 ms a block on the AVR) keeps the main loop away from the RX
+/// ring for longer than the ring lasts at 250000 baud (~10 ms): the end of
+/// an over-long line in flight is lost and the host waits for its reply
+/// (`tests/faults.rs`, binary garbage and over-long lines). Any length
+/// works: indices wrap by compares ([`next_index`], [`prev_index`]), not
+/// masks.
+pub const BLOCK_BUFFER_LEN: usize = 28;
 
 /// RAM budget of the whole planner (ring + state), bytes.
 pub const PLANNER_RAM_BUDGET: usize = 2050;
