@@ -942,6 +942,14 @@ fn the_letter_table_matches_the_match() {
     }
 }
 
+/// `letter` and `len` random bytes after it: any ASCII byte when `any`,
+/// else bytes of `alphabet` (the twin tests' inputs).
+fn random_word(rng: &mut XorShift, letter: u8, len: usize, alphabet: &[u8], any: bool) -> Vec<u8> {
+    let mut s = vec![letter];
+    s.extend((0..len).map(|_| if any { (rng.next() & 0x7F) as u8 } else { alphabet[(rng.next() as usize) % alphabet.len()] }));
+    s
+}
+
 #[test]
 fn plain_words_read_as_the_general_route_reads_them() {
     // Where `plain_value` answers, the general route (the bare-axis test,
@@ -951,14 +959,7 @@ fn plain_words_read_as_the_general_route_reads_them() {
     let mut answered = 0;
     for k in 0..400_000u32 {
         let len = 1 + (rng.next() % 14) as usize;
-        let mut s = vec![b'X'];
-        s.extend((0..len).map(|_| {
-            if k.is_multiple_of(4) {
-                (rng.next() & 0x7F) as u8
-            } else {
-                alphabet[(rng.next() as usize) % alphabet.len()]
-            }
-        }));
+        let s = random_word(&mut rng, b'X', len, alphabet, k.is_multiple_of(4));
         let Some((n, used)) = super::plain_value(&s, 1) else {
             continue;
         };
@@ -984,14 +985,7 @@ fn plain_g_reads_as_the_general_route_reads_it() {
     let mut answered = 0;
     for k in 0..400_000u32 {
         let len = (rng.next() % 6) as usize;
-        let mut s = vec![b'G'];
-        s.extend((0..len).map(|_| {
-            if k.is_multiple_of(4) {
-                (rng.next() & 0x7F) as u8
-            } else {
-                alphabet[(rng.next() as usize) % alphabet.len()]
-            }
-        }));
+        let s = random_word(&mut rng, b'G', len, alphabet, k.is_multiple_of(4));
         let Some((code, used)) = super::plain_g(&s, 1) else {
             continue;
         };

@@ -192,14 +192,7 @@ pub(super) fn ramp_cycles(s: &Speeds, inv_2a: f32, cycles_per_mm: f32) -> Option
     if lt_nn(peak_sqr, entry_sqr) || lt_nn(peak_sqr, s.exit_sqr) || lt_nn(s.nominal_sqr, entry_sqr) || lt_nn(s.nominal_sqr, s.exit_sqr) {
         return None;
     }
-    // The exit speed as the profile takes it (`compute_profile`).
-    let v1 = if s.exit_sqr.to_bits() == s.nominal_sqr.to_bits() {
-        s.vn
-    } else if s.exit_sqr.to_bits() == 0 {
-        0.0
-    } else {
-        sqrt_1ulp(s.exit_sqr)
-    };
+    let v1 = super::profile::exit_speed(s.exit_sqr, s.nominal_sqr, s.vn);
     let triangle = lt_nn(peak_sqr, s.nominal_sqr);
     let vp = if triangle { sqrt_1ulp(peak_sqr) } else { s.vn };
     let mut cycles = (times2(vp) - s.v0 - v1) * inv_2a * (2.0 * F_CPU);

@@ -50,13 +50,7 @@ impl Prep {
         self.accelerate_until = mm;
         let nominal_sqr = b.nominal_speed_sqr;
         let nominal = self.nominal_speed(nominal_sqr);
-        self.exit_speed = if exit_speed_sqr.to_bits() == nominal_sqr.to_bits() {
-            nominal
-        } else if exit_speed_sqr.to_bits() == 0 {
-            0.0
-        } else {
-            sqrt_1ulp(exit_speed_sqr)
-        };
+        self.exit_speed = exit_speed(exit_speed_sqr, nominal_sqr, nominal);
         self.exit_speed_sqr_bits = exit_speed_sqr.to_bits();
         let intersect = crate::math::float_bits::half(mm + inv_2_accel * (entry_sqr - exit_speed_sqr));
         // The compares on the bits (exact here, see each helper): a
@@ -101,6 +95,22 @@ impl Prep {
             self.accelerate_until = 0.0;
             self.maximum_speed = self.exit_speed;
         }
+    }
+}
+
+/// The exit speed for the exit speed² `exit_sqr`: the nominal speed
+/// `nominal` (the root of `nominal_sqr`, cached) when it is the nominal
+/// speed², 0 for 0, else its square root. The profile and
+/// `fast::ramp_cycles` take it the same way.
+// speed: in the per-block path of both callers
+#[inline(always)]
+pub(super) fn exit_speed(exit_sqr: f32, nominal_sqr: f32, nominal: f32) -> f32 {
+    if exit_sqr.to_bits() == nominal_sqr.to_bits() {
+        nominal
+    } else if exit_sqr.to_bits() == 0 {
+        0.0
+    } else {
+        sqrt_1ulp(exit_sqr)
     }
 }
 
