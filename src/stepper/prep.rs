@@ -120,7 +120,8 @@ pub struct Prep {
     /// Steps of the active block not yet put in a segment.
     steps_remaining: u32,
     /// Step events of the active block ([`crate::planner::Block::step_event_count`],
-    /// derived from its steps: read once).
+    /// read once: derived at each of its four uses instead, `profile
+    /// --trace 300:1500` read 20 062 cycles a line against 20 011, for 4 B).
     block_events: u32,
     /// Steps (of the dominant axis) per mm of path.
     step_per_mm: f32,
