@@ -71,11 +71,16 @@ fn binary_garbage_inside_job_lines_and_over_long_lines_between_them_change_nothi
             vm.send(&fault);
             vm.send(b"\n");
             // The long line gets its error and ok; then the real line runs.
+            // Sent without flow control, it may also overflow the RX ring
+            // (the garbage's override bytes re-plan the ring, and the main
+            // loop is away from the ring for longer than 256 bytes last):
+            // then its end is dropped with its bytes, and the reply is the
+            // overrun's error, still exactly one.
             vm.run_until(|vm| vm.pending_lines().iter().any(|l| l == "ok"), 2.0).unwrap();
             let r = vm.take_lines();
             let errors: Vec<_> = r.iter().filter(|l| l.starts_with("Error:")).collect();
             assert_eq!(errors.len(), 1, "fault {i}: {r:?}");
-            assert!(errors[0].contains("too long"), "fault {i}: {errors:?}");
+            assert!(errors[0].contains("too long") || errors[0].contains("receive overrun"), "fault {i}: {errors:?}");
             ok(&mut vm, &line);
         }
         expected = [x * 100, y * 100, 100];

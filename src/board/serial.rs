@@ -10,7 +10,9 @@
 //! consumer is the main loop. If the ring is full the byte is dropped, and a
 //! gap marker (`protocol::RX_GAP`) is stored before the next byte that fits,
 //! so the line assembler drops exactly the damaged line instead of running
-//! it: the ring itself can never overflow.
+//! it: the ring itself can never overflow. A dropped line end is counted and
+//! stored later as a marker and a `\n` ([`store_lost_ends`]), so every line
+//! the host sent still gets its one reply.
 //!
 //! The interrupt has two halves: a fast path in assembly (`__vector_25`)
 //! stores the usual byte (a digit, a letter other than M, a blank, ...) in
@@ -187,6 +189,31 @@ pub fn read() -> Option<u8> {
         tail.write_volatile(t.wrapping_add(1));
         Some(b)
     }
+}
+
+/// Store the line ends the RX ISR had to drop with a full ring
+/// (`RxStore::store_lost_ends`), as soon as there is room (main loop, once
+/// a turn: the ISR stores them before the next byte, but a host waiting
+/// for the reply to the line they ended sends none). `forget`: drop them
+/// instead, after a soft reset flushed the ring.
+pub fn store_lost_ends(forget: bool) {
+    // SAFETY: a `u8` volatile load; `RX_SLOW` is `RX_ALL_SLOW` while
+    // anything is pending in `RX_STORE`.
+    if unsafe { addr_of_mut!(RX_SLOW).read_volatile() } != RX_ALL_SLOW {
+        return;
+    }
+    avr_device::interrupt::free(|_| {
+        // SAFETY: interrupts are off, so the RX ISR, the only other user of
+        // these statics and of `rx_store`, cannot run.
+        let (scan, store, text) = unsafe { (&*addr_of_mut!(MCODE_SCAN), &mut *addr_of_mut!(RX_STORE), &*addr_of_mut!(RX_TEXT)) };
+        if forget {
+            store.forget_lost_ends();
+        } else {
+            store.store_lost_ends(&mut rx_store);
+        }
+        // SAFETY: as above.
+        unsafe { addr_of_mut!(RX_SLOW).write_volatile(rx_fast_mode(scan, store, text)) };
+    });
 }
 
 /// Bytes waiting in the RX ring.
@@ -506,7 +533,7 @@ extern "avr-interrupt" fn usart0_rx_slow() {
         }
         // SAFETY: as above.
         unsafe { addr_of_mut!(RX_PREV).write_volatile(b) };
-        store.store(b, rx_store);
+        store.store(b, prev, rx_store);
     }
     let mode = rx_fast_mode(scan, store, text);
     // SAFETY: as above; volatile since only the assembly reads it.

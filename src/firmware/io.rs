@@ -86,6 +86,7 @@ impl Stepper for Hw {
 impl Inputs for Hw {
     fn poll(&mut self) -> Realtime {
         wdt::feed();
+        serial::store_lost_ends(false);
         let rt = board::take_realtime();
         if rt & board::realtime::RESET != 0 && self.job.active() {
             // A soft reset ends an SD job too (its abort finishes at once:
@@ -153,6 +154,7 @@ impl Storage for Hw {
 impl Host for Hw {
     fn flush_rx(&mut self) {
         while serial::read().is_some() {}
+        serial::store_lost_ends(true);
     }
 
     fn rx_pending(&self) -> usize {

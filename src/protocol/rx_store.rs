@@ -13,50 +13,97 @@ use super::realtime::RxText;
 pub const RX_GAP: u8 = 0xFF;
 
 /// The RX ISR's side of [`RX_GAP`]: stores received bytes into a ring and,
-/// after a loss, a gap marker before the next byte that fits. One byte of
-/// state; the ring is any `enqueue` that can refuse.
+/// after a loss, the markers that keep one reply per line the host sent.
+/// Two bytes of state; the ring is any `enqueue` that can refuse.
 ///
-/// With no gap pending, storing a byte other than [`RX_GAP`] is just
+/// A dropped line end is not lost with its line: it is counted, and stored
+/// later as a gap marker and a `\n`, so the line it ended still ends (and is
+/// dropped as an overrun) even when no byte follows it. A `\r`, or a `\n`
+/// not right after a `\r`, counts as a line end, as the assembler reads
+/// them (`\r\n` is one line). Bytes dropped after the last dropped line end
+/// leave a gap marker to go before the next byte that fits.
+///
+/// With nothing pending, storing a byte other than [`RX_GAP`] is just
 /// `enqueue(b)`, and only a refusal changes the state: the RX ISR's fast
 /// path stores such bytes itself and leaves everything else to `store`.
 #[derive(Default)]
 pub struct RxStore {
-    gap: bool,
+    /// [`RxStore::GAP`], and in the bits below it the dropped line ends
+    /// not yet stored (at most [`RxStore::MAX_ENDS`]).
+    state: u16,
 }
 
 impl RxStore {
+    /// Bytes were dropped after the last dropped line end.
+    const GAP: u16 = 0x8000;
+    /// Dropped line ends counted, at most (a flood of short lines without
+    /// flow control loses hundreds: tests/protocol.rs).
+    const MAX_ENDS: u16 = Self::GAP - 1;
+
     pub const fn new() -> Self {
-        RxStore { gap: false }
+        RxStore { state: 0 }
     }
 
-    /// True while a gap marker waits to be stored.
+    /// True while a gap marker or a dropped line end waits to be stored.
     pub fn gap_pending(&self) -> bool {
-        self.gap
+        self.state != 0
     }
 
     /// Bytes were lost before the next one (the UART's data overrun flag).
     pub fn note_loss(&mut self) {
-        self.gap = true;
+        self.state |= Self::GAP;
     }
 
-    /// Store `b`; `enqueue` returns false when the ring is full. After a
-    /// loss the gap marker goes first, then `b`; whatever does not fit is
-    /// dropped and leaves the gap pending. (`enqueue` has one call site, so
-    /// that it is inlined into the ISR.)
-    pub fn store(&mut self, b: u8, mut enqueue: impl FnMut(u8) -> bool) {
+    /// Store `b` (`prev`: the byte received before it); `enqueue` returns
+    /// false when the ring is full. After a loss the dropped line ends go
+    /// first (a gap marker and a `\n` each), then the gap marker, then `b`;
+    /// whatever does not fit is dropped and stays pending (a gap marker
+    /// stored twice in one line is still one overrun).
+    pub fn store(&mut self, b: u8, prev: u8, mut enqueue: impl FnMut(u8) -> bool) {
         let b = if b == RX_GAP { RX_GAP - 1 } else { b };
-        let mut x = if self.gap { RX_GAP } else { b };
-        loop {
-            if !enqueue(x) {
-                self.gap = true;
-                return;
-            }
-            self.gap = false;
-            if x == b {
-                return;
-            }
-            x = b;
+        let stored = self.store_lost_ends(&mut enqueue)
+            && (self.state == 0 || {
+                let marked = enqueue(RX_GAP);
+                if marked {
+                    self.state = 0;
+                }
+                marked
+            })
+            && enqueue(b);
+        if stored {
+            return;
         }
+        match b {
+            // The `\n` of a `\r\n`: the `\r` ended the line.
+            b'\n' if prev == b'\r' => {}
+            b'\n' | b'\r' => {
+                if self.state & Self::MAX_ENDS != Self::MAX_ENDS {
+                    self.state += 1;
+                }
+                self.state &= !Self::GAP;
+            }
+            _ => self.state |= Self::GAP,
+        }
+    }
+
+    /// Forget the dropped line ends (a soft reset flushed the ring: the
+    /// host expects no reply for what it sent before). A gap stays pending.
+    pub fn forget_lost_ends(&mut self) {
+        self.state &= Self::GAP;
+    }
+
+    /// Store the dropped line ends that fit; true when none is left. The
+    /// main loop calls it too (interrupts off): when the host sent nothing
+    /// after them, nothing else would. A gap marker stays pending for the
+    /// next byte.
+    pub fn store_lost_ends(&mut self, enqueue: &mut impl FnMut(u8) -> bool) -> bool {
+        while self.state & Self::MAX_ENDS != 0 {
+            if !enqueue(RX_GAP) || !enqueue(b'\n') {
+                return false;
+            }
+            self.state -= 1;
+        }
+        true
     }
 }
 

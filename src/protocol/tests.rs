@@ -236,11 +236,11 @@ fn slow_path(scan: &mut MCodeScanner, store: &mut RxStore, text: &mut RxText, pr
     let realtime = text.classify(b);
     if !realtime {
         urgent = scan.feed(*prev, b);
-        *prev = b;
-        store.store(b, |x| {
+        store.store(b, *prev, |x| {
             ring.push(x);
             true
         });
+        *prev = b;
     }
     (realtime, urgent)
 }
@@ -1056,10 +1056,12 @@ fn the_m_code_scanner_matches_the_rule_on_random_streams() {
 }
 
 /// A model of the serial RX path: a 255-byte ring filled by the ISR's
-/// `RxStore` faster than the main loop drains it into a `LineAssembler`.
-/// The host sends numbered lines `N<i> G4 P<i>`; every line that arrives
-/// complete must come out intact, every damaged one must come out as
-/// `Overrun`, and nothing else.
+/// `RxStore` faster than the main loop drains it into a `LineAssembler`,
+/// with the main loop's `store_lost_ends` once a turn. The host sends
+/// numbered lines `N<i> G4 P<i>`, ended by `\n`, `\r\n` or `\r`, and the
+/// main loop now and then stalls (an override re-plan) while bytes keep
+/// coming. Every line must get exactly one result, in order: intact if it
+/// arrived complete, else `Overrun`, even when its line end was dropped.
 #[test]
 fn rx_losses_drop_exactly_the_damaged_lines() {
     use std::collections::VecDeque;
@@ -1068,64 +1070,107 @@ fn rx_losses_drop_exactly_the_damaged_lines() {
     let mut asm = LineAssembler::new();
     let mut ring: VecDeque<u8> = VecDeque::new();
     let mut sent: Vec<u8> = Vec::new();
-    let mut markers = 0;
-    for i in 0..3000 {
-        for b in format!("N{i} G4 P{i}\n").bytes() {
-            sent.push(b);
-        }
+    const LINES: usize = 3000;
+    for i in 0..LINES {
+        let end = ["\n", "\r\n", "\r"][rng.next() as usize % 3];
+        sent.extend(format!("N{i} G4 P{i}{end}").bytes());
     }
-    let (mut next, mut intact, mut overruns) = (0usize, 0, 0);
+    let (mut next, mut prev, mut ends_dropped) = (0usize, 0u8, 0);
     let mut got: Vec<Result<String, ()>> = Vec::new();
-    while next < sent.len() || !ring.is_empty() {
-        for _ in 0..rng.next() % 4 {
+    let enqueue = |ring: &mut VecDeque<u8>, x: u8| {
+        if ring.len() < 255 {
+            ring.push_back(x);
+            true
+        } else {
+            false
+        }
+    };
+    while next < sent.len() || !ring.is_empty() || store.gap_pending() {
+        let stall = rng.next().is_multiple_of(200);
+        for _ in 0..if stall { 300 } else { rng.next() % 4 } {
             if let Some(&b) = sent.get(next) {
-                store.store(b, |x| {
-                    if ring.len() < 255 {
-                        markers += (x == RX_GAP) as usize;
-                        ring.push_back(x);
-                        true
-                    } else {
-                        false
-                    }
-                });
+                ends_dropped += (ring.len() == 255 && matches!(b, b'\n' | b'\r')) as usize;
+                store.store(b, prev, |x| enqueue(&mut ring, x));
+                prev = b;
                 next += 1;
             }
         }
-        for _ in 0..rng.next() % 4 {
+        if stall {
+            continue;
+        }
+        store.store_lost_ends(&mut |x| enqueue(&mut ring, x));
+        for _ in 0..rng.next() % 8 {
             if let Some(b) = ring.pop_front() {
                 match asm.push(b) {
-                    Some(Assembled::Line) => {
-                        intact += 1;
-                        got.push(Ok(String::from_utf8(asm.line().to_vec()).unwrap()));
-                    }
-                    Some(Assembled::Overrun) => {
-                        overruns += 1;
-                        got.push(Err(()));
-                    }
+                    Some(Assembled::Line) => got.push(Ok(String::from_utf8(asm.line().to_vec()).unwrap())),
+                    Some(Assembled::Overrun) => got.push(Err(())),
                     None => {}
                     other => panic!("{other:?}"),
                 }
             }
         }
+        if next == sent.len() && ring.is_empty() && store.gap_pending() {
+            // Only a gap before a next byte that never comes is left.
+            store.store_lost_ends(&mut |_| false);
+            break;
+        }
     }
-    // Every intact line is one the host sent, in order, unchanged.
-    let mut expect = 0;
-    for l in got.iter().flatten() {
-        let n: usize = l[1..l.find(' ').unwrap()].parse().unwrap();
-        assert!(n >= expect, "{l} out of order");
-        assert_eq!(*l, format!("N{n} G4 P{n}"));
-        expect = n + 1;
+    assert_eq!(got.len(), LINES, "one result per line sent");
+    for (k, r) in got.iter().enumerate() {
+        if let Ok(l) = r {
+            assert_eq!(*l, format!("N{k} G4 P{k}"));
+        }
     }
-    assert!(intact > 2000 && overruns >= 10, "{intact} intact, {overruns} overruns");
-    // Each loss costs at most the one line it hit.
-    assert!(overruns <= markers, "{overruns} lines dropped for {markers} losses");
+    let overruns = got.iter().filter(|r| r.is_err()).count();
+    assert!((10..LINES / 2).contains(&overruns), "{overruns} overruns");
+    assert!(ends_dropped >= 10, "{ends_dropped} line ends dropped");
+}
+
+/// A line whose end is dropped with a full ring, and nothing sent after
+/// it (the host waits for its reply): the main loop's `store_lost_ends`
+/// ends it as an overrun. The `\n` of a `\r\n` dropped after its `\r`
+/// was stored ends nothing and damages nothing.
+#[test]
+fn a_dropped_line_end_still_ends_its_line() {
+    for (line, dropped_from, results) in [
+        (&b"G1 X1\n"[..], 3, vec![Assembled::Overrun]),
+        (b"G1 X1\n", 5, vec![Assembled::Overrun]),
+        (b"G1 X1\r\n", 6, vec![Assembled::Line]),
+    ] {
+        let mut store = RxStore::new();
+        let mut ring: Vec<u8> = Vec::new();
+        let mut prev = 0;
+        for (i, &b) in line.iter().enumerate() {
+            store.store(b, prev, |x| {
+                let room = i < dropped_from;
+                if room {
+                    ring.push(x);
+                }
+                room
+            });
+            prev = b;
+        }
+        let mut asm = LineAssembler::new();
+        let mut out: Vec<_> = ring.drain(..).filter_map(|b| asm.push(b)).collect();
+        assert_eq!(store.gap_pending(), results[0] == Assembled::Overrun);
+        store.store_lost_ends(&mut |x| {
+            ring.push(x);
+            true
+        });
+        assert!(!store.gap_pending());
+        out.extend(ring.iter().filter_map(|&b| asm.push(b)));
+        assert_eq!(out, results, "{line:?} dropped from {dropped_from}");
+        // The next line arrives whole and runs.
+        let next: Vec<_> = b"G0 Y2\n".iter().filter_map(|&b| asm.push(b)).collect();
+        assert_eq!(next, vec![Assembled::Line]);
+    }
 }
 
 #[test]
 fn a_real_0xff_from_the_host_is_a_bad_byte_not_a_gap() {
     let mut store = RxStore::new();
     let mut ring = Vec::new();
-    store.store(0xFF, |x| {
+    store.store(0xFF, 0, |x| {
         ring.push(x);
         true
     });
