@@ -809,6 +809,32 @@ fn a_hundred_detents_at_ten_per_second_during_a_job_move_the_list_exactly_100() 
     assert!(vm.violations().is_empty());
 }
 
+/// The Files screen scrolls while the machine waits in a command (here a
+/// 3 s dwell sent over serial: the main loop's turn does not come until
+/// it ends): the rows follow the encoder, as Marlin's menus do. (They
+/// went blank until the wait ended.)
+#[test]
+fn the_file_list_follows_the_encoder_while_a_dwell_runs() {
+    let names: Vec<String> = (0..40).map(|i| format!("F{i:03}.NC")).collect();
+    let files: Vec<(&str, &[u8])> = names.iter().map(|n| (n.as_str(), &b"G0 X1\n"[..])).collect();
+    let mut vm = boot_with_card(&files);
+    main_menu_entry(&mut vm, 1);
+    press(&mut vm);
+    assert_eq!(screen(&vm)[1], "[ < Back]");
+    vm.send(b"G4 P3\n");
+    vm.run_for(0.2).unwrap();
+    turn(&mut vm, 20);
+    // Marlin's keepalive (`busy:`) only: the dwell is still running.
+    let l = vm.take_lines();
+    assert!(l.iter().all(|l| l.starts_with("busy:")), "{l:?}");
+    // Entry 20 is file 19.
+    let s = screen(&vm);
+    assert_eq!(s[7], "[ F019.NC]", "{s:?}");
+    assert_eq!(s[1], " F013.NC", "{s:?}");
+    ram_within_budget(&vm, "file list read in a wait");
+    vm.run_until(|vm| vm.pending_lines().iter().any(|l| l == "ok"), 5.0).unwrap();
+}
+
 #[test]
 fn the_status_screen_refreshes_at_least_four_times_a_second_during_a_job() {
     let mut vm = boot_with_card(&[("LONG.NC", long_job(20).as_bytes())]);

@@ -415,6 +415,24 @@ pub fn free_ram() -> u16 {
     }
 }
 
+/// Stack bytes left before static RAM plus the stack would pass the RAM
+/// budget (memory.x's `__mill_ram_budget`, docs/SPEC.md §11): how deep a
+/// call made from here may still go.
+pub fn stack_room() -> u16 {
+    extern "C" {
+        static mut __heap_start: u8;
+        static __mill_ram_budget: u8;
+    }
+    // SAFETY: only the symbols' addresses are taken (`__mill_ram_budget` is
+    // an absolute symbol: its address is the budget), and SPL/SPH are read.
+    unsafe {
+        let statics = core::ptr::addr_of_mut!(__heap_start) as usize - 0x200;
+        let budget = core::ptr::addr_of!(__mill_ram_budget) as usize;
+        let stack = 0x21FF - core::ptr::read_volatile(0x5D as *const u16) as usize; // SPL/SPH
+        budget.saturating_sub(statics + stack) as u16
+    }
+}
+
 /// Bring up every peripheral the firmware uses. Interrupts stay disabled.
 pub fn init(dp: &Peripherals) {
     // One call per pin, not a loop over a table of pins (a RAM copy on AVR).

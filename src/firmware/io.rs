@@ -12,6 +12,12 @@ use mill::stepper::StepperCmd;
 use mill::ui::menu::{Cmd, Screen};
 use mill::ui::sd::{self as sdjob, req, Card};
 
+/// Stack the Files screen's rows take to read, below `background`'s test
+/// (`FileList::refresh`, the card's directory walk: 520–545 B, measured in
+/// tests/ui.rs' `the_file_list_follows_the_encoder_while_a_dwell_runs` by
+/// raising this until the rows stayed blank), and a margin.
+const FILE_LIST_STACK: u16 = 600;
+
 /// The serial port as a `uWrite`, for code that holds parts of `Hw`.
 pub(super) struct SerialOut;
 
@@ -194,6 +200,19 @@ impl Host for Hw {
             self.ui.fit_edit(m);
             // Show the change at once.
             self.display.frame_now();
+        }
+        // The Files screen's rows are read here, not in the menu's turn of
+        // the main loop, so that they follow the list while the machine
+        // waits too (M400, a dwell, the end of a job), as Marlin's menus do.
+        // (The card is free here: `background` needs all of `Hw`.) In a
+        // wait too deep to leave [`FILE_LIST_STACK`] within the RAM budget
+        // they wait for a shallower turn.
+        let first = self.ui.visible_files().0;
+        if matches!(self.ui.screen, Screen::Files)
+            && (!self.files.valid || first != self.files.first)
+            && board::stack_room() >= FILE_LIST_STACK
+        {
+            self.files.refresh(&mut self.sd, first);
         }
         self.draw_step(m);
     }

@@ -164,12 +164,12 @@ fn run_from_line(m: &mut Machine, hw: &mut Hw, i: u8, line: u32) -> mill::machin
     Ok(())
 }
 
-/// The menu's turn: nothing while no command waits, the file list is not
-/// shown and no idle card was pulled, else [`ui_work`].
+/// The menu's turn: nothing while no command waits and no idle card was
+/// pulled, else [`ui_work`].
 // speed: the test is all of a turn with the menu quiet (as a call: +200 cycles a turn)
 #[inline(always)]
 pub(super) fn ui_turn(m: &mut Machine, hw: &mut Hw) {
-    if matches!(hw.pending, Cmd::None) && !matches!(hw.ui.screen, Screen::Files) && (hw.sd.vol.is_none() || board::sd_detected()) {
+    if matches!(hw.pending, Cmd::None) && (hw.sd.vol.is_none() || board::sd_detected()) {
         return;
     }
     ui_work(m, hw);
@@ -183,9 +183,6 @@ fn ui_work(m: &mut Machine, hw: &mut Hw) {
         // Pulled while idle: forget it, so the next card is mounted afresh.
         hw.sd.unmount();
         hw.files.valid = false;
-    }
-    if matches!(hw.ui.screen, Screen::Files) && (!hw.files.valid || hw.ui.visible_files().0 != hw.files.first) {
-        hw.files.refresh(&mut hw.sd, hw.ui.visible_files().0);
     }
     let cmd = core::mem::replace(&mut hw.pending, Cmd::None);
     let r = match cmd {
