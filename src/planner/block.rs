@@ -7,7 +7,7 @@ use crate::N_AXES;
 
 /// One linear move in the ring. 41 B on AVR: the step counts take 3 bytes
 /// an axis, the step event count is derived from them, and the flags share
-/// the direction byte (50 B before; ring.rs says why the ring did not grow).
+/// the direction byte (50 B before).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Block {
     /// Steps per axis, absolute counts, X Y Z E ([`Block::steps`]).

@@ -9,20 +9,21 @@ use super::junction::CapCache;
 use crate::N_AXES;
 use core::mem::size_of;
 
-/// Blocks in the ring. RAM: 41 B a block on AVR (28 × 41 = 1 148 B;
+/// Blocks in the ring. RAM: 41 B a block on AVR (34 × 41 = 1 394 B;
 /// [`Block`]). grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md
 /// §11). The newest block must be able to stop, so with n blocks of 0.1 mm
 /// behind the executing one at 1000 mm/s² it runs at most
-/// √(2 · 1000 · n · 0.1) mm/s: 27 blocks ahead allow 73 mm/s, 730 lines/s.
-/// The 1 400 B that 28 blocks of 50 B took would hold 34, but with 29 or
-/// more a burst of grbl override bytes (each change re-plans the whole
-/// ring, ~0.5 ms a block on the AVR) keeps the main loop away from the RX
-/// ring for longer than the ring lasts at 250000 baud (~10 ms): the end of
-/// an over-long line in flight is lost and the host waits for its reply
-/// (`tests/faults.rs`, binary garbage and over-long lines). Any length
-/// works: indices wrap by compares ([`next_index`], [`prev_index`]), not
-/// masks.
-pub const BLOCK_BUFFER_LEN: usize = 28;
+/// √(2 · 1000 · n · 0.1) mm/s: 33 blocks ahead allow 81 mm/s, 810 lines/s.
+/// A longer ring re-plans longer on an override byte (each change re-plans
+/// the whole ring, ~0.5 ms a block on the AVR), which can keep the main
+/// loop away from the RX ring for longer than it lasts at 250000 baud: a
+/// host that sends without flow control then loses bytes, and the line
+/// they were in is dropped with an error (its end, if lost, still ends it:
+/// `protocol::RxStore`; `tests/faults.rs`). What limits the length is RAM:
+/// 34 leaves 114 B of the budget on the deepest path measured
+/// (tests/dialect.rs). Any length works: indices wrap by compares
+/// ([`next_index`], [`prev_index`]), not masks.
+pub const BLOCK_BUFFER_LEN: usize = 34;
 
 /// RAM budget of the whole planner (ring + state), bytes.
 pub const PLANNER_RAM_BUDGET: usize = 2050;
