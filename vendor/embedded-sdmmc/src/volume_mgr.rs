@@ -1506,7 +1506,10 @@ where
         // How many clusters forward do we need to go?
         let offset_from_cluster = desired_offset - start.0;
         // walk through the FAT chain
-        let num_clusters = offset_from_cluster / bytes_per_cluster;
+        // MillFW patch: no u32 division (~630 cycles on the AVR) while the
+        // offset is in the cluster at hand, the usual case of a file read
+        // in order (the quotient is then 0).
+        let num_clusters = if offset_from_cluster < bytes_per_cluster { 0 } else { offset_from_cluster / bytes_per_cluster };
         for _ in 0..num_clusters {
             start.1 = match &self.open_volumes[volume_idx].volume_type {
                 VolumeType::Fat(fat) => fat.next_cluster(&mut self.block_cache, start.1)?,
