@@ -121,7 +121,6 @@ impl Planner {
                 if cap == end {
                     // The whole ramp was: the new blocks start a new one.
                     lift = 0.0;
-                    self.slack = f32::MAX;
                 }
             }
         }
@@ -214,9 +213,7 @@ impl Planner {
         };
         let mut j = prev_index(k);
         while j != planned {
-            let b = &mut self.blocks[j as usize];
-            b.entry_speed_sqr = min_nn(b.max_entry_speed_sqr, next + b.max_delta_speed_sqr);
-            next = b.entry_speed_sqr;
+            next = backward(&mut self.blocks[j as usize], next);
             j = prev_index(j);
         }
         let mut f = {
@@ -376,8 +373,8 @@ impl Planner {
 
 /// One block of the backward pass as grbl writes it: its entry speed² as
 /// high as stopping at `next_entry` allows, within its limit. Returns its
-/// entry speed². The plain twin of [`Backward::step`].
-#[cfg(test)]
+/// entry speed². The plain twin of [`Backward::step`], and
+/// [`Planner::cap_front`]'s step (its blocks are below their maximum).
 fn backward(b: &mut Block, next_entry: f32) -> f32 {
     if b.entry_speed_sqr.to_bits() != b.max_entry_speed_sqr.to_bits() {
         b.entry_speed_sqr = min_nn(b.max_entry_speed_sqr, next_entry + b.max_delta_speed_sqr);

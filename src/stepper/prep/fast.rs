@@ -38,17 +38,8 @@ impl Prep {
         if !(mm <= max_mm) || n == 0 || n != self.steps_remaining || n > u16::MAX as u32 {
             return None;
         }
-        let (period, prescale) = timer_for(per_tick(self.plus_remainder(mm * cycles_per_mm), n));
-        self.profile_stale = false;
-        self.current_speed = v;
-        self.exit_speed = v;
-        self.exit_speed_sqr_bits = nominal_bits;
-        self.dt_remainder = 0.0;
-        self.steps_remaining = 0;
         self.ramp = Ramp::Cruise;
-        // No write-back: the block is dropped here (see `short_block`).
-        self.finish_block(pl);
-        Some(Segment { ticks: n as u16, period, prescale })
+        Some(self.whole_block(pl, mm * cycles_per_mm, n, v, nominal_bits))
     }
 
     /// Fast path for the rest of a block that takes at most one ramp
@@ -79,16 +70,7 @@ impl Prep {
         };
         let speeds = Speeds { v0, entry_sqr, exit_sqr, delta_sqr: b.max_delta_speed_sqr, nominal_sqr, vn };
         let (cycles, v1) = ramp_cycles(&speeds, inv_2a, self.cruise_cache.0)?;
-        let (period, prescale) = timer_for(per_tick(self.plus_remainder(cycles), n));
-        self.profile_stale = false;
-        self.current_speed = v1;
-        self.exit_speed = v1;
-        self.exit_speed_sqr_bits = exit_sqr.to_bits();
-        self.dt_remainder = 0.0;
-        self.steps_remaining = 0;
-        // No write-back: the block is dropped here (see `short_block`).
-        self.finish_block(pl);
-        Some(Segment { ticks: n as u16, period, prescale })
+        Some(self.whole_block(pl, cycles, n, v1, exit_sqr.to_bits()))
     }
 
     /// Fast path for the rest of a block that takes at most one ramp segment
@@ -108,14 +90,26 @@ impl Prep {
         if n == 0 || n > u16::MAX as u32 {
             return None;
         }
+        Some(self.whole_block(pl, cycles, n, self.exit_speed, self.exit_speed_sqr_bits))
+    }
+
+    /// The one segment of a fast path: the block's last `n` steps over
+    /// `cycles` (and the time carried from the segment before), ending at
+    /// `v1`, whose square's bits are `v1_sqr_bits`. The block is dropped
+    /// without a write-back: nothing reads it again (three soft-float
+    /// multiplies saved per block on the AVR).
+    // speed: in the per-block path of the three fast paths
+    #[inline(always)]
+    fn whole_block(&mut self, pl: &mut Planner, cycles: f32, n: u32, v1: f32, v1_sqr_bits: u32) -> Segment {
         let (period, prescale) = timer_for(per_tick(self.plus_remainder(cycles), n));
-        self.current_speed = self.exit_speed;
+        self.profile_stale = false;
+        self.current_speed = v1;
+        self.exit_speed = v1;
+        self.exit_speed_sqr_bits = v1_sqr_bits;
         self.dt_remainder = 0.0;
         self.steps_remaining = 0;
-        // No write-back: the block is dropped here, nothing reads it again
-        // (three soft-float multiplies saved per block on the AVR).
         self.finish_block(pl);
-        Some(Segment { ticks: n as u16, period, prescale })
+        Segment { ticks: n as u16, period, prescale }
     }
 
     /// `cycles` plus the time carried from the last segment, in CPU cycles
