@@ -260,7 +260,8 @@ fn main() {
                     if Some(k) == queue_block {
                         blocks += 1;
                     }
-                    // Who calls the copy/fill/float routines, and how much.
+                    // Who calls the copy/fill/float routines and the main loop's
+                    // turn (`idle`, `wait_step`: from a wait or the loop), and how much.
                     let name = &syms[k].2;
                     if matches!(
                         name.as_str(),
@@ -272,6 +273,7 @@ fn main() {
                             | "__wrap___addsf3"
                             | "__wrap___subsf3"
                             | "sqrt"
+                            | "r::mill::math::sqrt::sqrt_1ulp"
                             | "__udivmodsi4"
                             | "__mulsi3"
                             | "__floatsisf"
@@ -280,7 +282,9 @@ fn main() {
                             | "__fixunssfsi"
                             | "__addsf3"
                             | "__subsf3"
-                    ) {
+                    ) || name.contains("Machine::idle")
+                        || name.contains("Machine::wait_step")
+                    {
                         let b = vm.read_ram((sp + 1) as u16, 3);
                         let ret = (((b[0] as u32) << 16) | ((b[1] as u32) << 8) | b[2] as u32) * 2;
                         let caller = match lookup(ret) {
