@@ -256,6 +256,15 @@ impl Planner {
 
     /// Drop the executing block (prep has prepared all its steps).
     pub fn discard_current_block(&mut self) {
+        self.discard_current_block_at(None);
+    }
+
+    /// [`Planner::discard_current_block`], given the exit speed²
+    /// [`Planner::exec_exit_speed_sqr`] answered since the planner last
+    /// changed, if the caller has it: the next block's entry speed² is then
+    /// that value, not the same sum again (one soft-float add a streamed
+    /// block on the AVR; the test `an_exit_given_back_is_the_exit_computed`).
+    pub fn discard_current_block_at(&mut self, exit_sqr: Option<f32>) {
         if self.len == 0 {
             return;
         }
@@ -268,7 +277,11 @@ impl Planner {
             } else {
                 // The ramp's first block becomes final: its entry speed²
                 // as planned.
-                self.blocks[n as usize].entry_speed_sqr += self.lift;
+                let b = &mut self.blocks[n as usize];
+                b.entry_speed_sqr = match exit_sqr {
+                    Some(e) if self.len > 1 => e,
+                    _ => b.entry_speed_sqr + self.lift,
+                };
                 if n == self.ramp_end {
                     self.lift = 0.0;
                 }

@@ -979,3 +979,53 @@ fn a_cached_short_move_is_planned_as_computed() {
     }
     assert!(repeats > 19_000 && checked == 20_000, "{repeats} repeated moves, {checked} checked");
 }
+
+/// Prep drops a block it ran in one segment with the exit speed² it read
+/// (`Planner::discard_current_block_at`): the ring is left as the plain
+/// discard leaves it, bit for bit, at every drop of streams of short
+/// moves at feeds where the ring is one deceleration ramp (whose front
+/// block is then entered at its entry plus the ramp's lift), and of
+/// longer and turning moves between.
+#[test]
+fn an_exit_given_back_is_the_exit_computed() {
+    let st = s();
+    let mut p = Planner::new();
+    let mut pos = [0i32; N_AXES];
+    let mut rng = crate::test_util::XorShift(0xD15C);
+    let mut ramps = 0;
+    for i in 0..40_000 {
+        let r = rng.next();
+        let feed = [3300.0, 600.0, 5000.0, 1800.0, 12000.0][(i / 900) % 5];
+        // Queue while the ring has room, drop about as often (prep).
+        if r % 8 < 4 && !p.is_full() {
+            let (dx, dy) = match (r >> 4) % 16 {
+                0 => (((r >> 8) % 2001) as i32 - 1000, ((r >> 12) % 2001) as i32 - 1000),
+                1 => (-(pos[0] % 40), 8),
+                _ => (8 - (pos[1] / 50) % 3, 3 + (pos[0] / 70) % 3),
+            };
+            pos[0] += dx;
+            pos[1] += dy;
+            p.accept_line(&pos, Speed::Feed(feed), &st).unwrap();
+            p.flush(&st);
+        } else if p.len() > 1 {
+            // As prep does: settle, read the exit, drop the block.
+            p.settle();
+            ramps += (p.planned == p.tail && p.ramp_end != p.planned) as u32;
+            let mut plain = p.clone();
+            plain.discard_current_block();
+            let exit = p.exec_exit_speed_sqr();
+            p.discard_current_block_at(Some(exit));
+            assert_eq!(
+                (p.planned, p.ramp_end, p.ramp_ok, p.lift.to_bits()),
+                (plain.planned, plain.ramp_end, plain.ramp_ok, plain.lift.to_bits()),
+                "step {i}"
+            );
+            for k in 0..p.len() {
+                let (a, b) = (p.block(k).unwrap(), plain.block(k).unwrap());
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "step {i} block {k}");
+                assert_eq!(a.entry_speed_sqr.to_bits(), b.entry_speed_sqr.to_bits(), "step {i} block {k}");
+            }
+        }
+    }
+    assert!(ramps > 500, "{ramps} drops at the front of a ramp");
+}

@@ -361,8 +361,14 @@ impl Prep {
 
     /// The executing block is fully prepared: drop it from the planner.
     fn finish_block(&mut self, pl: &mut Planner) {
+        self.finish_block_at(pl, None);
+    }
+
+    /// [`Prep::finish_block`], with the exit speed² read from the planner
+    /// in this call, if any ([`Planner::discard_current_block_at`]).
+    fn finish_block_at(&mut self, pl: &mut Planner, exit_sqr: Option<f32>) {
         self.active = false;
-        pl.discard_current_block();
+        pl.discard_current_block_at(exit_sqr);
     }
 }
 
