@@ -305,7 +305,9 @@ impl Machine {
     /// [`Machine::wait_step`]. Not for SD-job or menu lines: no host waits
     /// for those.
     pub fn keepalive(&mut self, io: &mut (impl Inputs + ufmt::uWrite)) {
-        let every = self.host.busy_interval_s as u32 * 1000;
+        // (`mul_u16`: a `u32` product is a `__mulsi3` call on the AVR, on
+        // every wait's turn.)
+        let every = crate::math::mul_u16(self.host.busy_interval_s as u16, 1000);
         if !self.in_serial_line() || every == 0 {
             return;
         }
