@@ -15,8 +15,12 @@ pub struct Block {
     /// Path length, mm (E-only moves: pitches). While the block executes, prep
     /// keeps this at the distance still to go.
     pub millimeters: f32,
-    /// Acceleration along the path, mm/s², limited so no axis exceeds its own.
-    pub acceleration: f32,
+    /// 0.5 / the acceleration along the path (s²/mm; the acceleration is
+    /// limited so no axis exceeds its own). What prep's ramps need: kept
+    /// inverted, it costs prep no division (or cache of them) on the usual
+    /// block; the planner has it from the division it makes for the
+    /// acceleration anyway.
+    pub half_inv_accel: f32,
     /// Planned entry speed², (mm/s)². While the block executes, prep keeps this at
     /// the current speed².
     pub entry_speed_sqr: f32,
@@ -89,7 +93,7 @@ impl Block {
     pub(super) const EMPTY: Block = Block {
         steps: [Steps24::ZERO; N_AXES],
         millimeters: 0.0,
-        acceleration: 0.0,
+        half_inv_accel: 0.0,
         entry_speed_sqr: 0.0,
         max_entry_speed_sqr: 0.0,
         nominal_speed_sqr: 0.0,

@@ -25,8 +25,9 @@ const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
 
 /// The junction speed² between a block along `prev_unit` and the next along
 /// `unit` (grbl's junction deviation rule), (mm/s)²: `reversing` the axes
-/// (bits) that move in both and change sign ([`reversing`]), `accel` is (this
-/// block's, the previous block's) acceleration, `cap` the smaller nominal
+/// (bits) that move in both and change sign ([`reversing`]), `min_accel`
+/// gives the smaller of the two blocks' accelerations (asked only where
+/// the rule needs it: the override re-plan divides for it), `cap` the smaller nominal
 /// speed² of the two: a junction at least as fast as that is
 /// [`JUNCTION_SPEED_SQR_STRAIGHT`] without the square root (`cap_cache`,
 /// see [`CapCache`]). Used when a block is queued and when the overrides
@@ -45,7 +46,7 @@ pub(super) fn junction_sqr(
     unit: &[f32; N_AXES],
     moving: u8,
     reversing: u8,
-    accel: (f32, f32),
+    min_accel: impl FnOnce() -> f32,
     cap: f32,
     cap_cache: &mut CapCache,
     s: &Settings,
@@ -76,8 +77,7 @@ pub(super) fn junction_sqr(
         if reversing == 0 && !lt_nn(h, h_min) {
             return JUNCTION_SPEED_SQR_STRAIGHT;
         }
-        let a = min_nn(accel.0, accel.1);
-        let ad = a * s.junction_deviation_mm;
+        let ad = min_accel() * s.junction_deviation_mm;
         let k = ad + cap;
         if reversing == 0 && !lt_nn(h * (k * k), cap_cache.cap_sqr) {
             JUNCTION_SPEED_SQR_STRAIGHT

@@ -32,7 +32,7 @@ impl Planner {
         self.rapid_pct = rapid_pct;
         self.feed_cache = (0, 0.0, 0);
         let ax = &self.axis;
-        // (unit vector, acceleration, nominal speed², (moving axes, directions))
+        // (unit vector, 0.5 / acceleration, nominal speed², (moving axes, directions))
         // of the block before.
         let mut prev: Option<([f32; N_AXES], _, _, _)> = None;
         let mut i = self.tail;
@@ -88,10 +88,12 @@ impl Planner {
                 }
                 let cap = min_nn(nominal, pn);
                 let reversing = reversing(p_axes, (moving, dir));
-                let j = junction_sqr(same_dir, &pu, &unit, moving, reversing, (b.acceleration, pa), cap, &mut self.cap_sqr_cache, s);
+                let h = b.half_inv_accel;
+                let min_accel = || crate::math::div_cold(0.5, max_nn(h, pa));
+                let j = junction_sqr(same_dir, &pu, &unit, moving, reversing, min_accel, cap, &mut self.cap_sqr_cache, s);
                 b.max_entry_speed_sqr = min_nn(j, cap);
             }
-            prev = Some((unit, b.acceleration, nominal, (moving, dir)));
+            prev = Some((unit, b.half_inv_accel, nominal, (moving, dir)));
             i = next_index(i);
         }
         if let Some((_, _, n, _)) = prev {

@@ -174,7 +174,7 @@ fn compare(p: &Planner, r: &RefPlanner, what: &str) {
     for (k, rb) in r.blocks.iter().enumerate() {
         let b = p.block(k).unwrap();
         within(b.nominal_speed_sqr, rb.nominal_sqr, &format!("{what} block {k} nominal²"));
-        within(b.acceleration, rb.accel, &format!("{what} block {k} acceleration"));
+        within(0.5 / b.half_inv_accel, rb.accel, &format!("{what} block {k} acceleration"));
         if k > 0 {
             within(b.max_entry_speed_sqr, rb.max_entry_sqr, &format!("{what} block {k} junction²"));
             within(b.entry_speed_sqr, rb.entry_sqr, &format!("{what} block {k} entry²"));
@@ -275,8 +275,18 @@ fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
             let (a0, a1) = (a_floor * (1.0 + next().abs()), a_floor * (1.0 + next().abs()));
             let cap = [2500.0f64, 900.0, 40.0][k % 3];
             let (pf, uf) = (prev.map(|x| x as f32), u.map(|x| x as f32));
-            let got = junction_sqr(false, &pf, &uf, moving, reversing_plain(&pf, &uf), (a0 as f32, a1 as f32), cap as f32, &mut cache, &st)
-                .min(cap as f32);
+            let got = junction_sqr(
+                false,
+                &pf,
+                &uf,
+                moving,
+                reversing_plain(&pf, &uf),
+                || (a0 as f32).min(a1 as f32),
+                cap as f32,
+                &mut cache,
+                &st,
+            )
+            .min(cap as f32);
             let want = plain_junction(&prev, &u, a0.min(a1), cap, &st);
             assert!((got as f64 - want).abs() <= 1e-3 * want + 1e-6, "settings {v} junction {k}: {got} vs plain {want} ({prev:?} → {u:?})");
             straight += (got as f64 == cap) as u32;
@@ -303,7 +313,11 @@ fn a_short_moves_acceleration_from_the_reciprocal_table_is_the_plain_division() 
                 let n = (dx * dx + dy * dy + dz * dz) as f32;
                 let u_max = dx.abs().max(dy.abs()).max(dz.abs()) as f32 / n.sqrt();
                 let want = 1.0 / (u_max * (1.0 / st.accel_mm_per_s2[0]));
-                assert!((b.acceleration - want).abs() <= 4e-7 * want, "({dx}, {dy}, {dz}): {} vs {want}", b.acceleration);
+                // The acceleration in the block's 2·a·mm, and 0.5 over it.
+                let a = b.max_delta_speed_sqr / (2.0 * b.millimeters);
+                assert!((a - want).abs() <= 6e-7 * want, "({dx}, {dy}, {dz}): {a} vs {want}");
+                let h = b.half_inv_accel as f64;
+                assert!((h - 0.5 / want as f64).abs() <= 4e-7 * h, "({dx}, {dy}, {dz}): 0.5/a {h} vs {}", 0.5 / want);
             }
         }
     }
@@ -332,8 +346,8 @@ fn the_largest_unit_component_is_the_dominant_axis_share() {
                 let v = 1.0 / (u_max * (60.0 / st.max_feed_mm_per_min[0]));
                 assert_eq!(b.nominal_speed_sqr.to_bits(), (v * v).to_bits(), "({dx}, {dy}, {dz})");
                 if crate::math::recip_small(n as u32).is_none() {
-                    let a = 1.0 / (u_max * (1.0 / st.accel_mm_per_s2[0]));
-                    assert_eq!(b.acceleration.to_bits(), a.to_bits(), "({dx}, {dy}, {dz})");
+                    let inv_a = u_max * (1.0 / st.accel_mm_per_s2[0]);
+                    assert_eq!(b.half_inv_accel.to_bits(), (0.5 * inv_a).to_bits(), "({dx}, {dy}, {dz})");
                 }
             }
         }

@@ -127,8 +127,13 @@ pub struct Prep {
     step_per_mm: f32,
     /// Time of the step fraction carried into the next segment, s.
     dt_remainder: f32,
-    /// Acceleration of the active block, mm/s².
+    /// Acceleration of the active block, mm/s²: 0.5 / `inv_2a`, divided
+    /// on first use ([`Prep::accel`]; 0: not yet), which only the profile
+    /// and the segment loop make, not the one-segment fast paths.
     acceleration: f32,
+    /// 0.5 / the acceleration of the active block, s²/mm
+    /// ([`crate::planner::Block::half_inv_accel`]).
+    inv_2a: f32,
     /// Speed at the end of the last segment, mm/s.
     current_speed: f32,
     /// Speed the profile ends at, mm/s.
@@ -153,8 +158,6 @@ pub struct Prep {
     /// `step_per_mm` is valid for the active block (computed on first use:
     /// the cruise fast path does not need it).
     step_per_mm_valid: bool,
-    /// 0.5 / a for the last accelerations a.
-    inv_2_accel: profile::HalfInvCache,
 }
 
 impl Prep {
@@ -174,6 +177,7 @@ impl Prep {
             step_per_mm: 0.0,
             dt_remainder: 0.0,
             acceleration: 0.0,
+            inv_2a: 0.0,
             current_speed: 0.0,
             exit_speed: 0.0,
             maximum_speed: 0.0,
@@ -184,7 +188,6 @@ impl Prep {
             nominal_cache: (0, 0.0),
             cruise_cache: (0.0, 0.0),
             step_per_mm_valid: false,
-            inv_2_accel: profile::HalfInvCache::EMPTY,
         }
     }
 
@@ -294,7 +297,8 @@ impl Prep {
                 self.steps_remaining = self.block_events;
                 self.step_per_mm_valid = false;
                 self.dt_remainder = 0.0;
-                self.acceleration = b.acceleration;
+                self.inv_2a = b.half_inv_accel;
+                self.acceleration = 0.0;
                 if self.holding || self.decel_override {
                     // Enter the block at the speed the previous one left us at.
                     self.current_speed = self.exit_speed;
@@ -348,6 +352,14 @@ impl Prep {
             // No segment: either the hold stopped (held), or a zero-step piece
             // was absorbed; loop to continue with the next block.
         }
+    }
+
+    /// The active block's acceleration, mm/s² (see `acceleration`).
+    pub(super) fn accel(&mut self) -> f32 {
+        if self.acceleration.to_bits() == 0 {
+            self.acceleration = crate::math::div_cold(0.5, self.inv_2a);
+        }
+        self.acceleration
     }
 
     /// Record progress in the executing block: distance left, current speed².

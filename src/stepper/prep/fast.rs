@@ -59,7 +59,7 @@ impl Prep {
         let b = pl.current_block()?;
         let nominal_sqr = b.nominal_speed_sqr;
         let vn = self.nominal_speed(nominal_sqr);
-        let inv_2a = self.inv_2_accel.get(self.acceleration);
+        let inv_2a = self.inv_2a;
         let v0 = self.current_speed;
         // v0² is the exit² it was the root of, when it is the last exit
         // speed (the usual start of a block): no multiply.
@@ -131,7 +131,7 @@ impl Prep {
     /// cruise speed that is not the cached one. Its plain twin, in seconds:
     /// `tests::short_time_plain`.
     fn short_cycles(&self, mm: f32) -> Option<f32> {
-        let inv_a = times2(self.inv_2_accel.latest()); // s² / mm
+        let inv_a = times2(self.inv_2a); // s² / mm
         let (v0, vmax, v1) = (self.current_speed, self.maximum_speed, self.exit_speed);
         let (dv, cruise_mm) = match self.ramp {
             Ramp::Accel => ((vmax - v0) + (vmax - v1), self.accelerate_until - self.decelerate_after),
@@ -221,7 +221,7 @@ mod tests {
     /// The plain duration `short_cycles` replaces, s: each ramp's Δv / a,
     /// the cruise at the cached cycles per mm, in seconds.
     fn short_time_plain(p: &Prep, mm: f32) -> Option<f32> {
-        let inv_a = times2(p.inv_2_accel.latest());
+        let inv_a = times2(p.inv_2a);
         let (v0, vmax, v1) = (p.current_speed, p.maximum_speed, p.exit_speed);
         let (mut t, cruise_mm) = match p.ramp {
             Ramp::Accel => ((vmax - v0) * inv_a + (vmax - v1) * inv_a, p.accelerate_until - p.decelerate_after),
@@ -249,7 +249,7 @@ mod tests {
         for _ in 0..200_000 {
             let a = 50.0 + 5000.0 * u();
             let mut p = Prep::new();
-            p.inv_2_accel.set(a);
+            p.inv_2a = 0.5 / a;
             let v0 = 100.0 * u();
             let vmax = v0 + a * 0.004 * u();
             let v1 = (vmax - a * 0.004 * u()).max(0.0);

@@ -13,7 +13,8 @@ impl Prep {
     /// Cut the next segment off the executing block (grbl's segment loop).
     /// `None` when the hold has stopped or the piece had no step.
     pub(super) fn make_segment(&mut self, pl: &mut Planner) -> Option<Segment> {
-        let a = self.acceleration;
+        // (`fraction_time` and `write_back` below read the field it fills.)
+        let a = self.accel();
         let b = pl.current_block_mut()?;
         let mut dt_max = if self.ramp == Ramp::Cruise { CRUISE_SEGMENT_TIME_S } else { SEGMENT_TIME_S };
         let mut dt = 0.0f32;
