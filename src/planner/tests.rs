@@ -767,22 +767,25 @@ fn drive_ring(p: &mut Planner, pos: &mut [i32; N_AXES], r: u32, feed: f32, st: &
                 b.max_delta_speed_sqr = b.millimeters / b.half_inv_accel;
             }
         }
-        _ if !p.is_full() => {
-            // Mostly 0.1 mm chords of a circle (a deceleration ramp over
-            // the whole ring), some longer or turning moves.
-            let k = (r >> 4) % 8;
-            let (dx, dy) = match k {
-                0 => (((r >> 8) % 2001) as i32 - 1000, ((r >> 12) % 2001) as i32 - 1000),
-                1 => (-(pos[0] % 40), 8),
-                _ => (8 - (pos[1] / 50) % 3, 3 + (pos[0] / 70) % 3),
-            };
-            pos[0] += dx;
-            pos[1] += dy;
-            p.accept_line(pos, Speed::Feed(feed), st).unwrap();
-            p.flush(st);
-        }
+        _ if !p.is_full() => queue_stream_move(p, pos, (r >> 4) % 8, r, feed, st),
         _ => {}
     }
+}
+
+/// Queue (accept and plan) the next move of a random stream from `pos`:
+/// kind 0 a long move in any direction (from `r`), 1 a turn, any other a
+/// 0.1 mm chord of a circle (mostly, so the ring becomes one deceleration
+/// ramp at the higher feeds).
+fn queue_stream_move(p: &mut Planner, pos: &mut [i32; N_AXES], kind: u32, r: u32, feed: f32, st: &Settings) {
+    let (dx, dy) = match kind {
+        0 => (((r >> 8) % 2001) as i32 - 1000, ((r >> 12) % 2001) as i32 - 1000),
+        1 => (-(pos[0] % 40), 8),
+        _ => (8 - (pos[1] / 50) % 3, 3 + (pos[0] / 70) % 3),
+    };
+    pos[0] += dx;
+    pos[1] += dy;
+    p.accept_line(pos, Speed::Feed(feed), st).unwrap();
+    p.flush(st);
 }
 
 #[test]
@@ -999,15 +1002,7 @@ fn an_exit_given_back_is_the_exit_computed() {
         let feed = [3300.0, 600.0, 5000.0, 1800.0, 12000.0][(i / 900) % 5];
         // Queue while the ring has room, drop about as often (prep).
         if r % 8 < 4 && !p.is_full() {
-            let (dx, dy) = match (r >> 4) % 16 {
-                0 => (((r >> 8) % 2001) as i32 - 1000, ((r >> 12) % 2001) as i32 - 1000),
-                1 => (-(pos[0] % 40), 8),
-                _ => (8 - (pos[1] / 50) % 3, 3 + (pos[0] / 70) % 3),
-            };
-            pos[0] += dx;
-            pos[1] += dy;
-            p.accept_line(&pos, Speed::Feed(feed), &st).unwrap();
-            p.flush(&st);
+            queue_stream_move(&mut p, &mut pos, (r >> 4) % 16, r, feed, &st);
         } else if p.len() > 1 {
             // As prep does: settle, read the exit, drop the block.
             p.settle();

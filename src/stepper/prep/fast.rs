@@ -39,7 +39,7 @@ impl Prep {
             return None;
         }
         self.ramp = Ramp::Cruise;
-        Some(self.whole_block(pl, mm * cycles_per_mm, n, v, nominal_bits, Some(f32::from_bits(exit_sqr))))
+        Some(self.whole_block(pl, mm * cycles_per_mm, n, v, nominal_bits, true))
     }
 
     /// Fast path for the rest of a block that takes at most one ramp
@@ -70,7 +70,7 @@ impl Prep {
         };
         let speeds = Speeds { v0, entry_sqr, exit_sqr, delta_sqr: b.max_delta_speed_sqr, nominal_sqr, vn };
         let (cycles, v1) = ramp_cycles(&speeds, inv_2a, self.cruise_cache.0)?;
-        Some(self.whole_block(pl, cycles, n, v1, exit_sqr.to_bits(), Some(exit_sqr)))
+        Some(self.whole_block(pl, cycles, n, v1, exit_sqr.to_bits(), true))
     }
 
     /// Fast path for the rest of a block that takes at most one ramp segment
@@ -90,18 +90,18 @@ impl Prep {
         if n == 0 || n > u16::MAX as u32 {
             return None;
         }
-        Some(self.whole_block(pl, cycles, n, self.exit_speed, self.exit_speed_sqr_bits, None))
+        Some(self.whole_block(pl, cycles, n, self.exit_speed, self.exit_speed_sqr_bits, false))
     }
 
     /// The one segment of a fast path: the block's last `n` steps over
     /// `cycles` (and the time carried from the segment before), ending at
     /// `v1`, whose square's bits are `v1_sqr_bits`. The block is dropped
     /// without a write-back: nothing reads it again (three soft-float
-    /// multiplies saved per block on the AVR); `exit_sqr`: the planner's
-    /// exit speed² as read in this call, if it was.
+    /// multiplies saved per block on the AVR); `read_in_call`: v1² is the
+    /// planner's exit speed² as read in this call.
     // speed: in the per-block path of the three fast paths
     #[inline(always)]
-    fn whole_block(&mut self, pl: &mut Planner, cycles: f32, n: u32, v1: f32, v1_sqr_bits: u32, exit_sqr: Option<f32>) -> Segment {
+    fn whole_block(&mut self, pl: &mut Planner, cycles: f32, n: u32, v1: f32, v1_sqr_bits: u32, read_in_call: bool) -> Segment {
         let (period, prescale) = timer_for(per_tick(self.plus_remainder(cycles), n));
         self.profile_stale = false;
         self.current_speed = v1;
@@ -109,7 +109,7 @@ impl Prep {
         self.exit_speed_sqr_bits = v1_sqr_bits;
         self.dt_remainder = 0.0;
         self.steps_remaining = 0;
-        self.finish_block_at(pl, exit_sqr);
+        self.finish_block_at(pl, read_in_call.then_some(f32::from_bits(v1_sqr_bits)));
         Segment { ticks: n as u16, period, prescale }
     }
 
