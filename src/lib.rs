@@ -100,3 +100,5 @@ pub const FIRMWARE_NAME: &str = "MillFW";
 pub const FIRMWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
 /// CPU clock of the ATmega2560 on the Mega2560 board, in Hz.
 pub const F_CPU_HZ: u32 = 16_000_000;
+/// [`F_CPU_HZ`] as a float, for times in CPU cycles.
+pub const F_CPU: f32 = F_CPU_HZ as f32;

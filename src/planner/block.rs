@@ -15,12 +15,13 @@ pub struct Block {
     /// Path length, mm (E-only moves: pitches). While the block executes, prep
     /// keeps this at the distance still to go.
     pub millimeters: f32,
-    /// 0.5 / the acceleration along the path (s²/mm; the acceleration is
-    /// limited so no axis exceeds its own). What prep's ramps need: kept
-    /// inverted, it costs prep no division (or cache of them) on the usual
-    /// block; the planner has it from the division it makes for the
-    /// acceleration anyway.
-    pub half_inv_accel: f32,
+    /// F_CPU / the acceleration along the path (the acceleration is
+    /// limited so no axis exceeds its own): the CPU cycles a change of
+    /// speed of 1 mm/s takes, cycles·s/mm. What prep's ramps need: a ramp's
+    /// cycles are its Δv times this, with no division (or cache of them)
+    /// and one multiply on the usual block; the planner has it from the
+    /// division it makes for the acceleration anyway, times F_CPU.
+    pub dv_cycles: f32,
     /// Planned entry speed², (mm/s)². While the block executes, prep keeps this at
     /// the current speed².
     pub entry_speed_sqr: f32,
@@ -93,7 +94,7 @@ impl Block {
     pub(super) const EMPTY: Block = Block {
         steps: [Steps24::ZERO; N_AXES],
         millimeters: 0.0,
-        half_inv_accel: 0.0,
+        dv_cycles: 0.0,
         entry_speed_sqr: 0.0,
         max_entry_speed_sqr: 0.0,
         nominal_speed_sqr: 0.0,

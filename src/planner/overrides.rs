@@ -88,12 +88,12 @@ impl Planner {
                 }
                 let cap = min_nn(nominal, pn);
                 let reversing = reversing(p_axes, (moving, dir));
-                let h = b.half_inv_accel;
-                let min_accel = || crate::math::div_cold(0.5, max_nn(h, pa));
+                let k = b.dv_cycles;
+                let min_accel = || crate::math::div_cold(crate::F_CPU, max_nn(k, pa));
                 let j = junction_sqr(same_dir, &pu, &unit, moving, reversing, min_accel, cap, &mut self.cap_sqr_cache, s);
                 b.max_entry_speed_sqr = min_nn(j, cap);
             }
-            prev = Some((unit, b.half_inv_accel, nominal, (moving, dir)));
+            prev = Some((unit, b.dv_cycles, nominal, (moving, dir)));
             i = next_index(i);
         }
         if let Some((_, _, n, _)) = prev {

@@ -10,9 +10,9 @@ use super::block::{Block, PlanError, Push, Speed, Steps24};
 use super::junction::{junction_sqr, reversing};
 use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
-use crate::math::float_bits::{abs_f32, half, lt_nn, max_nn, min_nn, times2};
+use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
 use crate::math::{round_i32, sqrt_1ulp};
-use crate::N_AXES;
+use crate::{F_CPU, N_AXES};
 
 /// (s/mm at `feed` mm/min times `pct` %, the feed rounded) for the feed
 /// cache. Not inlined: LLVM-AVR hoisted the rounding's soft-float calls
@@ -48,7 +48,7 @@ fn short_entry(sum_sqr: u32, n: u32, ax: &super::axis_cache::AxisCache, a0: f32)
         inv_root,
         mm,
         accel,
-        half_inv_accel: half(inv_accel),
+        dv_cycles: inv_accel * F_CPU,
         t_axes: u_max * ax.inv_max_speed[0],
         max_delta: times2(accel * mm),
     }
@@ -269,7 +269,7 @@ impl Planner {
     fn queue_block(&mut self, inv_feed: f32, flags: u8, feed: u16, s: &Settings) -> (bool, bool) {
         let delta = &self.delta;
         let prev_nominal_sqr = self.previous_nominal_speed_sqr;
-        let prev_accel = (self.previous_acceleration, self.previous_half_inv_accel);
+        let prev_accel = (self.previous_acceleration, self.previous_dv_cycles);
         let prev_t_axes = self.previous_t_axes;
         let prev_valid = self.previous_limits_valid;
         let first = self.len == 0;
@@ -385,22 +385,22 @@ impl Planner {
         // last one (a stream of collinear moves) reuses them.
         // A short move's cached 2·a·mm, when its acceleration is the cached one.
         let mut max_delta = None;
-        // (The acceleration, 0.5 over it: from the one division.)
-        let ((acceleration, half_inv_accel), t_axes) = if same_dir {
+        // (The acceleration, F_CPU over it: from the one division.)
+        let ((acceleration, dv_cycles), t_axes) = if same_dir {
             (prev_accel, prev_t_axes)
         } else if moving & !ax.uniform == 0 {
             // Every moving axis has axis 0's limits: the largest |u| decides
             // (exactly: rounding keeps the order of the products).
             if let Some(e) = short {
                 max_delta = Some(e.max_delta);
-                ((e.accel, e.half_inv_accel), e.t_axes)
+                ((e.accel, e.dv_cycles), e.t_axes)
             } else {
                 let mut u_max = 0.0f32;
                 for u in &unit {
                     u_max = max_nn(u_max, abs_f32(*u));
                 }
                 let inv_accel = u_max * ax.inv_accel[0];
-                ((1.0 / inv_accel, half(inv_accel)), u_max * ax.inv_max_speed[0])
+                ((1.0 / inv_accel, inv_accel * F_CPU), u_max * ax.inv_max_speed[0])
             }
         } else {
             let mut inv_accel = 0.0f32; // s²/mm along the path
@@ -418,7 +418,7 @@ impl Planner {
                     }
                 }
             }
-            ((1.0 / inv_accel, half(inv_accel)), t_axes)
+            ((1.0 / inv_accel, inv_accel * F_CPU), t_axes)
         };
         let mut t = if lt_nn(t_axes, inv_feed) { inv_feed } else { t_axes };
         if flags & Block::RAPID != 0 && self.rapid_pct != 100 {
@@ -473,7 +473,7 @@ impl Planner {
             min_nn(junction_sqr, min_nn(nominal_speed_sqr, prev_nominal_sqr))
         };
         b.millimeters = mm;
-        b.half_inv_accel = half_inv_accel;
+        b.dv_cycles = dv_cycles;
         b.nominal_speed_sqr = nominal_speed_sqr;
         b.max_delta_speed_sqr = match max_delta {
             Some(d) => d,
@@ -484,7 +484,7 @@ impl Planner {
         self.previous_axes = (moving, dir);
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
         self.previous_acceleration = acceleration;
-        self.previous_half_inv_accel = half_inv_accel;
+        self.previous_dv_cycles = dv_cycles;
         self.previous_t_axes = t_axes;
         self.previous_limits_valid = true;
 

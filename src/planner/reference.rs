@@ -174,7 +174,7 @@ fn compare(p: &Planner, r: &RefPlanner, what: &str) {
     for (k, rb) in r.blocks.iter().enumerate() {
         let b = p.block(k).unwrap();
         within(b.nominal_speed_sqr, rb.nominal_sqr, &format!("{what} block {k} nominal²"));
-        within(0.5 / b.half_inv_accel, rb.accel, &format!("{what} block {k} acceleration"));
+        within(crate::F_CPU / b.dv_cycles, rb.accel, &format!("{what} block {k} acceleration"));
         if k > 0 {
             within(b.max_entry_speed_sqr, rb.max_entry_sqr, &format!("{what} block {k} junction²"));
             within(b.entry_speed_sqr, rb.entry_sqr, &format!("{what} block {k} entry²"));
@@ -313,11 +313,12 @@ fn a_short_moves_acceleration_from_the_reciprocal_table_is_the_plain_division() 
                 let n = (dx * dx + dy * dy + dz * dz) as f32;
                 let u_max = dx.abs().max(dy.abs()).max(dz.abs()) as f32 / n.sqrt();
                 let want = 1.0 / (u_max * (1.0 / st.accel_mm_per_s2[0]));
-                // The acceleration in the block's 2·a·mm, and 0.5 over it.
+                // The acceleration in the block's 2·a·mm, and F_CPU over it.
                 let a = b.max_delta_speed_sqr / (2.0 * b.millimeters);
                 assert!((a - want).abs() <= 6e-7 * want, "({dx}, {dy}, {dz}): {a} vs {want}");
-                let h = b.half_inv_accel as f64;
-                assert!((h - 0.5 / want as f64).abs() <= 4e-7 * h, "({dx}, {dy}, {dz}): 0.5/a {h} vs {}", 0.5 / want);
+                let k = b.dv_cycles as f64;
+                let want_k = crate::F_CPU as f64 / want as f64;
+                assert!((k - want_k).abs() <= 4e-7 * k, "({dx}, {dy}, {dz}): F_CPU/a {k} vs {want_k}");
             }
         }
     }
@@ -347,7 +348,7 @@ fn the_largest_unit_component_is_the_dominant_axis_share() {
                 assert_eq!(b.nominal_speed_sqr.to_bits(), (v * v).to_bits(), "({dx}, {dy}, {dz})");
                 if crate::math::recip_small(n as u32).is_none() {
                     let inv_a = u_max * (1.0 / st.accel_mm_per_s2[0]);
-                    assert_eq!(b.half_inv_accel.to_bits(), (0.5 * inv_a).to_bits(), "({dx}, {dy}, {dz})");
+                    assert_eq!(b.dv_cycles.to_bits(), (inv_a * crate::F_CPU).to_bits(), "({dx}, {dy}, {dz})");
                 }
             }
         }

@@ -51,18 +51,18 @@ pub(super) struct Short {
     /// Path length, mm: √S · mm/step.
     pub(super) mm: f32,
     /// On axes with axis 0's limits: the acceleration a₀/|u|max = a₀·√S·(1/n)
-    /// (mm/s²) and 0.5 over it, the time per mm at the speed limit
+    /// (mm/s²) and F_CPU over it ([`Block::dv_cycles`](super::Block::dv_cycles)), the time per mm at the speed limit
     /// |u|max/v₀ (s/mm), and twice the acceleration times the length
     /// ((mm/s)²).
     pub(super) accel: f32,
-    pub(super) half_inv_accel: f32,
+    pub(super) dv_cycles: f32,
     pub(super) t_axes: f32,
     pub(super) max_delta: f32,
 }
 
 impl Short {
     pub(super) const EMPTY: Short =
-        Short { sum_sqr: 0, n: 0, inv_root: 0.0, mm: 0.0, accel: 0.0, half_inv_accel: 0.0, t_axes: 0.0, max_delta: 0.0 };
+        Short { sum_sqr: 0, n: 0, inv_root: 0.0, mm: 0.0, accel: 0.0, dv_cycles: 0.0, t_axes: 0.0, max_delta: 0.0 };
 }
 
 /// The block ring and the look-ahead state.
@@ -117,9 +117,9 @@ pub struct Planner {
     pub(super) previous_axes: (u8, u8),
     /// Nominal speed² of the last queued block, (mm/s)².
     pub(super) previous_nominal_speed_sqr: f32,
-    /// Acceleration of the last queued block, mm/s², and 0.5 over it.
+    /// Acceleration of the last queued block, mm/s², and F_CPU over it.
     pub(super) previous_acceleration: f32,
-    pub(super) previous_half_inv_accel: f32,
+    pub(super) previous_dv_cycles: f32,
     /// Per-axis speed limit of the last queued block as time per mm, s/mm.
     pub(super) previous_t_axes: f32,
     /// `previous_acceleration` and `previous_t_axes` match the current settings.
@@ -200,7 +200,7 @@ impl Planner {
             previous_axes: (0, 0),
             previous_nominal_speed_sqr: 0.0,
             previous_acceleration: 0.0,
-            previous_half_inv_accel: 0.0,
+            previous_dv_cycles: 0.0,
             previous_t_axes: 0.0,
             previous_limits_valid: false,
             feed_cache: (0, 0.0, 0),

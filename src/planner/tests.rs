@@ -25,11 +25,11 @@ fn brute_force_entries(p: &Planner) -> Vec<f32> {
     e[0] = b[0].entry_speed_sqr;
     let mut exit = 0.0f32;
     for i in (1..n).rev() {
-        e[i] = e[i].min(exit + b[i].millimeters / b[i].half_inv_accel);
+        e[i] = e[i].min(exit + 2.0 * b[i].millimeters * (crate::F_CPU / b[i].dv_cycles));
         exit = e[i];
     }
     for i in 1..n {
-        e[i] = e[i].min(e[i - 1] + b[i - 1].millimeters / b[i - 1].half_inv_accel);
+        e[i] = e[i].min(e[i - 1] + 2.0 * b[i - 1].millimeters * (crate::F_CPU / b[i - 1].dv_cycles));
     }
     e
 }
@@ -139,7 +139,7 @@ fn a_diagonal_is_limited_by_the_slower_axis() {
     assert_close(b.millimeters, 10.0 * k, 1e-6);
     // Y may do 25 mm/s and 250 mm/s²; it is 1/√2 of the path.
     assert_close(b.nominal_speed_sqr.sqrt(), 25.0 * k, 1e-5);
-    assert_close(0.5 / b.half_inv_accel, 250.0 * k, 1e-5);
+    assert_close(crate::F_CPU / b.dv_cycles, 250.0 * k, 1e-5);
     assert_eq!(b.steps(), [1000, 1000, 0, 0]);
     assert_eq!(b.step_event_count(), 1000);
     assert_eq!(b.direction_bits(), 0);
@@ -166,7 +166,7 @@ fn an_e_only_move_is_planned_in_pitches_with_the_e_limits() {
     let b = p.current_block().unwrap();
     assert_close(b.millimeters, target as f32 / spp, 1e-6);
     assert_close(b.nominal_speed_sqr.sqrt(), 600.0 / 60.0, 1e-5);
-    assert_close(0.5 / b.half_inv_accel, 50.0, 1e-5);
+    assert_close(crate::F_CPU / b.dv_cycles, 50.0, 1e-5);
 }
 
 #[test]
@@ -370,7 +370,7 @@ fn cycle_reinitialize_restarts_the_executing_block_from_rest() {
     {
         let b = p.current_block_mut().unwrap();
         b.millimeters = 5.0;
-        b.max_delta_speed_sqr = 5.0 / b.half_inv_accel;
+        b.max_delta_speed_sqr = 10.0 * (crate::F_CPU / b.dv_cycles);
         b.entry_speed_sqr = 2500.0;
     }
     p.take_exec_replanned();
@@ -764,7 +764,7 @@ fn drive_ring(p: &mut Planner, pos: &mut [i32; N_AXES], r: u32, feed: f32, st: &
             if let Some(b) = p.current_block_mut() {
                 b.entry_speed_sqr = b.nominal_speed_sqr * ((r >> 8) % 101) as f32 / 100.0;
                 b.millimeters *= ((r >> 16) % 100) as f32 / 100.0;
-                b.max_delta_speed_sqr = b.millimeters / b.half_inv_accel;
+                b.max_delta_speed_sqr = 2.0 * b.millimeters * (crate::F_CPU / b.dv_cycles);
             }
         }
         _ if !p.is_full() => queue_stream_move(p, pos, (r >> 4) % 8, r, feed, st),
@@ -975,8 +975,8 @@ fn a_cached_short_move_is_planned_as_computed() {
         if !seen.insert((sum, n)) {
             repeats += 1;
         }
-        let half_inv = 0.5 * (u_max * (1.0 / st.accel_mm_per_s2[0]));
-        assert_eq!(b.half_inv_accel.to_bits(), half_inv.to_bits(), "{what}: 0.5 / acceleration");
+        let dv_cycles = u_max * (1.0 / st.accel_mm_per_s2[0]) * crate::F_CPU;
+        assert_eq!(b.dv_cycles.to_bits(), dv_cycles.to_bits(), "{what}: F_CPU / acceleration");
         assert_eq!(b.nominal_speed_sqr.to_bits(), (v * v).to_bits(), "{what}: nominal");
         assert_eq!(b.max_delta_speed_sqr.to_bits(), (2.0 * (accel * mm)).to_bits(), "{what}: 2·a·mm");
         checked += 1;

@@ -61,7 +61,7 @@ use super::{StBlock, StepperCmd};
 use crate::config::MIN_STEP_RATE_HZ;
 use crate::math::sqrt_1ulp;
 use crate::planner::Planner;
-use crate::F_CPU_HZ;
+use crate::F_CPU;
 
 pub use super::MIN_PERIOD_CYCLES;
 
@@ -83,8 +83,6 @@ const REQ_STEPS_PER_SEGMENT: f32 = 1.25;
 /// A deceleration ends early when less than this many steps would be left
 /// after a full piece.
 const RAMP_END_EPSILON: f32 = 1e-3;
-
-const F_CPU: f32 = F_CPU_HZ as f32;
 
 const _: () = assert!(MIN_STEP_RATE_HZ > 0.0);
 
@@ -127,13 +125,13 @@ pub struct Prep {
     step_per_mm: f32,
     /// Time of the step fraction carried into the next segment, s.
     dt_remainder: f32,
-    /// Acceleration of the active block, mm/s²: 0.5 / `inv_2a`, divided
-    /// on first use ([`Prep::accel`]; 0: not yet), which only the profile
-    /// and the segment loop make, not the one-segment fast paths.
+    /// Acceleration of the active block, mm/s²: F_CPU / `dv_cycles`,
+    /// divided on first use ([`Prep::accel`]; 0: not yet), which only the
+    /// profile and the segment loop make, not the one-segment fast paths.
     acceleration: f32,
-    /// 0.5 / the acceleration of the active block, s²/mm
-    /// ([`crate::planner::Block::half_inv_accel`]).
-    inv_2a: f32,
+    /// F_CPU / the acceleration of the active block: CPU cycles per mm/s
+    /// of speed change ([`crate::planner::Block::dv_cycles`]).
+    dv_cycles: f32,
     /// Speed at the end of the last segment, mm/s.
     current_speed: f32,
     /// Speed the profile ends at, mm/s.
@@ -177,7 +175,7 @@ impl Prep {
             step_per_mm: 0.0,
             dt_remainder: 0.0,
             acceleration: 0.0,
-            inv_2a: 0.0,
+            dv_cycles: 0.0,
             current_speed: 0.0,
             exit_speed: 0.0,
             maximum_speed: 0.0,
@@ -297,7 +295,7 @@ impl Prep {
                 self.steps_remaining = self.block_events;
                 self.step_per_mm_valid = false;
                 self.dt_remainder = 0.0;
-                self.inv_2a = b.half_inv_accel;
+                self.dv_cycles = b.dv_cycles;
                 self.acceleration = 0.0;
                 if self.holding || self.decel_override {
                     // Enter the block at the speed the previous one left us at.
@@ -357,7 +355,7 @@ impl Prep {
     /// The active block's acceleration, mm/s² (see `acceleration`).
     pub(super) fn accel(&mut self) -> f32 {
         if self.acceleration.to_bits() == 0 {
-            self.acceleration = crate::math::div_cold(0.5, self.inv_2a);
+            self.acceleration = crate::math::div_cold(F_CPU, self.dv_cycles);
         }
         self.acceleration
     }

@@ -59,7 +59,6 @@ impl Prep {
         let b = pl.current_block()?;
         let nominal_sqr = b.nominal_speed_sqr;
         let vn = self.nominal_speed(nominal_sqr);
-        let inv_2a = self.inv_2a;
         let v0 = self.current_speed;
         // v0² is the exit² it was the root of, when it is the last exit
         // speed (the usual start of a block): no multiply.
@@ -69,7 +68,7 @@ impl Prep {
             crate::math::mul_cold(v0, v0)
         };
         let speeds = Speeds { v0, entry_sqr, exit_sqr, delta_sqr: b.max_delta_speed_sqr, nominal_sqr, vn };
-        let (cycles, v1) = ramp_cycles(&speeds, inv_2a, self.cruise_cache.0)?;
+        let (cycles, v1) = ramp_cycles(&speeds, self.dv_cycles, self.cruise_cache.0)?;
         Some(self.whole_block(pl, cycles, n, v1, exit_sqr.to_bits(), true))
     }
 
@@ -126,12 +125,12 @@ impl Prep {
     /// CPU cycles the rest of the executing block (`mm` left) takes along
     /// its profile: Δv / a on the ramps (one multiply for both ramps of a
     /// trapezoid), distance × the cached cycles per mm at cruise, added in
-    /// cycles (the seconds cost two more multiplies on the AVR). `None`
+    /// cycles (the seconds cost two more multiplies on the AVR): Δv times the
+    /// cycles per mm/s ([`crate::planner::Block::dv_cycles`]). `None`
     /// beyond one ramp segment ([`SEGMENT_TIME_S`]), for no time, or at a
     /// cruise speed that is not the cached one. Its plain twin, in seconds:
     /// `tests::short_time_plain`.
     fn short_cycles(&self, mm: f32) -> Option<f32> {
-        let inv_a = times2(self.inv_2a); // s² / mm
         let (v0, vmax, v1) = (self.current_speed, self.maximum_speed, self.exit_speed);
         let (dv, cruise_mm) = match self.ramp {
             Ramp::Accel => ((vmax - v0) + (vmax - v1), self.accelerate_until - self.decelerate_after),
@@ -139,7 +138,7 @@ impl Prep {
             Ramp::Decel => (v0 - v1, 0.0),
             Ramp::DecelOverride => return None,
         };
-        let mut cycles = dv * inv_a * F_CPU;
+        let mut cycles = dv * self.dv_cycles;
         if positive(cruise_mm) {
             if self.nominal_cache.1.to_bits() != vmax.to_bits() {
                 return None;
@@ -179,9 +178,13 @@ pub(super) struct Speeds {
 /// `profile --count 254 --feed 12000 --accel 5000 --trace 300:1500` went
 /// from 21 766 to 21 315 cycles a line. `None` where the profile must
 /// decide: an entry or exit above the nominal speed, an exit out of reach
-/// either way, more than one segment. `inv_2a` is 0.5 / a. Its plain twin,
-/// in f64 over the trapezoid's three phases: `tests::ramp_time_plain`.
-pub(super) fn ramp_cycles(s: &Speeds, inv_2a: f32, cycles_per_mm: f32) -> Option<(f32, f32)> {
+/// either way, more than one segment. `dv_cycles` is F_CPU / a (the
+/// block's [`crate::planner::Block::dv_cycles`]): the ramps' time in cycles
+/// is one multiply, not two (with 0.5 / a and F_CPU: `profile --count 254
+/// --feed 12000 --accel 5000 --trace 300:1500` 19 722 -> 19 641 cycles a
+/// line). Its plain twin, in f64 over the trapezoid's three phases:
+/// `tests::ramp_time_plain`.
+pub(super) fn ramp_cycles(s: &Speeds, dv_cycles: f32, cycles_per_mm: f32) -> Option<(f32, f32)> {
     let entry_sqr = s.entry_sqr;
     let peak_sqr = half(s.delta_sqr + entry_sqr + s.exit_sqr);
     if lt_nn(peak_sqr, entry_sqr) || lt_nn(peak_sqr, s.exit_sqr) || lt_nn(s.nominal_sqr, entry_sqr) || lt_nn(s.nominal_sqr, s.exit_sqr) {
@@ -190,11 +193,13 @@ pub(super) fn ramp_cycles(s: &Speeds, inv_2a: f32, cycles_per_mm: f32) -> Option
     let v1 = super::profile::exit_speed(s.exit_sqr, s.nominal_sqr, s.vn);
     let triangle = lt_nn(peak_sqr, s.nominal_sqr);
     let vp = if triangle { sqrt_1ulp(peak_sqr) } else { s.vn };
-    let mut cycles = (times2(vp) - s.v0 - v1) * inv_2a * (2.0 * F_CPU);
+    let mut dv = times2(vp) - s.v0 - v1;
     if !triangle {
-        // The cruise between the ramps: (p − vn²) / a mm at vn.
-        cycles += times2(inv_2a) * (peak_sqr - s.nominal_sqr) * cycles_per_mm;
+        // The cruise between the ramps, (p − vn²) / a mm at vn, as the
+        // speed change that takes as long: (p − vn²) / vn.
+        dv += (peak_sqr - s.nominal_sqr) * (cycles_per_mm * (1.0 / F_CPU));
     }
+    let cycles = dv * dv_cycles;
     // 0 < cycles ≤ one segment, on the bits (as in `short_cycles`).
     if !positive(cycles) || cycles.to_bits() > (SEGMENT_TIME_S * F_CPU).to_bits() {
         return None;
@@ -215,13 +220,12 @@ mod tests {
     use super::super::timer::{per_tick, timer_for};
     use super::super::{Prep, Ramp, F_CPU, SEGMENT_TIME_S};
     use super::{ramp_cycles, Speeds};
-    use crate::math::float_bits::times2;
     use crate::test_util::XorShift;
 
     /// The plain duration `short_cycles` replaces, s: each ramp's Δv / a,
     /// the cruise at the cached cycles per mm, in seconds.
     fn short_time_plain(p: &Prep, mm: f32) -> Option<f32> {
-        let inv_a = times2(p.inv_2a);
+        let inv_a = (p.dv_cycles as f64 / F_CPU as f64) as f32;
         let (v0, vmax, v1) = (p.current_speed, p.maximum_speed, p.exit_speed);
         let (mut t, cruise_mm) = match p.ramp {
             Ramp::Accel => ((vmax - v0) * inv_a + (vmax - v1) * inv_a, p.accelerate_until - p.decelerate_after),
@@ -249,7 +253,7 @@ mod tests {
         for _ in 0..200_000 {
             let a = 50.0 + 5000.0 * u();
             let mut p = Prep::new();
-            p.inv_2a = 0.5 / a;
+            p.dv_cycles = F_CPU / a;
             let v0 = 100.0 * u();
             let vmax = v0 + a * 0.004 * u();
             let v1 = (vmax - a * 0.004 * u()).max(0.0);
@@ -329,7 +333,7 @@ mod tests {
             };
             let delta_sqr = 2.0 * a * mm;
             let s = Speeds { v0, entry_sqr: v0 * v0, exit_sqr, delta_sqr, nominal_sqr: vn * vn, vn };
-            let fast = ramp_cycles(&s, 0.5 / a, F_CPU / vn);
+            let fast = ramp_cycles(&s, F_CPU / a, F_CPU / vn);
             let plain = ramp_time_plain(v0 as f64, exit_sqr as f64, mm as f64, a as f64, vn as f64);
             let limit = (SEGMENT_TIME_S * F_CPU) as f64;
             // Decisions within rounding of a boundary may go either way.

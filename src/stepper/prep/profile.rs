@@ -27,7 +27,7 @@ impl Prep {
         b.entry_speed_sqr = self.current_speed * self.current_speed;
         let entry_sqr = b.entry_speed_sqr;
         let mm = b.millimeters;
-        let inv_2_accel = self.inv_2a;
+        let inv_2_accel = self.dv_cycles * (0.5 / F_CPU);
         self.mm_complete = 0.0;
         self.decelerate_after = 0.0;
         // Any exit speed set below other than sqrt(planned exit²) clears this.
