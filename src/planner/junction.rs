@@ -23,9 +23,12 @@ pub(super) const REVERSAL_STEP_S: f32 = 0.0005;
 /// Entry speed² used for a straight junction (then limited by the nominal speeds).
 const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
 
-/// The junction speed² between a block along `prev_unit` and the next along
-/// `unit` (grbl's junction deviation rule), (mm/s)²: `reversing` the axes
-/// (bits) that move in both and change sign ([`reversing`]), `min_accel`
+/// The junction speed² between a block along a unit vector p and the next
+/// along u (grbl's junction deviation rule), (mm/s)²: `cos_theta` gives
+/// −p·u ([`cos_theta`], or [`short_cos`] from two short moves' deltas),
+/// `e_axis` whether E moves in either block, `reversing` the axes (bits)
+/// that move in both and change sign ([`reversing`]), `units` gives (p, u)
+/// for the reversal's speed step (asked only where an axis reverses), `min_accel`
 /// gives the smaller of the two blocks' accelerations (asked only where
 /// the rule needs it: the override re-plan divides for it), `cap` the smaller nominal
 /// speed² of the two: a junction at least as fast as that is
@@ -42,10 +45,10 @@ const JUNCTION_SPEED_SQR_STRAIGHT: f32 = 1.0e30;
 #[inline(always)]
 pub(super) fn junction_sqr(
     same_dir: bool,
-    prev_unit: &[f32; N_AXES],
-    unit: &[f32; N_AXES],
-    moving: u8,
+    cos_theta: impl FnOnce() -> f32,
+    e_axis: bool,
     reversing: u8,
+    units: impl FnOnce() -> ([f32; N_AXES], [f32; N_AXES]),
     min_accel: impl FnOnce() -> f32,
     cap: f32,
     cap_cache: &mut CapCache,
@@ -54,7 +57,7 @@ pub(super) fn junction_sqr(
     if same_dir {
         return JUNCTION_SPEED_SQR_STRAIGHT;
     }
-    let cos_theta = cos_theta(prev_unit, unit, moving);
+    let cos_theta = cos_theta();
     // |cos θ| beyond the limit, on the bit pattern (a soft-float
     // compare costs ~50 cycles).
     let cos_bits = cos_theta.to_bits();
@@ -72,18 +75,18 @@ pub(super) fn junction_sqr(
         // division (most junctions of a smooth curve). First against the
         // cached h_min of the smallest acceleration these axes allow (a
         // compare instead of three multiplies), then exactly.
-        let e_axis = (moving & 0b1000 != 0 || prev_unit[3].to_bits() != 0) as u32;
-        let h_min = cap_cache.h_min(cap, e_axis, s);
+        let h_min = cap_cache.h_min(cap, e_axis as u32, s);
         if reversing == 0 && !lt_nn(h, h_min) {
             return JUNCTION_SPEED_SQR_STRAIGHT;
         }
-        let a = min_accel();
-        if reversing == 0 && !lt_nn(h * cap_cache.k_sqr(a, cap, s), cap_cache.cap_sqr) {
+        let ad = min_accel() * s.junction_deviation_mm;
+        let k = ad + cap;
+        if reversing == 0 && !lt_nn(h * (k * k), cap_cache.cap_sqr) {
             JUNCTION_SPEED_SQR_STRAIGHT
         } else {
-            let ad = a * s.junction_deviation_mm;
             let sin_theta_d2 = sqrt_1ulp(h);
             let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
+            let (prev_unit, unit) = if reversing != 0 { units() } else { ([0.0; N_AXES], [0.0; N_AXES]) };
             // An axis that reverses here jumps from +v·u_prev to −v·u
             // in one step, between a deceleration and an acceleration of
             // the same sign: limit that jump to what the axis'
@@ -152,6 +155,57 @@ pub(super) fn cos_theta(prev_unit: &[f32; N_AXES], unit: &[f32; N_AXES], moving:
     }
 }
 
+/// cos θ = −p·u for two short moves of X/Y/Z at one steps/mm, from their
+/// deltas `d`, `pd` (steps, |d| < 2¹⁴) and their 1/√Σd² `inv_root`,
+/// `prev_inv_root`: each unit vector is its deltas times its 1/√Σd², so
+/// −p·u = −(pd·d)·(1/√S′)(1/√S), the dot product exact in integers (the
+/// hardware multiplier) and one conversion and two soft-float multiplies
+/// after it, where [`cos_theta`] needs both unit vectors (two more
+/// conversions and multiplies for u) and a multiply and a sum an axis:
+/// ~300 cycles a streamed line less on the AVR. Within 2⁻²¹ of
+/// [`cos_theta_plain`] on the unit vectors (the twin test
+/// `the_cosine_from_the_deltas_is_the_cosine_from_the_unit_vectors`).
+// speed: inlined into `queue_block`, on the per-block path
+#[inline(always)]
+pub(super) fn short_cos(d: &[i32; N_AXES], inv_root: f32, pd: &[i16; 3], prev_inv_root: f32) -> f32 {
+    let mut dot = 0i32;
+    for i in 0..3 {
+        // |d|, |pd| < 2¹⁴: each product below 2²⁸, the sum below 2³⁰.
+        let d = d[i] as i16;
+        let p = crate::math::mul_u16(d.unsigned_abs(), pd[i].unsigned_abs()) as i32;
+        dot += if (d ^ pd[i]) < 0 { -p } else { p };
+    }
+    -(dot as f32 * (inv_root * prev_inv_root))
+}
+
+/// A short move's unit vector: its deltas `d` (steps) times its 1/√Σd²,
+/// 0 where an axis does not move, as `queue_block` computes it for the
+/// moves [`short_cos`] does not take (bit for bit the vector it stored
+/// before the deltas stood for it).
+// flash: only where a short move meets another kind of move
+#[inline(never)]
+pub(super) fn short_unit(d: &[i32; N_AXES], inv_root: f32) -> [f32; N_AXES] {
+    let mut u = [0.0; N_AXES];
+    for i in 0..3 {
+        if d[i] != 0 {
+            u[i] = d[i] as f32 * inv_root;
+        }
+    }
+    u
+}
+
+/// The last queued block's unit vector: `unit_vec`, or made from its
+/// deltas `d` by [`short_unit`] when it was a short move (`inv_root` not 0).
+// flash: only where a short move meets another kind of move
+#[inline(never)]
+pub(super) fn previous_unit(unit_vec: &[f32; N_AXES], d: &[i16; 3], inv_root: f32) -> [f32; N_AXES] {
+    if inv_root.to_bits() != 0 {
+        short_unit(&[d[0] as i32, d[1] as i32, d[2] as i32, 0], inv_root)
+    } else {
+        *unit_vec
+    }
+}
+
 /// grbl's junction cosine as written: 0 − Σ prev·unit.
 #[cfg(test)]
 pub(super) fn cos_theta_plain(prev_unit: &[f32; N_AXES], unit: &[f32; N_AXES], moving: u8) -> f32 {
@@ -165,7 +219,7 @@ pub(super) fn cos_theta_plain(prev_unit: &[f32; N_AXES], unit: &[f32; N_AXES], m
 }
 
 /// What the junction rule derives from a cap L (the smaller nominal speed²
-/// of two blocks), cached: L changes only with the feed. RAM: 28 B.
+/// of two blocks), cached: L changes only with the feed. RAM: 20 B.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct CapCache {
     /// Bits of L, with bit 31 set when the E axis takes part (L > 0, so
@@ -180,18 +234,12 @@ pub(super) struct CapCache {
     /// acceleration: (L / (a_min·δ + L))². A path's acceleration is never
     /// below its slowest axis' (1 / max(|uᵢ| / aᵢ) ≥ min aᵢ).
     h_min: f32,
-    /// Bits of the acceleration a (mm/s²) `k_sqr` is for (with this L and
-    /// δ; a refill forgets it), and (a·δ + L)²: a stream's chords repeat
-    /// a few accelerations in runs, and the exact test then costs one
-    /// multiply instead of three and a sum (`k_sqr`).
-    k_key: u32,
-    k_sqr: f32,
 }
 
 impl CapCache {
     /// All zero (so it needs no RAM image). It only matches a cap of +0.0,
     /// where any junction is 0 whatever `h_min` says.
-    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 0.0, k_key: 0, k_sqr: 0.0 };
+    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 0.0 };
 
     /// `h_min` for `cap` (e_axis: 1 when the E axis takes part), from the
     /// cache when the cap and the settings are the ones it holds.
@@ -212,40 +260,14 @@ impl CapCache {
         self.h_min
     }
 
-    /// (a·δ + L)² for the acceleration `a` and `cap` (L, the cap `h_min`
-    /// was asked for last), from the cache when `a` is the one it holds:
-    /// the very product the exact test computed before the cache
-    /// (`the_junction_threshold_cache_gives_the_plain_junction_rule`
-    /// holds both caches to the plain rule).
-    // speed: inlined into `junction_sqr`, on the per-block path
-    #[inline(always)]
-    fn k_sqr(&mut self, a: f32, cap: f32, s: &Settings) -> f32 {
-        if self.k_key != a.to_bits() {
-            self.k_key = a.to_bits();
-            self.k_sqr = k_sqr(a, cap, s.junction_deviation_mm);
-        }
-        self.k_sqr
-    }
-
     /// Recompute L² and `h_min` for `cap` (`ad_min`: the smallest a·δ, mm²/s²).
     // speed: a cold call, so that LLVM-AVR does not speculate the division
     #[inline(never)]
     fn refill(&mut self, cap: f32, ad_min: f32) {
-        // Not an acceleration's bits (a NaN): `k_sqr` was for the old L.
-        self.k_key = u32::MAX;
         let r = cap / (ad_min + cap);
         // Never straight on a cap of 0 or a non-finite ratio (settings not
         // yet valid): 2 is above any sin².
         self.h_min = if r.is_finite() && r > 0.0 { r * r } else { 2.0 };
         self.cap_sqr = cap * cap;
     }
-}
-
-/// (a·δ + L)², the exact junction test's factor ([`CapCache::k_sqr`]). A
-/// cold call: behind the cache test LLVM-AVR would compute it every time.
-// speed: see above
-#[inline(never)]
-fn k_sqr(a: f32, cap: f32, deviation_mm: f32) -> f32 {
-    let k = a * deviation_mm + cap;
-    k * k
 }

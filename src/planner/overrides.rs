@@ -4,7 +4,7 @@
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::Block;
-use super::junction::{junction_sqr, reversing};
+use super::junction::{cos_theta, junction_sqr, reversing};
 use super::ring::{next_index, Planner};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn};
@@ -90,7 +90,9 @@ impl Planner {
                 let reversing = reversing(p_axes, (moving, dir));
                 let k = b.dv_cycles;
                 let min_accel = || crate::math::div_cold(crate::F_CPU, max_nn(k, pa));
-                let j = junction_sqr(same_dir, &pu, &unit, moving, reversing, min_accel, cap, &mut self.cap_sqr_cache, s);
+                let e_axis = (moving | p_axes.0) & 0b1000 != 0;
+                let cos = || cos_theta(&pu, &unit, moving);
+                let j = junction_sqr(same_dir, cos, e_axis, reversing, || (pu, unit), min_accel, cap, &mut self.cap_sqr_cache, s);
                 b.max_entry_speed_sqr = min_nn(j, cap);
             }
             prev = Some((unit, b.dv_cycles, nominal, (moving, dir)));

@@ -7,7 +7,7 @@
 
 use super::axis_cache::{INV_MAX_STEP_RATE, INV_MIN_STEP_RATE};
 use super::block::{Block, PlanError, Push, Speed, Steps24};
-use super::junction::{junction_sqr, reversing};
+use super::junction::{cos_theta, junction_sqr, previous_unit, reversing, short_cos, short_unit};
 use super::ring::{next_index, Planner, Short, BLOCK_BUFFER_LEN, SHORTS_LEN};
 use crate::config::{Settings, MAX_STEP_RATE_HZ, MIN_STEP_RATE_HZ};
 use crate::math::float_bits::{abs_f32, lt_nn, max_nn, min_nn, times2};
@@ -309,9 +309,14 @@ impl Planner {
         count_axis!(3);
         b.bits = dir | flags | dominant;
         // Path length and unit vector.
-        let (mm, inv_mm, mut unit);
+        let (mm, inv_mm);
+        let mut unit = [0.0f32; N_AXES];
         // The cached values of a short move: see below.
         let mut short: Option<&Short> = None;
+        // A short move's deltas (`self.delta`) and 1/√Σd² stand for its
+        // unit vector (`short_cos`; `inv_root` 0: `unit` holds it, or
+        // must be made by `short_unit` where something needs it).
+        let mut inv_root = 0.0f32;
         if moving & 0b1000 == 0 && ax.xyz_same_steps && step_event_count < 0x8000 {
             // X/Y/Z at one steps/mm: the length is √(Σd²) steps, and a stream
             // of short moves repeats a few dozen values of the integer Σd²,
@@ -336,24 +341,17 @@ impl Planner {
                 }
             };
             let e = &self.shorts[i];
-            let inv_root = e.inv_root;
             mm = e.mm;
             short = Some(e);
             // 1/mm = (1/√S)·steps/mm: only the step-rate test needs it.
-            inv_mm = inv_root;
-            // Per axis, written out (see `count_axis`); E does not move here.
-            macro_rules! unit_axis {
-                ($i:literal) => {
-                    if moving & (1 << $i) != 0 {
-                        delta[$i] as f32 * inv_root
-                    } else {
-                        0.0
-                    }
-                };
+            inv_mm = e.inv_root;
+            if n16 < 0x4000 {
+                inv_root = e.inv_root;
+            } else {
+                // Too long for `short_cos`' integers.
+                unit = short_unit(delta, e.inv_root);
             }
-            unit = [unit_axis!(0), unit_axis!(1), unit_axis!(2), 0.0];
         } else {
-            unit = [0.0; N_AXES];
             // Path length: XYZ distance, or the E distance for an E-only move.
             // (Zero components are skipped: a multiply costs ~170 cycles on the AVR.)
             for i in 0..N_AXES {
@@ -375,9 +373,26 @@ impl Planner {
                 }
             }
         }
+        // Both short: the junction from the deltas. Otherwise the unit
+        // vectors, the previous one made from its deltas if it was short.
+        let prev_short = self.previous_inv_root.to_bits() != 0;
+        let from_deltas = inv_root.to_bits() != 0 && prev_short;
+        if inv_root.to_bits() != 0 && (!prev_short || moving & !ax.uniform != 0) {
+            unit = short_unit(delta, inv_root);
+        }
+        let prev_unit = || previous_unit(&self.previous_unit_vec, &self.previous_delta, self.previous_inv_root);
         // Stops at the first axis that differs: a stream of chords changes
-        // direction on every move (~110 cycles a line on the AVR).
-        let same_dir = prev_valid && unit.iter().zip(&self.previous_unit_vec).all(|(u, p)| u.to_bits() == p.to_bits());
+        // direction on every move (~110 cycles a line on the AVR). Two
+        // short moves: the same deltas (a move in the same direction but
+        // of another length is a junction, straight by the rule).
+        let same_dir = prev_valid
+            && if from_deltas {
+                delta[0] as i16 == self.previous_delta[0]
+                    && delta[1] as i16 == self.previous_delta[1]
+                    && delta[2] as i16 == self.previous_delta[2]
+            } else {
+                unit.iter().zip(&prev_unit()).all(|(u, p)| u.to_bits() == p.to_bits())
+            };
 
         // Per-axis limits: the path may go at most as fast (and accelerate at most
         // as hard) as the slowest axis allows, scaled by its share of the motion.
@@ -459,12 +474,19 @@ impl Planner {
         } else {
             let cap = min_nn(nominal_speed_sqr, prev_nominal_sqr);
             let reversing = reversing(self.previous_axes, (moving, dir));
+            let unit_now = || if inv_root.to_bits() != 0 { short_unit(delta, inv_root) } else { unit };
             let junction_sqr = junction_sqr(
                 same_dir,
-                &self.previous_unit_vec,
-                &unit,
-                moving,
+                || {
+                    if from_deltas {
+                        short_cos(delta, inv_root, &self.previous_delta, self.previous_inv_root)
+                    } else {
+                        cos_theta(&prev_unit(), &unit, moving)
+                    }
+                },
+                (moving | self.previous_axes.0) & 0b1000 != 0,
                 reversing,
+                || (prev_unit(), unit_now()),
                 || min_nn(acceleration, prev_accel.0),
                 cap,
                 &mut self.cap_sqr_cache,
@@ -480,7 +502,15 @@ impl Planner {
             None => times2(acceleration * mm),
         };
 
-        crate::math::copy16(&mut self.previous_unit_vec, &unit);
+        if inv_root.to_bits() != 0 {
+            // One axis at a time: an array store went through `memcpy`.
+            self.previous_delta[0] = delta[0] as i16;
+            self.previous_delta[1] = delta[1] as i16;
+            self.previous_delta[2] = delta[2] as i16;
+        } else {
+            crate::math::copy16(&mut self.previous_unit_vec, &unit);
+        }
+        self.previous_inv_root = inv_root;
         self.previous_axes = (moving, dir);
         self.previous_nominal_speed_sqr = nominal_speed_sqr;
         self.previous_acceleration = acceleration;

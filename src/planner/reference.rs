@@ -273,8 +273,7 @@ fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
             let a_floor =
                 (0..N_AXES).filter(|&i| u[i] != 0.0 || prev[i] != 0.0).map(|i| st.accel_mm_per_s2[i] as f64).fold(f64::INFINITY, f64::min);
             // Half the junctions at one of two accelerations, as a
-            // curve's chords repeat them, under caps that change: the
-            // (a·δ + L)² cache hits, and must not across caps.
+            // curve's chords repeat them, under caps that change.
             let (a0, a1) = if k % 2 == 0 {
                 (a_floor * (1.0 + next().abs()), a_floor * (1.0 + next().abs()))
             } else {
@@ -283,12 +282,13 @@ fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
             };
             let cap = [2500.0f64, 900.0, 40.0][k % 3];
             let (pf, uf) = (prev.map(|x| x as f32), u.map(|x| x as f32));
+            let e_axis = moving & 0b1000 != 0 || pf[3] != 0.0;
             let got = junction_sqr(
                 false,
-                &pf,
-                &uf,
-                moving,
+                || super::junction::cos_theta(&pf, &uf, moving),
+                e_axis,
                 reversing_plain(&pf, &uf),
+                || (pf, uf),
                 || (a0 as f32).min(a1 as f32),
                 cap as f32,
                 &mut cache,

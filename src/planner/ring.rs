@@ -109,8 +109,12 @@ pub struct Planner {
     /// Motor position minus commanded position after the last queued block
     /// (backlash take-ups), steps, X Y Z.
     pub(super) backlash_offset: [i32; 3],
-    /// Unit vector of the last queued block.
+    /// Unit vector of the last queued block, unless it was a short move
+    /// (`previous_inv_root` not 0): then its deltas (steps) and its
+    /// 1/√Σd² stand for it (`junction::short_cos`, `junction::short_unit`).
     pub(super) previous_unit_vec: [f32; N_AXES],
+    pub(super) previous_delta: [i16; 3],
+    pub(super) previous_inv_root: f32,
     /// (moving axes, their negative directions) of the last queued block,
     /// in axis bits: the axes `previous_unit_vec` has non-zero, and their
     /// signs.
@@ -197,6 +201,8 @@ impl Planner {
             position: [0; N_AXES],
             backlash_offset: [0; 3],
             previous_unit_vec: [0.0; N_AXES],
+            previous_delta: [0; 3],
+            previous_inv_root: 0.0,
             previous_axes: (0, 0),
             previous_nominal_speed_sqr: 0.0,
             previous_acceleration: 0.0,
@@ -374,10 +380,20 @@ impl Planner {
         self.exec_replanned = false;
         self.dir_known = 0;
         self.previous_unit_vec = [0.0; N_AXES];
+        self.previous_inv_root = 0.0;
         self.previous_axes = (0, 0);
         self.previous_nominal_speed_sqr = 0.0;
         self.previous_acceleration = 0.0;
         self.previous_limits_valid = false;
+    }
+}
+
+#[cfg(test)]
+impl Planner {
+    /// The last queued block's unit vector, from its deltas if it was a
+    /// short move.
+    pub(super) fn previous_unit(&self) -> [f32; N_AXES] {
+        super::junction::previous_unit(&self.previous_unit_vec, &self.previous_delta, self.previous_inv_root)
     }
 }
 

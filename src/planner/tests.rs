@@ -862,6 +862,52 @@ fn the_junction_cosine_summed_then_negated_is_grbls_subtraction_from_zero() {
     assert!(zero > 1000 && nonzero > 100_000, "{zero} zero, {nonzero} not");
 }
 
+/// The junction cosine of two short moves from their deltas
+/// ([`junction::short_cos`]) is the plain cosine of the unit vectors
+/// `queue_block` would make from them ([`junction::short_unit`]), within
+/// 2⁻²¹ (grbl's straight-line limit is 10⁻⁶ from ±1), and the same when
+/// the moves are perpendicular; random deltas of 1 to 2¹⁴ − 1 steps,
+/// either sign, some axes still, exact repeats and reversals.
+#[test]
+fn the_cosine_from_the_deltas_is_the_cosine_from_the_unit_vectors() {
+    use super::junction::{cos_theta_plain, short_cos, short_unit};
+    let mut rng = crate::test_util::XorShift(2_718);
+    let mut next = move || rng.next();
+    let mut worst = 0.0f64;
+    for k in 0..200_000 {
+        let range = if k % 2 == 0 { 40 } else { 0x4000 };
+        let mut delta = || {
+            let r = next();
+            let v = (r >> 8) as i32 % range;
+            (if r & 1 != 0 { -v } else { v }) as i16
+        };
+        let pd = [delta(), delta(), delta()];
+        let mut d = [delta(), delta(), delta()];
+        match k % 7 {
+            0 => d = pd,
+            1 => d = pd.map(|x| -x),
+            2 => d = [pd[1], -pd[0], 0],
+            _ => {}
+        }
+        if pd == [0; 3] || d == [0; 3] {
+            continue;
+        }
+        let inv = |d: [i16; 3]| 1.0 / crate::math::sqrtf(d.iter().map(|&x| (x as i32 * x as i32) as u32).sum::<u32>() as f32);
+        let (ir, pir) = (inv(d), inv(pd));
+        let moving = (0..3).fold(0u8, |m, i| if d[i] != 0 { m | 1 << i } else { m });
+        let wide = |d: [i16; 3]| [d[0] as i32, d[1] as i32, d[2] as i32, 0];
+        let fast = short_cos(&wide(d), ir, &pd, pir);
+        let plain = cos_theta_plain(&short_unit(&wide(pd), pir), &short_unit(&wide(d), ir), moving);
+        let diff = (fast as f64 - plain as f64).abs();
+        worst = worst.max(diff);
+        assert!(diff <= 1.0 / (1u32 << 21) as f64, "{pd:?} → {d:?}: {fast} vs {plain}");
+        if k % 7 == 2 {
+            assert_eq!(fast, 0.0, "{pd:?} → {d:?}: perpendicular");
+        }
+    }
+    println!("worst {worst:e}");
+}
+
 /// The junction's reversing axes from the moving axes and directions the
 /// planner keeps ([`junction::reversing`]) are what the plain reading of
 /// the two unit vectors gives ([`junction::reversing_plain`]), on random
@@ -884,7 +930,7 @@ fn reversing_from_the_bits_is_reversing_from_the_units() {
                 _ => ((r >> 8) % (2 * reach + 1)) as i32 - reach as i32,
             };
         }
-        let (before_axes, before_unit) = (p.previous_axes, p.previous_unit_vec);
+        let (before_axes, before_unit) = (p.previous_axes, p.previous_unit());
         let queued = p.push_line(target, 3000.0, k % 7 == 0, &st).unwrap().queued;
         if p.len as usize == BLOCK_BUFFER_LEN {
             p.clear();
@@ -894,8 +940,8 @@ fn reversing_from_the_bits_is_reversing_from_the_units() {
         if queued != 1 {
             continue;
         }
-        let (fast, plain) = (reversing(before_axes, p.previous_axes), reversing_plain(&before_unit, &p.previous_unit_vec));
-        assert_eq!(fast, plain, "move {k}: {before_unit:?} → {:?}", p.previous_unit_vec);
+        let (fast, plain) = (reversing(before_axes, p.previous_axes), reversing_plain(&before_unit, &p.previous_unit()));
+        assert_eq!(fast, plain, "move {k}: {before_unit:?} → {:?}", p.previous_unit());
         if plain != 0 {
             some += 1;
         } else {
