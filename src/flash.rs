@@ -21,6 +21,7 @@ use core::fmt;
 ///
 /// Declare it with [`in_flash!`](crate::in_flash), which places the
 /// `static` in `.progmem.data` on the AVR.
+#[repr(transparent)]
 pub struct InFlash<T: Copy>(T);
 
 impl<T: Copy> InFlash<T> {

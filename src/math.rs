@@ -10,7 +10,7 @@
 
 pub mod float_bits;
 mod sqrt;
-pub use sqrt::sqrt_1ulp;
+pub use sqrt::{sqrt_1ulp, sqrt_1ulp_plain, SQRT_TABLE};
 
 /// Square root of `x` (f32).
 #[inline]
@@ -267,6 +267,21 @@ pub fn recip_small(n: u32) -> Option<f32> {
     } else {
         RECIPROCALS.row(n as usize)
     }
+}
+
+/// [`sqrt_1ulp`] on the AVR: [`sqrt_1ulp_plain`]'s steps in assembly
+/// (`mill_sqrt_1ulp`, in the firmware's `board::sqrt`).
+#[cfg(target_arch = "avr")]
+#[inline(always)]
+fn sqrt_1ulp_avr(x: f32) -> f32 {
+    extern "C" {
+        fn mill_sqrt_1ulp(x: f32) -> f32;
+    }
+    // SAFETY: a pure function of its argument (it reads only the table in
+    // flash), with the C calling convention of avr-gcc: x and the result
+    // in r22–r25, only call-clobbered registers changed (r16 and r17 are
+    // saved), r1 zero again at the return.
+    unsafe { mill_sqrt_1ulp(x) }
 }
 
 /// Sine and cosine for arc chords. On AVR these are avr-libc's assembly

@@ -1,8 +1,8 @@
 //! The firmware's assembly f32 routines against the code they replace,
 //! called in the real ELF in the virtual machine. The multiply, sum and
 //! difference (`src/board/soft_float.rs`, every `*`, `+` and `-` on the
-//! AVR) against avr-libc's routines; `math::round_i32` against its host
-//! twin. The multiply against the routine it replaces, avr-libc's `__mulsf3`
+//! AVR) against avr-libc's routines; `math::round_i32` and
+//! `math::sqrt_1ulp` (`src/board/sqrt.rs`) against their host twins. The multiply against the routine it replaces, avr-libc's `__mulsf3`
 //! (`__mulsf3x`, then `__fp_round`: what avr-libc's `__mulsf3` runs), both
 //! called in the real ELF in the virtual machine, bit for bit, on random and
 //! edge operands. Where both operands and the product are normal, both must
@@ -26,6 +26,8 @@ const ZERO_MAX: u64 = 45;
 const ADD_FAST_MAX: u64 = 200;
 /// The rounding's fast path's longest run.
 const ROUND_FAST_MAX: u64 = 120;
+/// The table square root's longest run for a positive normal argument.
+const SQRT_MAX: u64 = 140;
 
 /// The routines of the ELF, called in one virtual machine.
 struct Routines {
@@ -319,4 +321,62 @@ fn the_assembly_rounding_is_its_host_twins_on_floats_of_every_kind() {
     }
     assert!(fast > 15_000, "only {fast} roundings took the fast path");
     println!("fast path: {fast} of {} roundings, mean {} cycles, max {fast_max} (call to ret)", xs.len(), fast_cycles / fast as u64);
+}
+
+#[test]
+fn the_assembly_square_root_is_its_host_twins_and_avr_libcs_for_the_rest() {
+    let mut m = Routines::new();
+    let f = m.addr("mill_sqrt_1ulp");
+    let libc = m.addr("sqrt");
+    let mut rng = Rng(0x5157_0001);
+    let mut xs = vec![1.0f32, 2.0, 4.0, 0.25, 3.999_999_8, 1.000_000_1, f32::MIN_POSITIVE, f32::MAX, 100.0, 2500.0];
+    // Every knot of both octaves and the floats either side of it.
+    for i in 0..256u32 {
+        let k = f32::from_bits((127 << 23) | (i % 128) << 16) * if i < 128 { 1.0 } else { 2.0 };
+        xs.extend([k, f32::from_bits(k.to_bits() - 1), f32::from_bits(k.to_bits() + 1)]);
+    }
+    // Random positive normals, random bits of every kind, speeds² and squares.
+    xs.extend((0..20_000).map(|_| f32::from_bits(0x0080_0000 + rng.next() % 0x7F00_0000)));
+    xs.extend((0..5_000).map(|_| f32::from_bits(rng.next())));
+    xs.extend((1..=3000).map(|v| (v * v) as f32));
+    // The rest goes to avr-libc: zeros, negatives, subnormals, infinities, NaNs.
+    xs.extend([
+        0.0f32,
+        -0.0,
+        -1.0,
+        -f32::MIN_POSITIVE,
+        f32::from_bits(1),
+        f32::from_bits(0x007F_FFFF),
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ]);
+    // The callee-saved registers (r2–r17, r28, r29) hold these before the call.
+    let saved: Vec<(u8, u8)> = (2..=17).chain(28..=29).map(|r| (r, 0xA0 ^ r)).collect();
+    let (mut normal, mut cycles_sum, mut cycles_max, mut other) = (0u64, 0u64, 0u64, 0u32);
+    for &x in &xs {
+        let mut regs = args(x, 0.0).to_vec();
+        regs.extend(&saved);
+        let cycles = m.vm.call(f, &regs, MAX_CYCLES).expect("mill_sqrt_1ulp returns");
+        assert_eq!(m.vm.reg(1), 0, "r1 after sqrt({x:e})");
+        for &(r, v) in &saved {
+            assert_eq!(m.vm.reg(r), v, "r{r} after sqrt({x:e})");
+        }
+        let got = m.result();
+        let b = x.to_bits();
+        if b.wrapping_sub(0x0080_0000) < 0x7F00_0000 {
+            let want = mill::math::sqrt_1ulp_plain(x).to_bits();
+            assert_eq!(got, want, "sqrt_1ulp({x:e}) ({b:#010x}): {got:#010x}, the twin {want:#010x}");
+            normal += 1;
+            cycles_sum += cycles;
+            cycles_max = cycles_max.max(cycles);
+            assert!(cycles <= SQRT_MAX, "sqrt_1ulp({x:e}): {cycles} cycles");
+        } else {
+            let (want, _) = m.ours(libc, x, 0.0);
+            assert_eq!(got, want, "sqrt_1ulp({x:e}) ({b:#010x}) is avr-libc's sqrt: {got:#010x} vs {want:#010x}");
+            other += 1;
+        }
+    }
+    assert!(normal > 25_000 && other > 1_000, "{normal} normal, {other} other");
+    println!("positive normals: {normal}, mean {} cycles, max {cycles_max} (call to ret); {other} to avr-libc", cycles_sum / normal);
 }

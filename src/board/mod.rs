@@ -27,6 +27,7 @@ pub mod pins;
 pub mod serial;
 mod soft_float;
 pub mod spi;
+mod sqrt;
 pub mod stepper;
 pub mod twi;
 pub mod wdt;

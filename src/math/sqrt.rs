@@ -3,7 +3,8 @@
 //! planner a chord's length from its steps, and avr-libc's `sqrt` costs
 //! ~550 cycles on the AVR. [`sqrt_1ulp`] reads a knot, the rise to the
 //! next one and a bow from a 1.5 KB table in flash and interpolates:
-//! ~240 cycles a call (`profile`), within one unit in the last place of
+//! 119 cycles a call in the firmware's assembly (`board::sqrt`, 240
+//! compiled from [`sqrt_1ulp_plain`]), within one unit in the last place of
 //! the correctly rounded root (`sqrt_1ulp_is_within_one_ulp`: every float
 //! of two octaves, and the exponents between; four in five are correctly
 //! rounded), exact at the knots. Geometry that ends in positions (arcs,
@@ -69,7 +70,7 @@ const fn bow(i: usize) -> u8 {
     ((4 * mid - 2 * (r0 + r1) + 128) / 256) as u8
 }
 
-/// The columns of [`TABLE`].
+/// The columns of [`SQRT_TABLE`].
 const KNOT_LO: usize = 0;
 const KNOT_MID: usize = 1;
 const KNOT_HI: usize = 2;
@@ -100,14 +101,33 @@ const fn table() -> [[u8; 256]; 6] {
 }
 
 crate::in_flash! {
-    static TABLE: [[u8; 256]; 6] = table();
+    /// Read by [`sqrt_1ulp_plain`] and, on the AVR, `mill_sqrt_1ulp`
+    /// (the firmware's `board::sqrt`), whose assembly steps through its
+    /// columns 256 bytes apart.
+    pub static SQRT_TABLE: [[u8; 256]; 6] = table();
 }
+const _: () = assert!(KNOT_LO == 0 && KNOT_MID == 1 && KNOT_HI == 2 && RISE_LO == 3 && RISE_HI == 4 && BOW == 5);
 
 /// √x for a speed² (or any float): within one unit in the last place of
 /// the correctly rounded root for a positive normal `x` (see the module
 /// doc); anything else (±0, negative, subnormal, infinite, NaN) goes to
-/// [`super::sqrtf`].
+/// [`super::sqrtf`]. On the AVR [`sqrt_1ulp_plain`]'s steps in assembly
+/// (`mill_sqrt_1ulp` in `super`), bit for bit (`tests/soft_float.rs`).
+#[inline]
 pub fn sqrt_1ulp(x: f32) -> f32 {
+    #[cfg(target_arch = "avr")]
+    {
+        super::sqrt_1ulp_avr(x)
+    }
+    #[cfg(not(target_arch = "avr"))]
+    {
+        sqrt_1ulp_plain(x)
+    }
+}
+
+/// [`sqrt_1ulp`] in Rust: the host's, and the twin the AVR's assembly is
+/// held to.
+pub fn sqrt_1ulp_plain(x: f32) -> f32 {
     let b = x.to_bits();
     // Positive normal numbers: biased exponent 1..=254, sign clear.
     if b.wrapping_sub(0x0080_0000) >= 0x7F00_0000 {
@@ -118,13 +138,14 @@ pub fn sqrt_1ulp(x: f32) -> f32 {
     // bits its other seven: interval i is that byte with bit 7 flipped.
     let i = top as u8 ^ 0x80;
     let t = b as u16;
-    let r0 = (TABLE.at(KNOT_HI, i) as u32) << 16 | ((TABLE.at(KNOT_MID, i) as u16) << 8 | TABLE.at(KNOT_LO, i) as u16) as u32;
-    let rise = (TABLE.at(RISE_HI, i) as u16) << 8 | TABLE.at(RISE_LO, i) as u16;
+    let r0 =
+        (SQRT_TABLE.at(KNOT_HI, i) as u32) << 16 | ((SQRT_TABLE.at(KNOT_MID, i) as u16) << 8 | SQRT_TABLE.at(KNOT_LO, i) as u16) as u32;
+    let rise = (SQRT_TABLE.at(RISE_HI, i) as u16) << 8 | SQRT_TABLE.at(RISE_LO, i) as u16;
     // The rise is < 2¹⁶ (the steepest, at u = 2: 46 341) and t·(1 − t) ≤
     // ¼, so the chord's rise and the bow's sag sum below 2³² in units of
     // 2⁻³⁹, rounded once.
     let tt = (mul_u16(t, 0u16.wrapping_sub(t)) >> 16) as u16;
-    let up = mul_u16(rise, t) + mul_u16(TABLE.at(BOW, i) as u16, tt) + 0x8000;
+    let up = mul_u16(rise, t) + mul_u16(SQRT_TABLE.at(BOW, i) as u16, tt) + 0x8000;
     // Half the exponent: (E + 127) / 2 biased, for the biased E; the
     // leading 1 of the root's mantissa carries into it.
     let e = ((top >> 7) + 127) >> 1;
