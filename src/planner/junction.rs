@@ -86,15 +86,17 @@ pub(super) fn junction_sqr(
         } else {
             let sin_theta_d2 = sqrt_1ulp(h);
             let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
-            let (prev_unit, unit) = if reversing != 0 { units() } else { ([0.0; N_AXES], [0.0; N_AXES]) };
             // An axis that reverses here jumps from +v·u_prev to −v·u
             // in one step, between a deceleration and an acceleration of
             // the same sign: limit that jump to what the axis'
             // acceleration gives in REVERSAL_STEP_S (see there).
-            for i in 0..N_AXES {
-                if reversing & (1 << i) != 0 {
-                    let dv = REVERSAL_STEP_S * s.accel_mm_per_s2[i] / (abs_f32(prev_unit[i]) + abs_f32(unit[i]));
-                    v_sqr = min_nn(v_sqr, dv * dv);
+            if reversing != 0 {
+                let (prev_unit, unit) = units();
+                for i in 0..N_AXES {
+                    if reversing & (1 << i) != 0 {
+                        let dv = REVERSAL_STEP_S * s.accel_mm_per_s2[i] / (abs_f32(prev_unit[i]) + abs_f32(unit[i]));
+                        v_sqr = min_nn(v_sqr, dv * dv);
+                    }
                 }
             }
             v_sqr
