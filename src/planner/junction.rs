@@ -79,11 +79,11 @@ pub(super) fn junction_sqr(
         if reversing == 0 && !lt_nn(h, h_min) {
             return JUNCTION_SPEED_SQR_STRAIGHT;
         }
-        let ad = min_accel() * s.junction_deviation_mm;
-        let k = ad + cap;
-        if reversing == 0 && !lt_nn(h * (k * k), cap_cache.cap_sqr) {
+        let a = min_accel();
+        if reversing == 0 && !lt_nn(h * cap_cache.k_sqr(a, cap, s), cap_cache.cap_sqr) {
             JUNCTION_SPEED_SQR_STRAIGHT
         } else {
+            let ad = a * s.junction_deviation_mm;
             let sin_theta_d2 = sqrt_1ulp(h);
             let mut v_sqr = ad * sin_theta_d2 / (1.0 - sin_theta_d2);
             // An axis that reverses here jumps from +v·u_prev to −v·u
@@ -221,7 +221,7 @@ pub(super) fn cos_theta_plain(prev_unit: &[f32; N_AXES], unit: &[f32; N_AXES], m
 }
 
 /// What the junction rule derives from a cap L (the smaller nominal speed²
-/// of two blocks), cached: L changes only with the feed. RAM: 20 B.
+/// of two blocks), cached: L changes only with the feed. RAM: 28 B.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct CapCache {
     /// Bits of L, with bit 31 set when the E axis takes part (L > 0, so
@@ -236,12 +236,18 @@ pub(super) struct CapCache {
     /// acceleration: (L / (a_min·δ + L))². A path's acceleration is never
     /// below its slowest axis' (1 / max(|uᵢ| / aᵢ) ≥ min aᵢ).
     h_min: f32,
+    /// Bits of the acceleration a (mm/s²) `k_sqr` is for (with this L and
+    /// δ; a refill forgets it), and (a·δ + L)²: a stream's chords repeat
+    /// a few accelerations in runs, and the exact test then costs one
+    /// multiply instead of three and a sum (`k_sqr`).
+    k_key: u32,
+    k_sqr: f32,
 }
 
 impl CapCache {
     /// All zero (so it needs no RAM image). It only matches a cap of +0.0,
     /// where any junction is 0 whatever `h_min` says.
-    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 0.0 };
+    pub(super) const EMPTY: CapCache = CapCache { key: 0, limits: (0, 0), cap_sqr: 0.0, h_min: 0.0, k_key: 0, k_sqr: 0.0 };
 
     /// `h_min` for `cap` (e_axis: 1 when the E axis takes part), from the
     /// cache when the cap and the settings are the ones it holds.
@@ -262,14 +268,40 @@ impl CapCache {
         self.h_min
     }
 
+    /// (a·δ + L)² for the acceleration `a` and `cap` (L, the cap `h_min`
+    /// was asked for last), from the cache when `a` is the one it holds:
+    /// the very product the exact test computed before the cache
+    /// (`the_junction_threshold_cache_gives_the_plain_junction_rule`
+    /// holds both caches to the plain rule).
+    // speed: inlined into `junction_sqr`, on the per-block path
+    #[inline(always)]
+    fn k_sqr(&mut self, a: f32, cap: f32, s: &Settings) -> f32 {
+        if self.k_key != a.to_bits() {
+            self.k_key = a.to_bits();
+            self.k_sqr = k_sqr(a, cap, s.junction_deviation_mm);
+        }
+        self.k_sqr
+    }
+
     /// Recompute L² and `h_min` for `cap` (`ad_min`: the smallest a·δ, mm²/s²).
     // speed: a cold call, so that LLVM-AVR does not speculate the division
     #[inline(never)]
     fn refill(&mut self, cap: f32, ad_min: f32) {
+        // Not an acceleration's bits (a NaN): `k_sqr` was for the old L.
+        self.k_key = u32::MAX;
         let r = cap / (ad_min + cap);
         // Never straight on a cap of 0 or a non-finite ratio (settings not
         // yet valid): 2 is above any sin².
         self.h_min = if r.is_finite() && r > 0.0 { r * r } else { 2.0 };
         self.cap_sqr = cap * cap;
     }
+}
+
+/// (a·δ + L)², the exact junction test's factor ([`CapCache::k_sqr`]). A
+/// cold call: behind the cache test LLVM-AVR would compute it every time.
+// speed: see above
+#[inline(never)]
+fn k_sqr(a: f32, cap: f32, deviation_mm: f32) -> f32 {
+    let k = a * deviation_mm + cap;
+    k * k
 }

@@ -273,7 +273,8 @@ fn the_junction_threshold_cache_gives_the_plain_junction_rule() {
             let a_floor =
                 (0..N_AXES).filter(|&i| u[i] != 0.0 || prev[i] != 0.0).map(|i| st.accel_mm_per_s2[i] as f64).fold(f64::INFINITY, f64::min);
             // Half the junctions at one of two accelerations, as a
-            // curve's chords repeat them, under caps that change.
+            // curve's chords repeat them, under caps that change: the
+            // (a·δ + L)² cache hits, and must not across caps.
             let (a0, a1) = if k % 2 == 0 {
                 (a_floor * (1.0 + next().abs()), a_floor * (1.0 + next().abs()))
             } else {
