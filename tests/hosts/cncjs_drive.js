@@ -242,8 +242,16 @@ async function main() {
   await until(() => workflow === 'running', 5000, 'job C: workflow running');
   await waitMoved('c_start', 150, 20);
   // A user clicks Stop on a page that shows the machine running (cncjs's
-  // grbl Stop only sends `!` when its last status report said Run).
+  // grbl Stop only sends `!` when its last status report said Run), a
+  // reaction time after the page showed it. Not at once: cncjs copies the
+  // runner's state into the one its Stop reads on its 250 ms status tick,
+  // the tick that also showed the page Run, and its Stop sends 0x18 only
+  // if that state says Hold 500 ms after the click, so a click on the
+  // tick itself raced cncjs's own timers (the tick two later against the
+  // 500 ms): with the machine loaded, cncjs sometimes read Run and left
+  // the old job queued in the hold (3 of 12 runs with three busy loops).
   if (grbl) await until(() => activeState === 'Run', 5000, 'job C: status Run');
+  await sleep(150);
   await mark('c_stop');
   command('gcode:stop', { force: true });
   await until(() => workflow === 'idle', 5000, 'job C: workflow idle after Stop');
