@@ -112,7 +112,8 @@ const _: () = assert!(KNOT_LO == 0 && KNOT_MID == 1 && KNOT_HI == 2 && RISE_LO =
 /// the correctly rounded root for a positive normal `x` (see the module
 /// doc); anything else (±0, negative, subnormal, infinite, NaN) goes to
 /// [`super::sqrtf`]. On the AVR [`sqrt_1ulp_plain`]'s steps in assembly
-/// (`mill_sqrt_1ulp` in `super`), bit for bit (`tests/soft_float.rs`).
+/// (`mill_sqrt_1ulp`, in the firmware's `board::sqrt`), bit for bit
+/// (`tests/soft_float.rs`).
 #[inline]
 pub fn sqrt_1ulp(x: f32) -> f32 {
     #[cfg(target_arch = "avr")]
