@@ -32,7 +32,7 @@ impl Planner {
         self.rapid_pct = rapid_pct;
         self.feed_cache = (0, 0.0, 0);
         let ax = &self.axis;
-        // (unit vector, 0.5 / acceleration, nominal speed², (moving axes, directions))
+        // (unit vector, F_CPU / acceleration, nominal speed², (moving axes, directions))
         // of the block before.
         let mut prev: Option<([f32; N_AXES], _, _, _)> = None;
         let mut i = self.tail;
