@@ -1,6 +1,7 @@
 //! Passes `memory.x` (the RAM/flash budget, docs/SPEC.md §11) and `--relax` to the AVR
 //! link, and, for the test-only variants (Cargo features), the linker script
-//! of the above-128-KiB build and the no-trampolines build (docs/ARCHITECTURE.md, "Flash").
+//! of the above-128-KiB build, the no-trampolines build (docs/ARCHITECTURE.md,
+//! "Flash") and the panic build's link without the landing pad.
 use std::env;
 use std::path::PathBuf;
 use std::process::Command;
@@ -22,6 +23,14 @@ fn main() {
     if env::var_os("CARGO_FEATURE_HIGH_FLASH").is_some() {
         let script = high_flash_script();
         println!("cargo:rustc-link-arg-bins=-Wl,-T,{}", script.display());
+    }
+    if env::var_os("CARGO_FEATURE_PANIC_TEST").is_some() {
+        // tests/panic.rs needs no bootloader landing pad: tools/link-firmware
+        // links once, as avr-gcc would, without the gap below the pad
+        // (whose size is the one function that crosses 0x20000, so it
+        // changes with the layout; the variant's extra panic code must
+        // not fail the flash budget on that).
+        println!("cargo:rustc-link-arg-bins=-Wl,--defsym=__mill_no_landing_pad=1");
     }
     if env::var_os("CARGO_FEATURE_NO_STUBS").is_some() {
         // The deliberately broken variant: no `jmp` trampolines for function

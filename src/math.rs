@@ -8,6 +8,7 @@
 //! `-lm` in `avr-atmega2560.json`); `libm`'s generic version would put a
 //! 256-byte table in RAM. On the host the same functions use `libm`.
 
+pub mod decimal;
 pub mod float_bits;
 mod sqrt;
 pub use sqrt::{sqrt_1ulp, sqrt_1ulp_plain, SQRT_TABLE};

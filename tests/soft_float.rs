@@ -1,8 +1,10 @@
 //! The firmware's assembly f32 routines against the code they replace,
 //! called in the real ELF in the virtual machine. The multiply, sum and
 //! difference (`src/board/soft_float.rs`, every `*`, `+` and `-` on the
-//! AVR) against avr-libc's routines; `math::round_i32` and
-//! `math::sqrt_1ulp` (`src/board/sqrt.rs`) against their host twins. The multiply against the routine it replaces, avr-libc's `__mulsf3`
+//! AVR) against avr-libc's routines; `math::round_i32`,
+//! `math::sqrt_1ulp` (`src/board/sqrt.rs`) and the parser's
+//! `math::decimal::quotient_f32` (`src/board/decimal.rs`) against their
+//! host twins. The multiply against the routine it replaces, avr-libc's `__mulsf3`
 //! (`__mulsf3x`, then `__fp_round`: what avr-libc's `__mulsf3` runs), both
 //! called in the real ELF in the virtual machine, bit for bit, on random and
 //! edge operands. Where both operands and the product are normal, both must
@@ -28,6 +30,9 @@ const ADD_FAST_MAX: u64 = 200;
 const ROUND_FAST_MAX: u64 = 120;
 /// The table square root's longest run for a positive normal argument.
 const SQRT_MAX: u64 = 140;
+/// The decimal conversion's longest run (a byte and seven bits of the
+/// normalising shift).
+const QUOTIENT_MAX: u64 = 215;
 
 /// The routines of the ELF, called in one virtual machine.
 struct Routines {
@@ -379,4 +384,57 @@ fn the_assembly_square_root_is_its_host_twins_and_avr_libcs_for_the_rest() {
     }
     assert!(normal > 25_000 && other > 1_000, "{normal} normal, {other} other");
     println!("positive normals: {normal}, mean {} cycles, max {cycles_max} (call to ret); {other} to avr-libc", cycles_sum / normal);
+}
+
+#[test]
+fn the_assembly_decimal_conversion_is_its_host_twins() {
+    let mut m = Routines::new();
+    let f = m.addr("mill_quotient_f32");
+    let mut rng = Rng(0xDEC1_0001);
+    // (mantissa, power of ten): the edges of every branch, then the usual
+    // words of a G-code file (up to 6 integer and 4 fraction digits) and
+    // random mantissas below and above 2^24 at every scale.
+    let mut cases: Vec<(u32, u16)> = Vec::new();
+    for s in 0..=11u16 {
+        for m in [0u32, 1, 2, 9, 10, 99, 255, 256, 257, 65_535, 65_536, 65_537, 999_999, (1 << 24) - 1, 1 << 24, u32::MAX] {
+            cases.push((m, s));
+        }
+    }
+    cases.extend([(1, 256), (5, 257), (19_998, 259)]);
+    cases.extend((0..30_000).map(|_| (rng.next() % 10_000_000, (1 + rng.next() % 4) as u16)));
+    cases.extend((0..30_000).map(|_| (rng.next() >> (rng.next() % 32), (rng.next() % 12) as u16)));
+    // The saved registers (r2–r17, r28, r29) hold these before the call.
+    let saved: Vec<(u8, u8)> = (2..=17).chain(28..=29).map(|r| (r, 0x5A ^ r)).collect();
+    let (mut answered, mut none, mut cycles_sum, mut cycles_max) = (0u64, 0u64, 0u64, 0u64);
+    for &(mant, s) in &cases {
+        let b = mant.to_le_bytes();
+        let mut regs = vec![(22, b[0]), (23, b[1]), (24, b[2]), (25, b[3]), (20, s as u8), (21, (s >> 8) as u8)];
+        regs.extend(&saved);
+        // The library passes s as a u8 (a larger one is no answer before the call).
+        let Ok(_) = u8::try_from(s) else {
+            assert_eq!(mill::math::decimal::quotient_f32_plain(mant, s), None, "{mant} / 10^{s}");
+            continue;
+        };
+        let cycles = m.vm.call(f, &regs, MAX_CYCLES).expect("mill_quotient_f32 returns");
+        assert_eq!(m.vm.reg(1), 0, "r1 after {mant} / 10^{s}");
+        for &(r, v) in &saved {
+            assert_eq!(m.vm.reg(r), v, "r{r} after {mant} / 10^{s}");
+        }
+        let got = m.result();
+        match mill::math::decimal::quotient_f32_plain(mant, s) {
+            Some(v) => {
+                assert_eq!(got, v.to_bits(), "{mant} / 10^{s}: {got:#010x}, the twin {:#010x} ({v:e})", v.to_bits());
+                answered += 1;
+                cycles_sum += cycles;
+                cycles_max = cycles_max.max(cycles);
+                assert!(cycles <= QUOTIENT_MAX, "{mant} / 10^{s}: {cycles} cycles");
+            }
+            None => {
+                assert_eq!(got, 0, "{mant} / 10^{s}: {got:#010x}, the twin has no answer");
+                none += 1;
+            }
+        }
+    }
+    assert!(answered > 45_000 && none > 10_000, "{answered} answered, {none} not");
+    println!("answered: {answered}, mean {} cycles, max {cycles_max} (call to ret); {none} without an answer", cycles_sum / answered);
 }

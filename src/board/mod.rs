@@ -19,6 +19,7 @@
 //! Everything above this layer (the `mill` library) sees values, never pins.
 
 pub mod bootloader;
+mod decimal;
 pub mod eeprom;
 pub mod halt;
 mod mem;

@@ -4,6 +4,7 @@
 //! `N<n>` line number skipped.
 
 use super::error::{err, ParseError, ParseErrorKind};
+use crate::math::decimal::quotient_f32;
 
 /// A lexed decimal number: value = ±mantissa / 10^scale, trailing fraction
 /// zeros dropped.
@@ -94,96 +95,6 @@ fn divide_f32(m: u32, scale: u16) -> f32 {
     }
     v
 }
-
-/// `m / 10^s` rounded to the nearest f32, without a division, for the
-/// usual number (`1 ≤ m < 2^24`, `1 ≤ s ≤ 9`); `None` otherwise and in the
-/// rare case where the fast route cannot decide the rounding (then
-/// [`Number::to_f32_by_division`] answers). Bit for bit what the division
-/// gives (`the_division_free_conversion_matches_the_division`): ~350
-/// cycles on the AVR instead of ~670 (`__floatunsisf` and `__divsf3`;
-/// `profile --trace`: `parse_into` 4 142 → 3 618 cycles a streamed line).
-///
-/// How: `m / 10^s = (m / 5^s) · 2^−s`. With `m` shifted left by `z` to
-/// fill 32 bits (`a`) and `R = ⌈2^(31+e) / 5^s⌉` (`e` = bit length of
-/// `5^s`, so `R` fills 32 bits too), `Q = a · 2^(31+e) / 5^s` lies in
-/// `[2^62, 2^64)` and `P = a · R` in `[Q, Q + 2^32)`. `H`, the top 32
-/// bits of `P` from three of the four 16-bit partial products, is at most
-/// 3 below `P / 2^32`, so `Q / 2^32` lies in `(H − 1, H + 3)`. The top 24
-/// bits of `H` are the significand; the `k` bits below it (7 or 8) decide
-/// the rounding unless they are within that window of one half (then
-/// `None`: ~2 % of numbers): a tie
-/// itself cannot occur (`m / 10^s` is a dyadic number only when `5^s`
-/// divides `m`, and then it has at most 22 significant bits).
-pub(super) fn quotient_f32(m: u32, s: u16) -> Option<f32> {
-    if m == 0 || m >= 1 << 24 {
-        return None;
-    }
-    let (r, e) = match s {
-        1 => RECIP[0],
-        2 => RECIP[1],
-        3 => RECIP[2],
-        4 => RECIP[3],
-        5 => RECIP[4],
-        6 => RECIP[5],
-        7 => RECIP[6],
-        8 => RECIP[7],
-        9 => RECIP[8],
-        _ => return None,
-    };
-    // Normalise: the top bit of `a` at bit 31 (m < 2^24: z ≥ 8), in its
-    // 16-bit halves `a1`, `a0` made of m's bytes: LLVM turned a choice
-    // between two shifts of one 32-bit value (by 16 or 8) into a variable
-    // shift, a loop on the AVR (~230 cycles a streamed line, `profile
-    // --trace --hist parse_into`).
-    let [b0, b1, b2, _] = m.to_le_bytes();
-    let (mut a1, mut a0, mut z) =
-        if b2 == 0 { (u16::from_le_bytes([b0, b1]), 0u16, 16u8) } else { (u16::from_le_bytes([b1, b2]), u16::from_le_bytes([0, b0]), 8u8) };
-    while a1 < 1 << 15 {
-        a1 = (a1 << 1) | (a0 >> 15);
-        a0 <<= 1;
-        z += 1;
-    }
-    let (r1, r0) = ((r >> 16) as u16, r as u16);
-    let mul = crate::math::mul_u16;
-    let h = mul(a1, r1) + (mul(a1, r0) >> 16) + (mul(a0, r1) >> 16);
-    // H's top bit is bit 31 or 30: `hh` is H with its top bit at 31 (the
-    // same choice-of-shift concern), so the significand is `hh >> 8` and
-    // the 8 bits below it are the rest, in halves of H's units when H was
-    // doubled (k = 7 bits of H below the significand, else 8).
-    let top = h >= 1 << 31;
-    let hh = if top { h } else { h.wrapping_add(h) };
-    let (sig, rest) = (hh >> 8, hh & 0xFF);
-    // Q / 2^32 lies in (H − 1, H + 3): rounded down for sure while the
-    // rest is at most half less 3 units of H (123 covers 128 − 3·2 too),
-    // up once above half; in between, undecided.
-    let sig = if rest <= 123 {
-        sig
-    } else if rest > 128 {
-        sig + 1
-    } else {
-        return None;
-    };
-    // value = sig · 2^(1 + k − e − z − s); f32's biased exponent for a
-    // significand in [2^23, 2^24) is 127 + 23 + that. `sig` carries its
-    // leading bit into the exponent field (a carry to 2^24 as well).
-    let exp = 151 + 7 + top as i16 - e as i16 - z as i16 - s as i16;
-    let high = ((exp - 1) as u16) << 7;
-    Some(f32::from_bits(((high as u32) << 16) + sig))
-}
-
-/// `(⌈2^(31+e) / 5^s⌉, e)` for `s` in 1..=9, `e` the bit length of `5^s`.
-const RECIP: [(u32, u8); 9] = {
-    let mut t = [(0u32, 0u8); 9];
-    let mut s = 1;
-    while s <= 9 {
-        let d = 5u64.pow(s as u32);
-        let e = 64 - d.leading_zeros();
-        let n = 1u64 << (31 + e);
-        t[s - 1] = (n.div_ceil(d) as u32, e as u8);
-        s += 1;
-    }
-    t
-};
 
 /// 10^`n` for `n` in 1..=10, exact in f32 (5^10 < 2^24). A match, not a
 /// table: on AVR a const table would be copied into RAM, and the build has no
