@@ -90,26 +90,25 @@ impl Planner {
     fn extend_ramp(&mut self, newest: u8) -> bool {
         let end = self.ramp_end;
         let ramp = self.planned != end;
-        // The new blocks, newest first: a ramp down to a stop, each below
-        // its maximum (their entries are written as they are: the full pass
-        // redoes them from scratch if this returns false).
-        let mut k = newest;
-        let mut e = 0.0f32;
-        loop {
-            let b = &mut self.blocks[k as usize];
-            let x = if e.to_bits() == 0 { b.max_delta_speed_sqr } else { e + b.max_delta_speed_sqr };
-            if !lt_nn(x, b.max_entry_speed_sqr) {
-                return false;
-            }
-            b.entry_speed_sqr = x;
-            e = x;
-            k = prev_index(k);
-            if k == end {
-                break;
-            }
+        // The new blocks are a ramp down to a stop at the newest one's end:
+        // each enters at the sum of its own and the later new blocks'
+        // `max_delta_speed_sqr` (`x`), below its maximum, and the ramp
+        // before them rises by the oldest one's. Stored less the new
+        // `lift`, that is `−lift` for the oldest and one `max_delta` less
+        // for each after it: one subtraction a block, summed from the
+        // oldest, where `x` then `x − lift` took two
+        // (`the_look_ahead_without_an_idle_forward_pass_plans_as_both_passes_do`);
+        // the newest one's `x` is its own `max_delta`, so the new `lift` is
+        // that less its stored entry. Their headroom, maximum less stored
+        // entry, is what `slack` keeps; a new block reaches its maximum
+        // when the new `lift` reaches its headroom. (The entries are
+        // written as they are: the full pass redoes them from scratch if
+        // this returns false.)
+        let newest_entry = self.blocks[newest as usize].max_delta_speed_sqr;
+        let (mut lift, mut new_slack) = if ramp { self.stored_from_oldest(end, newest) } else { self.stop_ramp(end, newest) };
+        if !lt_nn(lift, new_slack) {
+            return false;
         }
-        let newest_entry = self.blocks[newest as usize].entry_speed_sqr;
-        let mut lift = if ramp { self.lift + e } else { 0.0 };
         if ramp && !lt_nn(lift, self.slack) {
             // `slack` may be that of a block no longer in the ramp: the
             // ramp's own; and the blocks the lift would raise to their
@@ -119,7 +118,10 @@ impl Planner {
             if cap != self.planned {
                 self.cap_front(cap);
                 if cap == end {
-                    // The whole ramp was: the new blocks start a new one.
+                    // The whole ramp was: the new blocks start a new one,
+                    // with their entries as they are (rare: the stream
+                    // reached its feed).
+                    new_slack = self.unlift_new(end, newest, lift);
                     lift = 0.0;
                 }
             }
@@ -129,19 +131,7 @@ impl Planner {
         if (lift.to_bits() >> 23) > (newest_entry.to_bits() >> 23) + 6 {
             return false;
         }
-        // The new blocks join the ramp: entry less `lift`, and their
-        // headroom in `slack`.
-        let mut slack = if ramp { self.slack } else { f32::MAX };
-        let mut k = newest;
-        while k != end {
-            let b = &mut self.blocks[k as usize];
-            if lift.to_bits() != 0 {
-                b.entry_speed_sqr -= lift;
-            }
-            slack = min_nn(slack, b.max_entry_speed_sqr - b.entry_speed_sqr);
-            k = prev_index(k);
-        }
-        self.slack = slack;
+        self.slack = if ramp { min_nn(self.slack, new_slack) } else { new_slack };
         self.lift = lift;
         self.ramp_end = newest;
         // Forward pass from `planned`: a block the one before it cannot
@@ -173,6 +163,62 @@ impl Planner {
             delta = b.max_delta_speed_sqr;
         }
         true
+    }
+
+    /// The new blocks after `end` up to `newest`, behind a ramp with
+    /// `lift`: stored entries summed from the oldest (`extend_ramp`), and
+    /// (the new lift, their least headroom).
+    fn stored_from_oldest(&mut self, end: u8, newest: u8) -> (f32, f32) {
+        // (+0.0 under no lift: a stored entry is never −0.0.)
+        let mut stored = if self.lift.to_bits() == 0 { 0.0 } else { -self.lift };
+        let mut headroom = f32::MAX;
+        let mut k = next_index(end);
+        loop {
+            let b = &mut self.blocks[k as usize];
+            b.entry_speed_sqr = stored;
+            headroom = min_nn(headroom, b.max_entry_speed_sqr - stored);
+            if k == newest {
+                return (b.max_delta_speed_sqr - stored, headroom);
+            }
+            stored -= b.max_delta_speed_sqr;
+            k = next_index(k);
+        }
+    }
+
+    /// The new blocks after `end` up to `newest` with nothing before them
+    /// to lift: their entries `x` as they are, summed from the newest,
+    /// and (lift 0, their least headroom).
+    fn stop_ramp(&mut self, end: u8, newest: u8) -> (f32, f32) {
+        let mut x = 0.0f32;
+        let mut headroom = f32::MAX;
+        let mut k = newest;
+        while k != end {
+            let b = &mut self.blocks[k as usize];
+            x = if x.to_bits() == 0 { b.max_delta_speed_sqr } else { x + b.max_delta_speed_sqr };
+            if !lt_nn(x, b.max_entry_speed_sqr) {
+                // Below its maximum, or the full pass.
+                return (0.0, 0.0);
+            }
+            b.entry_speed_sqr = x;
+            headroom = min_nn(headroom, b.max_entry_speed_sqr - x);
+            k = prev_index(k);
+        }
+        (0.0, headroom)
+    }
+
+    /// The new blocks after `end` up to `newest` back to their entries
+    /// `x` (stored less `lift`), when the ramp before them became final:
+    /// their least headroom.
+    fn unlift_new(&mut self, end: u8, newest: u8, lift: f32) -> f32 {
+        let mut headroom = f32::MAX;
+        let mut k = newest;
+        while k != end {
+            let b = &mut self.blocks[k as usize];
+            b.entry_speed_sqr += lift;
+            headroom = min_nn(headroom, b.max_entry_speed_sqr - b.entry_speed_sqr);
+            k = prev_index(k);
+        }
+        headroom
     }
 
     /// The ramp's blocks up to `end` under `lift`: the newest of them that
