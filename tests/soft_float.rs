@@ -32,7 +32,7 @@ const ROUND_FAST_MAX: u64 = 120;
 const SQRT_MAX: u64 = 140;
 /// The decimal conversion's longest run (a byte and seven bits of the
 /// normalising shift).
-const QUOTIENT_MAX: u64 = 215;
+const QUOTIENT_MAX: u64 = 195;
 
 /// The routines of the ELF, called in one virtual machine.
 struct Routines {
