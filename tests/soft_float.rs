@@ -3,8 +3,9 @@
 //! difference (`src/board/soft_float.rs`, every `*`, `+` and `-` on the
 //! AVR) against avr-libc's routines; `math::round_i32`,
 //! `math::sqrt_1ulp` (`src/board/sqrt.rs`) and the parser's
-//! `math::decimal::quotient_f32` (`src/board/decimal.rs`) against their
-//! host twins. The multiply against the routine it replaces, avr-libc's `__mulsf3`
+//! `math::decimal::quotient_f32` (`src/board/decimal.rs`) and
+//! `math::decimal::lex_plain` (`src/board/lex.rs`) against their host
+//! twins. The multiply against the routine it replaces, avr-libc's `__mulsf3`
 //! (`__mulsf3x`, then `__fp_round`: what avr-libc's `__mulsf3` runs), both
 //! called in the real ELF in the virtual machine, bit for bit, on random and
 //! edge operands. Where both operands and the product are normal, both must
@@ -33,6 +34,9 @@ const SQRT_MAX: u64 = 140;
 /// The decimal conversion's longest run (a byte and seven bits of the
 /// normalising shift).
 const QUOTIENT_MAX: u64 = 195;
+/// The number lexer's longest run on a plain number (nine digits, zeros
+/// waiting in the fraction).
+const LEX_MAX: u64 = 520;
 
 /// The routines of the ELF, called in one virtual machine.
 struct Routines {
@@ -437,4 +441,98 @@ fn the_assembly_decimal_conversion_is_its_host_twins() {
     }
     assert!(answered > 45_000 && none > 10_000, "{answered} answered, {none} not");
     println!("answered: {answered}, mean {} cycles, max {cycles_max} (call to ret); {none} without an answer", cycles_sum / answered);
+}
+
+#[test]
+fn the_assembly_number_lexer_is_its_host_twins() {
+    let mut m = Routines::new();
+    let f = m.addr("mill_lex_plain");
+    // A free stretch of RAM below the stack for the text (the VM is not
+    // running: nothing else uses it).
+    const TEXT: u16 = 0x1C00;
+    let mut rng = Rng(0x1E8_0001);
+    let alphabet = b"0123456789.-+eE \tXY;(";
+    let mut texts: Vec<Vec<u8>> = [
+        &b"19.998 Y0.100"[..],
+        b"0.100",
+        b"1",
+        b"",
+        b".",
+        b"-",
+        b"123456",
+        b"1234567",
+        b"999999.5",
+        b"1.23456789",
+        b"1.234567890",
+        b"0.0000001",
+        b"000000001",
+        b"12 .5",
+        b"12. 5",
+        b"12 5",
+        b"1.5 .5",
+        b"1e5",
+        b"1E5",
+        b"1..2",
+        b"1.2.3",
+        b"1+",
+        b"1-",
+        b"1 \t ",
+        b"1 \t X",
+        b"1 \t 2",
+        b"1. ",
+        b".5",
+        b"5.",
+        b"0.000",
+        b"00.00100",
+    ]
+    .iter()
+    .map(|t| t.to_vec())
+    .collect();
+    for _ in 0..40_000 {
+        let len = (rng.next() % 14) as usize;
+        let t: Vec<u8> = (0..len)
+            .map(|_| {
+                let r = rng.next();
+                // Mostly digits, some points and blanks, a few of the rest.
+                match r % 8 {
+                    0..=4 => b'0' + (r >> 8) as u8 % 10,
+                    5 => b'.',
+                    6 => b' ',
+                    _ => alphabet[(r >> 8) as usize % alphabet.len()],
+                }
+            })
+            .collect();
+        texts.push(t);
+    }
+    let saved: Vec<(u8, u8)> = (2..=17).chain(28..=29).map(|r| (r, 0x3C ^ r)).collect();
+    let (mut plain, mut cycles_sum, mut cycles_max) = (0u64, 0u64, 0u64);
+    for t in &texts {
+        // The byte after the text is a digit: the routine must stop at its length.
+        let mut ram = t.clone();
+        ram.push(b'7');
+        m.vm.write_ram(TEXT, &ram);
+        let mut regs = vec![(24, TEXT as u8), (25, (TEXT >> 8) as u8), (22, t.len() as u8)];
+        regs.extend(&saved);
+        let cycles = m.vm.call(f, &regs, MAX_CYCLES).expect("mill_lex_plain returns");
+        assert_eq!(m.vm.reg(1), 0, "r1 after {:?}", String::from_utf8_lossy(t));
+        for &(r, v) in &saved {
+            assert_eq!(m.vm.reg(r), v, "r{r} after {:?}", String::from_utf8_lossy(t));
+        }
+        let r: Vec<u8> = (18..=25).map(|r| m.vm.reg(r)).collect();
+        let got = (u32::from_le_bytes([r[0], r[1], r[2], r[3]]), r[4], r[5]);
+        let want = mill::math::decimal::lex_plain_plain(t);
+        assert_eq!(got, want, "{:?}", String::from_utf8_lossy(t));
+        assert_eq!((r[6], r[7]), (0, 0), "r24, r25 after {:?}", String::from_utf8_lossy(t));
+        if want.2 != 0 {
+            assert!(cycles <= LEX_MAX, "{:?}: {cycles} cycles", String::from_utf8_lossy(t));
+            plain += 1;
+            cycles_sum += cycles;
+            cycles_max = cycles_max.max(cycles);
+        }
+        if t == b"19.998 Y0.100" {
+            println!("19.998: {cycles} cycles");
+        }
+    }
+    assert!(plain > 5_000, "only {plain} plain numbers");
+    println!("plain numbers: {plain} of {}, mean {} cycles, max {cycles_max} (call to ret)", texts.len(), cycles_sum / plain);
 }

@@ -22,6 +22,7 @@ pub mod bootloader;
 mod decimal;
 pub mod eeprom;
 pub mod halt;
+mod lex;
 mod mem;
 pub mod oled;
 pub mod pins;

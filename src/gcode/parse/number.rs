@@ -114,10 +114,7 @@ fn pow10(n: u8) -> f32 {
     }
 }
 
-/// Most significant digits a number may have.
-pub(super) const MAX_SIG_DIGITS: u8 = 9;
-/// Most significant digits before the point (|value| < 1e6).
-pub(super) const MAX_INT_DIGITS: u8 = 6;
+pub(super) use crate::math::decimal::{lex_plain, MAX_INT_DIGITS, MAX_SIG_DIGITS};
 
 /// Skip spaces and tabs from `pos`. Inlined: called ~10 times a line, and
 /// the call cost more than the usual single compare (~360 cycles a line).
@@ -179,94 +176,6 @@ pub(super) fn lex_number(s: &[u8], pos: usize, col: u8) -> Result<(Number, usize
         return Ok((number, pos + len as usize));
     }
     lex_spaced(s, pos, negative, col)
-}
-
-/// The number at the start of `s` (after its sign) when it is a plain one:
-/// at most [`MAX_SIG_DIGITS`] digits in all, below 10⁶, no blank inside it
-/// and nothing after it that makes it an error. Returns its mantissa, its
-/// scale and its length in bytes, or a length of 0 for any other text,
-/// which [`lex_spaced`] reads (or refuses) instead. For a plain number both
-/// give the same result (`plain_and_spaced_lexers_agree`).
-///
-/// One pass: the integer digits are multiplied in as they come (at most 9
-/// digits in all, so no overflow), the fraction's zeros only once a
-/// non-zero digit follows them, so that trailing zeros drop out of the
-/// mantissa and the scale. Inlined (through `lex_number`) into
-/// `parse_into`, with the blank scan after the number written out: as a
-/// call, and with `Iterator::find` a call of its own, ~200 cycles a line
-/// more (`profile --trace`).
-// speed: ~200 cycles a line as a call (doc above)
-#[inline(always)]
-pub(super) fn lex_plain(s: &[u8]) -> (u32, u8, u8) {
-    const NOT_PLAIN: (u32, u8, u8) = (0, 0, 0);
-    let mut rest = s;
-    let mut mantissa: u32 = 0;
-    // Digits read.
-    let mut n: u8 = 0;
-    while let [c, tail @ ..] = rest {
-        let d = c.wrapping_sub(b'0');
-        if d > 9 {
-            break;
-        }
-        if n == MAX_SIG_DIGITS {
-            return NOT_PLAIN;
-        }
-        mantissa = crate::math::times10_plus(mantissa, d);
-        n += 1;
-        rest = tail;
-    }
-    // Over MAX_INT_DIGITS significant digits before the point.
-    if mantissa >= 1_000_000 {
-        return NOT_PLAIN;
-    }
-    let int_digits = n;
-    // Fraction zeros not yet multiplied in.
-    let mut pending: u8 = 0;
-    let point = matches!(rest, [b'.', ..]);
-    if let [b'.', tail @ ..] = rest {
-        rest = tail;
-        while let [c, tail @ ..] = rest {
-            let d = c.wrapping_sub(b'0');
-            if d > 9 {
-                break;
-            }
-            if n == MAX_SIG_DIGITS {
-                return NOT_PLAIN;
-            }
-            n += 1;
-            rest = tail;
-            if d == 0 {
-                pending += 1;
-                continue;
-            }
-            while pending != 0 {
-                mantissa = crate::math::times10_plus(mantissa, 0);
-                pending -= 1;
-            }
-            mantissa = crate::math::times10_plus(mantissa, d);
-        }
-    }
-    if n == 0 {
-        return NOT_PLAIN;
-    }
-    match rest {
-        // An exponent, a second point or sign: errors.
-        [b'e' | b'E' | b'.' | b'+' | b'-', ..] => return NOT_PLAIN,
-        // Blanks, then more of the number.
-        [b' ' | b'\t', tail @ ..] => {
-            let mut after = tail;
-            while let [b' ' | b'\t', more @ ..] = after {
-                after = more;
-            }
-            match after {
-                [b'0'..=b'9', ..] => return NOT_PLAIN,
-                [b'.', ..] if !point => return NOT_PLAIN,
-                _ => {}
-            }
-        }
-        _ => {}
-    }
-    (mantissa, n - int_digits - pending, n + point as u8)
 }
 
 /// [`lex_number`] from `first` (after the sign), digit by digit, taking
