@@ -60,6 +60,8 @@ pub(crate) fn abs_f32(x: f32) -> f32 {
 /// 2·x exactly, by adding one to the exponent of a normal x below 2¹²⁶
 /// (a ~145-cycle soft-float multiply on the AVR otherwise); ±0 is itself;
 /// other values take the multiply.
+// speed: a call cost ~37 cycles a use (profile --count 254 --feed 12000 --accel 5000 --trace 300:1500 18 489 -> 18 419 cycles a line, ~270 B of flash)
+#[inline(always)]
 pub(crate) fn times2(x: f32) -> f32 {
     let e = x.to_bits() & 0x7F80_0000;
     if e != 0 && e < 0x7E80_0000 {
