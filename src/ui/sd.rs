@@ -739,7 +739,7 @@ pub fn command_with(
 
 /// While M28 writes a file: store `line` (+ newline). False when not writing.
 pub fn capture(job: &mut SdJob, card: &mut impl Card, line: &[u8], out: &mut impl uWrite) -> bool {
-    if job.phase != Phase::Writing {
+    if !matches!(job.phase, Phase::Writing) {
         return false;
     }
     if card.write(line).and_then(|_| card.write(b"\n")).is_err() {
