@@ -71,6 +71,7 @@ impl Block {
     /// Step events: the largest of [`Block::steps`], the dominant axis'
     /// (its index kept in [`Block::bits`]: finding the largest took ~110
     /// cycles a block on the AVR).
+    // speed: as a call ~12 cycles a line more (profile 18 313 -> 18 301)
     #[inline(always)]
     pub fn step_event_count(&self) -> u32 {
         self.steps[(self.bits >> Self::DOMINANT_SHIFT) as usize].get()

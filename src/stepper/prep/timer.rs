@@ -23,6 +23,7 @@ pub(super) fn ceil_u32(x: f32) -> u32 {
 /// this multiplies by 1/n ([`crate::math::recip_small`]: ~140 cycles on the
 /// AVR instead of a ~540-cycle division; within an ulp of it, far below the
 /// timer count the period is rounded to).
+// speed: as a call ~50 cycles a block (profile 18 366 -> 18 313 cycles a line, ~140 B of flash)
 #[inline(always)]
 pub(super) fn per_tick(cycles: f32, n: u32) -> f32 {
     match crate::math::recip_small(n) {
