@@ -283,6 +283,11 @@ impl Planner {
         let mut dir = 0u8;
         let mut step_event_count = 0u32;
         let mut dominant = 0u8;
+        // Σd² of X, Y and Z in 16 bits an axis, for a short move (below):
+        // summed here, where each delta is in registers (a loop reading
+        // them again: `profile --count 254 --feed 12000 --accel 5000
+        // --trace 300:1500` 53 cycles a line more, for 100 B less flash).
+        let mut sum_sqr = 0u32;
         // One axis, its index and bit constants: written out, ~100 cycles
         // a block fewer on the AVR than the loop (which indexed and
         // shifted at run time).
@@ -290,6 +295,10 @@ impl Planner {
             ($i:literal) => {{
                 let d = delta[$i];
                 let n = d.unsigned_abs();
+                if $i < 3 {
+                    // (Wrapping: a long move's garbage is not used.)
+                    sum_sqr = sum_sqr.wrapping_add(crate::math::mul_u16(n as u16, n as u16));
+                }
                 b.steps[$i] = Steps24::new(n);
                 if n > step_event_count {
                     step_event_count = n;
@@ -323,11 +332,6 @@ impl Planner {
             // whose root, inverse root and what follows from them are cached
             // ([`Short`]): no square root, no division and five multiplies
             // fewer (~1.7 k cycles on the AVR) on a hit.
-            let mut sum_sqr = 0u32;
-            for i in 0..3 {
-                let n = delta[i].unsigned_abs() as u16;
-                sum_sqr += crate::math::mul_u16(n, n);
-            }
             // Any entry may hold it; a miss replaces the oldest (first in,
             // first out: the circle's chords come back in runs).
             let n16 = step_event_count as u16;
