@@ -196,7 +196,9 @@ impl Planner {
             let b = &mut self.blocks[k as usize];
             x = if x.to_bits() == 0 { b.max_delta_speed_sqr } else { x + b.max_delta_speed_sqr };
             if !lt_nn(x, b.max_entry_speed_sqr) {
-                // Below its maximum, or the full pass.
+                // At its maximum: (0, 0) fails `extend_ramp`'s test of
+                // the lift against the headroom, and the full pass plans
+                // the new blocks.
                 return (0.0, 0.0);
             }
             b.entry_speed_sqr = x;
