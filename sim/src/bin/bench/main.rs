@@ -49,6 +49,7 @@ use sim::{circle, Axis, CardKind, FatKind, Flow, IsrStats, SdCard, SdImage, Stre
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 
+mod ceiling;
 mod side;
 
 const F_CPU: f64 = 16e6;

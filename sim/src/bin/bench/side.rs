@@ -20,8 +20,12 @@
 //! the lines per second the serial link itself allows, from the frame time
 //! the VM's UART runs at ([`Vm::uart_frame_cycles`]: 10 bits a byte, as the
 //! hardware sends 8N1) and the bytes a line needs on the wire (the line,
-//! and for send-response also the reply it waits for).
+//! and for send-response also the reply it waits for). And its motion
+//! limit ([`ceiling`]): the fastest the job runs under grbl's planner
+//! rules with unbounded look-ahead and CPU, which no firmware that plans
+//! as grbl does can pass.
 
+use super::ceiling::{self, Path as Joints};
 use super::{segment_rate, F_CPU};
 use serde::Serialize;
 use sim::host::prepare_gcode;
@@ -86,6 +90,8 @@ pub struct Row {
     /// ours / grbl.
     pub ratio: Option<f64>,
     pub wire_limit: Option<f64>,
+    /// The job's motion limit under grbl's planner rules ([`ceiling`]).
+    pub motion_limit: Option<f64>,
     pub goal: String,
     pub pass: bool,
 }
@@ -254,6 +260,7 @@ pub fn measure(b: &Builds, failures: &mut Vec<String>) -> Vec<Row> {
             ours: m.per_s,
             ratio,
             wire_limit: Some(m.wire_per_s),
+            motion_limit: Some(ceiling::lines_per_s(FEED, 1000.0, Joints::Steps)),
             goal: format!(">= {goal:.0}/s, ahead"),
             pass: m.per_s >= goal && m.per_s > g.per_s,
         });
@@ -272,6 +279,8 @@ pub fn measure(b: &Builds, failures: &mut Vec<String>) -> Vec<Row> {
         ratio: if gc > 0.0 { Some(mc / gc) } else { None },
         // The fewest cycles a line this stream can show: the wire's.
         wire_limit: Some(if m.wire_per_s > 0.0 { F_CPU / m.wire_per_s } else { 0.0 }),
+        // And the motion's: the fewest cycles a line this feed allows.
+        motion_limit: Some(F_CPU / ceiling::lines_per_s(b.cpu_feed, b.cpu_accel, Joints::Steps)),
         goal: "<= 16000, ahead".into(),
         pass: mc > 0.0 && mc <= 16_000.0 && mc < gc,
     });
@@ -283,6 +292,7 @@ pub fn measure(b: &Builds, failures: &mut Vec<String>) -> Vec<Row> {
         ours: m.per_s,
         ratio: None,
         wire_limit: None,
+        motion_limit: Some(ceiling::lines_per_s(FEED, 1000.0, Joints::Steps)),
         goal: ">= 900/s".into(),
         pass: m.per_s >= 900.0,
     });
@@ -295,16 +305,17 @@ pub fn print(rows: &[Row]) {
     println!("Side by side with grbl-Mega 1.1g (same VM, same job: 2,000 chords of 0.1 mm, R20 circle, 18.5 B a line; mid-job rates)");
     println!();
     println!(
-        "| {:<40} | {:>9} | {:>13} | {:>9} | {:>10} | {:<16} | {:<4} |",
-        "row", "grbl-Mega", "this firmware", "ours/grbl", "wire limit", "goal", ""
+        "| {:<40} | {:>9} | {:>13} | {:>9} | {:>10} | {:>12} | {:<16} | {:<4} |",
+        "row", "grbl-Mega", "this firmware", "ours/grbl", "wire limit", "motion limit", "goal", ""
     );
     println!(
-        "|{}|{}|{}|{}|{}|{}|{}|",
+        "|{}|{}|{}|{}|{}|{}|{}|{}|",
         "-".repeat(42),
         "-".repeat(11),
         "-".repeat(15),
         "-".repeat(11),
         "-".repeat(12),
+        "-".repeat(14),
         "-".repeat(18),
         "-".repeat(6)
     );
@@ -313,12 +324,29 @@ pub fn print(rows: &[Row]) {
         let fmt = |v: f64| if cpu { format!("{:.1}k", v / 1000.0) } else { format!("{v:.0}/s") };
         let grbl = r.grbl.map_or("—".to_string(), fmt);
         let ratio = r.ratio.map_or("—".to_string(), |v| format!("{v:.2}"));
-        let wire = match r.wire_limit {
+        let limit = |l: Option<f64>| match l {
             None => "—".to_string(),
             Some(v) if cpu => format!(">= {:.1}k", v / 1000.0),
             Some(v) => format!("{v:.0}/s"),
         };
+        let (wire, motion) = (limit(r.wire_limit), limit(r.motion_limit));
         let v = if r.pass { "ok" } else { "MISS" };
-        println!("| {:<40} | {:>9} | {:>13} | {:>9} | {:>10} | {:<16} | {:<4} |", r.what, grbl, fmt(r.ours), ratio, wire, r.goal, v);
+        println!(
+            "| {:<40} | {:>9} | {:>13} | {:>9} | {:>10} | {:>12} | {:<16} | {:<4} |",
+            r.what,
+            grbl,
+            fmt(r.ours),
+            ratio,
+            wire,
+            motion,
+            r.goal,
+            v
+        );
     }
+    println!();
+    println!(
+        "Motion limit: the job's fastest under grbl's planner rules with unbounded look-ahead and CPU, joints from the chords' step deltas (grbl, Marlin, this firmware): {:.0}/s at F6000; with joints from the commanded chords (LinuxCNC): {:.0}/s.",
+        ceiling::lines_per_s(FEED, 1000.0, Joints::Steps),
+        ceiling::lines_per_s(FEED, 1000.0, Joints::Commanded)
+    );
 }
