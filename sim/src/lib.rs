@@ -45,6 +45,7 @@
 
 pub mod atc;
 pub mod boot;
+pub mod ceiling;
 pub mod circle;
 pub mod contour;
 pub mod elf;

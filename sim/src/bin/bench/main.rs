@@ -49,7 +49,6 @@ use sim::{circle, Axis, CardKind, FatKind, Flow, IsrStats, SdCard, SdImage, Stre
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 
-mod ceiling;
 mod side;
 
 const F_CPU: f64 = 16e6;

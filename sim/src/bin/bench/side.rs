@@ -21,13 +21,13 @@
 //! the VM's UART runs at ([`Vm::uart_frame_cycles`]: 10 bits a byte, as the
 //! hardware sends 8N1) and the bytes a line needs on the wire (the line,
 //! and for send-response also the reply it waits for). And its motion
-//! limit ([`ceiling`]): the fastest the job runs under grbl's planner
+//! limit ([`sim::ceiling`]): the fastest the job runs under grbl's planner
 //! rules with unbounded look-ahead and CPU, which no firmware that plans
 //! as grbl does can pass.
 
-use super::ceiling::{self, Path as Joints};
 use super::{segment_rate, F_CPU};
 use serde::Serialize;
+use sim::ceiling::{self, Path as Joints};
 use sim::host::prepare_gcode;
 use sim::{circle, CardKind, FatKind, Flow, SdCard, SdImage, StreamOptions, Vm, VmConfig};
 use std::path::{Path, PathBuf};
