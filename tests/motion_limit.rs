@@ -8,9 +8,11 @@ use mill::config::Settings;
 use mill::planner::{Planner, BLOCK_BUFFER_LEN};
 use mill::N_AXES;
 
-/// The model's joints are this planner's: the maximum entry speed of every joint of the side-by-side job, at its
-/// settings (100 steps/mm, 1000 mm/s², the X/Y rate at F6000), is the
-/// model's within 1 %, so the bench's column is this planner's limit.
+/// The model's joints are this planner's: the maximum entry speed of every
+/// joint of the side-by-side job at its settings (100 steps/mm, 1000
+/// mm/s², the X/Y rate at F6000) is the model's within 1 %, so the bench's
+/// column is this planner's limit. The job goes through the planner in
+/// windows of a ring's worth.
 #[test]
 fn the_bench_motion_limit_has_this_planners_junction_speeds() {
     let (feed, accel) = (6000.0f32, 1000.0f32);
@@ -32,8 +34,8 @@ fn the_bench_motion_limit_has_this_planners_junction_speeds() {
             pl.push_line([end[0], end[1], 0, 0], feed, false, &s).unwrap();
         }
         pl.flush(&s);
-        // The window's first block starts from rest here: its joint is
-        // the last of the window before.
+        // Each window's first block starts from rest here: its joint (one
+        // in 32) is left unchecked.
         for (i, (_, want)) in chunk.iter().enumerate().skip(1) {
             let got = pl.block(i).unwrap().max_entry_speed_sqr as f64;
             assert!((got - want).abs() <= 0.01 * want, "chord {}: {got} vs the model's {want} (mm/s)²", w * window + i + 1);

@@ -16,6 +16,9 @@
 //! the programmed (unrounded) chords instead, as LinuxCNC plans them.
 //!
 //! An f64 model of its own: it shares no code with the firmware's planner.
+//! It leaves out the firmware's cap on an axis' speed step where the axis
+//! reverses (`planner::junction::REVERSAL_STEP_S`), which does not bind on
+//! this circle: `tests/motion_limit.rs` holds the two to each other.
 
 use crate::circle;
 
@@ -59,7 +62,7 @@ pub fn steps(mm: f64) -> i32 {
 }
 
 /// The chords at `feed` mm/min and `accel` mm/s² on X and Y, the X/Y rate
-/// limit raised to the feed (as `side::boot` does).
+/// limit raised to the feed (as `tools/bench` sets it).
 fn chords(feed: f64, accel: f64, path: Path) -> Vec<Chord> {
     let nominal = feed / 60.0;
     let axis_rate = nominal.max(50.0);
