@@ -134,7 +134,7 @@ pub fn run() -> ! {
     let mut last = 0u64;
     loop {
         #[cfg(not(feature = "panic-test"))]
-        m.push_bytes(core::iter::from_fn(serial::read), hw, &mut job_line);
+        m.push_bytes(serial::Rx, hw, &mut job_line);
         #[cfg(feature = "panic-test")]
         m.push_bytes(core::iter::from_fn(|| serial::read().inspect(|&b| panic_test(&mut last, b))), hw, &mut job_line);
         job_turn(m, hw, &mut job_line);

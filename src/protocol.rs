@@ -28,7 +28,7 @@ mod mcode_scanner;
 mod realtime;
 mod rx_store;
 
-pub use assembler::{Assembled, LineAssembler, BOM};
+pub use assembler::{take_usual_plain, usual, Assembled, LineAssembler, RxBytes, BOM};
 pub use checker::{block_number, checksum_star, LineChecker, Retry, MAX_TRIES};
 pub use line_cut::{code_run, folded_len, Keep, LineCut};
 pub use mcode_scanner::{MCodeScanner, Urgent};

@@ -5,7 +5,9 @@
 //! `math::sqrt_1ulp` (`src/board/sqrt.rs`) and the parser's
 //! `math::decimal::quotient_f32` (`src/board/decimal.rs`) and
 //! `math::decimal::lex_plain` (`src/board/lex.rs`) against their host
-//! twins. The multiply against the routine it replaces, avr-libc's `__mulsf3`
+//! twins, and the RX ring's copy of a line's usual bytes
+//! (`mill_rx_take_usual`, `src/board/serial.rs`) against
+//! `protocol::take_usual_plain`. The multiply against the routine it replaces, avr-libc's `__mulsf3`
 //! (`__mulsf3x`, then `__fp_round`: what avr-libc's `__mulsf3` runs), both
 //! called in the real ELF in the virtual machine, bit for bit, on random and
 //! edge operands. Where both operands and the product are normal, both must
@@ -37,6 +39,10 @@ const QUOTIENT_MAX: u64 = 195;
 /// The number lexer's longest run on a plain number (nine digits, zeros
 /// waiting in the fraction).
 const LEX_MAX: u64 = 520;
+/// The RX copy's longest run a byte (a blank: every test), cycles, and
+/// its call.
+const RX_COPY_BYTE_MAX: u64 = 26;
+const RX_COPY_CALL_MAX: u64 = 40;
 
 /// The routines of the ELF, called in one virtual machine.
 struct Routines {
@@ -535,4 +541,80 @@ fn the_assembly_number_lexer_is_its_host_twins() {
     }
     assert!(plain > 5_000, "only {plain} plain numbers");
     println!("plain numbers: {plain} of {}, mean {} cycles, max {cycles_max} (call to ret)", texts.len(), cycles_sum / plain);
+}
+
+/// The address of the firmware's static whose mangled name ends in `tail`.
+fn static_addr(vm: &Vm, tail: &str) -> u16 {
+    vm.symbols().find(tail).into_iter().find(|s| s.name.ends_with(tail)).unwrap_or_else(|| panic!("no {tail}")).addr as u16
+}
+
+#[test]
+fn the_assembly_rx_copy_is_its_host_twins() {
+    let mut m = Routines::new();
+    let f = m.addr("mill_rx_take_usual");
+    let (buf, head_at, tail_at) =
+        (static_addr(&m.vm, "6serial6RX_BUF"), static_addr(&m.vm, "6serial7RX_HEAD"), static_addr(&m.vm, "6serial7RX_TAIL"));
+    // The line's free slots, in a free stretch of RAM below the stack (the
+    // VM is not running), with a fence after them the copy must not touch.
+    const DST: u16 = 0x1C00;
+    let mut rng = Rng(0x4C1_0001);
+    let saved: Vec<(u8, u8)> = (2..=17).chain(28..=29).map(|r| (r, 0x5A ^ r)).collect();
+    let (mut bytes, mut cycles_sum, mut cycles_max_per_byte) = (0u64, 0u64, 0u64);
+    for i in 0..20_000u32 {
+        // Mostly a G-code line's bytes, some blanks, marks, line ends and
+        // bytes no line holds.
+        let ring: [u8; 256] = core::array::from_fn(|_| {
+            let r = rng.next();
+            match r % 16 {
+                0..=7 => b"0123456789.-"[(r >> 8) as usize % 12],
+                8..=10 => b"GXYZFMN$"[(r >> 8) as usize % 8],
+                11 => b' ',
+                12 => b'\t',
+                13 => b"()*;!\"'"[(r >> 8) as usize % 7],
+                14 => b"\n\r"[(r >> 8) as usize % 2],
+                _ => (r >> 8) as u8,
+            }
+        });
+        let tail = rng.next() as u8;
+        let head = tail.wrapping_add((rng.next() % 256) as u8);
+        let room = match i % 4 {
+            0 => 256,
+            1 => (rng.next() % 8) as u16,
+            2 => 300,
+            _ => (rng.next() % 257) as u16,
+        };
+        let started = rng.next().is_multiple_of(2);
+        let fence = vec![0xA5u8; room as usize + 8];
+        m.vm.write_ram(buf, &ring);
+        m.vm.write_ram(head_at, &[head]);
+        m.vm.write_ram(tail_at, &[tail]);
+        m.vm.write_ram(DST, &fence);
+        let mut regs = vec![(24, DST as u8), (25, (DST >> 8) as u8), (22, room as u8), (23, (room >> 8) as u8), (20, started as u8)];
+        regs.extend(&saved);
+        let cycles = m.vm.call(f, &regs, 20_000).expect("mill_rx_take_usual returns");
+        assert_eq!(m.vm.reg(1), 0, "r1, case {i}");
+        for &(r, v) in &saved {
+            assert_eq!(m.vm.reg(r), v, "r{r}, case {i}");
+        }
+        let mut want_dst = vec![0xA5u8; room as usize + 8];
+        let mut want_tail = tail;
+        let n = mill::protocol::take_usual_plain(&ring, head, &mut want_tail, &mut want_dst[..room as usize], started);
+        let got_n = u16::from_le_bytes([m.vm.reg(24), m.vm.reg(25)]) as usize;
+        assert_eq!(got_n, n, "case {i}: room {room}, started {started}");
+        assert_eq!(m.vm.read_u8(tail_at), want_tail, "case {i}: the tail");
+        assert_eq!(m.vm.read_u8(head_at), head, "case {i}: the head");
+        let got_dst: Vec<u8> = (0..want_dst.len() as u16).map(|k| m.vm.read_u8(DST + k)).collect();
+        assert_eq!(got_dst, want_dst, "case {i}: the line's slots and the fence after them");
+        if n > 0 {
+            bytes += n as u64;
+            cycles_sum += cycles;
+            cycles_max_per_byte = cycles_max_per_byte.max(cycles.saturating_sub(RX_COPY_CALL_MAX) / n as u64);
+        }
+        assert!(cycles <= RX_COPY_CALL_MAX + RX_COPY_BYTE_MAX * (n as u64 + 1), "case {i}: {cycles} cycles for {n} bytes");
+    }
+    assert!(bytes > 20_000, "only {bytes} bytes copied");
+    println!(
+        "{bytes} bytes copied, {:.1} cycles a byte with the calls, at most {cycles_max_per_byte} a byte beyond a call",
+        cycles_sum as f64 / bytes as f64
+    );
 }

@@ -7,11 +7,12 @@
 
 use super::{Alarm, CmdResult, Io, LineSource, Machine, SdJobFlags, State};
 use crate::gcode::interp::{self, Command};
-use crate::protocol::Assembled;
+use crate::protocol::{Assembled, RxBytes};
 use ufmt::{uwrite, uwriteln};
 
 impl Machine {
-    /// Feed received bytes as long as `bytes` gives them; runs complete
+    /// Feed received bytes as long as `bytes` gives them (the firmware's RX
+    /// ring, or any byte iterator); runs complete
     /// lines as they end. `scratch` holds the line while it runs (the
     /// firmware passes the SD job's line buffer: the two are never in use
     /// at once, and a copy on the stack cost 256 bytes of stack high-water).
@@ -21,8 +22,8 @@ impl Machine {
     /// AVR); the end of a line goes through [`Machine::line_end`].
     // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
     #[inline(never)]
-    pub fn push_bytes(&mut self, mut bytes: impl Iterator<Item = u8>, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
-        while let Some(done) = self.asm.push_from(|| bytes.next()) {
+    pub fn push_bytes(&mut self, mut bytes: impl RxBytes, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
+        while let Some(done) = self.asm.push_from(&mut bytes) {
             self.line_end(done, io, scratch);
             // Lines back to back (a host with many bytes in flight): the
             // ISR must not run dry meanwhile (as in an SD job's batch), so

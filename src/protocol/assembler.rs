@@ -108,31 +108,33 @@ impl LineAssembler {
         self.push_slow(b)
     }
 
-    /// [`push`](Self::push) for each byte `next` gives, until it gives none
-    /// (`None`) or a line ends (what `push` returned for that byte; `next`
-    /// is not called again until the following call).
+    /// [`push`](Self::push) for each byte `src` gives, until it gives none
+    /// (`None`) or a line ends (what `push` returned for that byte; `src`
+    /// is not asked again until the following call).
     ///
     /// The usual byte (as in `push`) is stored with the line's length held
     /// in a register, written back once the run of usual bytes ends; the
-    /// others go through [`push_slow`](Self::push_slow). Byte for byte what
-    /// `push_slow` does (`pushing_a_stream_matches_pushing_byte_by_byte`):
+    /// others go through [`push_slow`](Self::push_slow). A source that can
+    /// ([`RxBytes::take_usual`]: the firmware's RX ring, in assembly) first
+    /// copies its run of usual bytes into the free slots in one go. Byte for
+    /// byte what `push_slow` does (`pushing_a_stream_matches_pushing_byte_by_byte`):
     /// on the AVR ~30 cycles a byte instead of ~63 through `push`, whose
     /// length and flags went through memory on every byte (`profile
-    /// --trace`: `Machine::push_bytes`).
+    /// --trace`: `Machine::push_bytes`), and ~20 in the ring's copy.
     // speed: the per-byte loop of every serial line (doc above)
     #[inline(always)]
-    pub fn push_from(&mut self, mut next: impl FnMut() -> Option<u8>) -> Option<Assembled> {
+    pub fn push_from(&mut self, src: &mut impl RxBytes) -> Option<Assembled> {
         if self.flags & F_READY != 0 {
             self.flags = 0;
             self.len = 0;
         }
         // The free slots, none inside a comment (every byte goes slow
         // there): one test for the room and the comment. One call of
-        // `next` in the loop, so that it is inlined.
+        // `next_byte` in the loop, so that it is inlined.
         let mut code = !self.cut.in_comment();
-        let mut free = self.free_slots(code);
+        let mut free = self.taken_and_free(src, code);
         loop {
-            let Some(b) = next() else {
+            let Some(b) = src.next_byte() else {
                 if code {
                     self.len = (MAX_LINE_LEN - free.len()) as u16;
                 }
@@ -151,8 +153,21 @@ impl LineAssembler {
                 return Some(done);
             }
             code = !self.cut.in_comment();
-            free = self.free_slots(code);
+            free = self.taken_and_free(src, code);
         }
+    }
+
+    /// The run of usual bytes `src` holds taken into the line (when `code`:
+    /// outside a comment), then [`free_slots`](Self::free_slots).
+    // speed: in `push_from`'s loop
+    #[inline(always)]
+    fn taken_and_free(&mut self, src: &mut impl RxBytes, code: bool) -> core::slice::IterMut<'_, u8> {
+        if code {
+            let len = self.len as usize;
+            let n = src.take_usual(self.buf.get_mut(len..).unwrap_or_default(), len != 0);
+            self.len = (len + n) as u16;
+        }
+        self.free_slots(code)
     }
 
     /// The slots after the line's bytes, or none when `code` is false.
@@ -296,10 +311,53 @@ pub(super) fn is_mark(b: u8) -> bool {
 /// a G-code line), then the letters.
 // speed: on every byte of the assembler's loop
 #[inline(always)]
-fn usual(b: u8, started: bool) -> bool {
+pub fn usual(b: u8, started: bool) -> bool {
     if b.wrapping_sub(b'+') < b';' - b'+' || b.wrapping_sub(b'<') < 0x7F - b'<' || b.wrapping_sub(0x21) < b'(' - 0x21 {
         true
     } else {
         (b == b' ' || b == b'\t') && started
     }
+}
+
+/// Where [`LineAssembler::push_from`] takes its bytes: one at a time, and,
+/// where the source can, the run of usual bytes at its front in one go.
+/// Every byte iterator is one (one at a time).
+pub trait RxBytes {
+    /// The next byte, if one is there.
+    fn next_byte(&mut self) -> Option<u8>;
+
+    /// Copy the bytes at the front that are [`usual`] (`started`: the line
+    /// already holds a byte; once one is copied, it does) into `dst`, as
+    /// many as fit, up to the first other byte, which stays for
+    /// [`next_byte`](Self::next_byte); how many. [`take_usual_plain`] over
+    /// a ring. None by default.
+    fn take_usual(&mut self, dst: &mut [u8], started: bool) -> usize {
+        let _ = (dst, started);
+        0
+    }
+}
+
+impl<I: Iterator<Item = u8>> RxBytes for I {
+    fn next_byte(&mut self) -> Option<u8> {
+        self.next()
+    }
+}
+
+/// [`RxBytes::take_usual`] over a ring of 256 slots whose bytes wait from
+/// `*tail` up to `head` (as the firmware's RX ring holds them), `*tail`
+/// moved past what was taken. The plain twin of the firmware's
+/// `mill_rx_take_usual` (`board::serial`, `tests/soft_float.rs`).
+pub fn take_usual_plain(ring: &[u8; 256], head: u8, tail: &mut u8, dst: &mut [u8], mut started: bool) -> usize {
+    let mut n = 0;
+    for slot in dst.iter_mut() {
+        let b = ring[*tail as usize];
+        if *tail == head || !usual(b, started) {
+            break;
+        }
+        *slot = b;
+        started = true;
+        *tail = tail.wrapping_add(1);
+        n += 1;
+    }
+    n
 }

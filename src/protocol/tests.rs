@@ -584,15 +584,46 @@ fn the_assembler_fast_path_matches_the_slow_one() {
     }
 }
 
+/// A run of bytes as the firmware's RX ring holds them (from a tail
+/// anywhere in its 256 slots, across the wrap), taken one at a time and,
+/// where `bulk`, the usual ones in runs by `take_usual_plain`, as the
+/// firmware's `mill_rx_take_usual` does.
+struct Ring {
+    ring: [u8; 256],
+    head: u8,
+    tail: u8,
+    bulk: bool,
+}
+
+impl RxBytes for Ring {
+    fn next_byte(&mut self) -> Option<u8> {
+        if self.tail == self.head {
+            return None;
+        }
+        let b = self.ring[self.tail as usize];
+        self.tail = self.tail.wrapping_add(1);
+        Some(b)
+    }
+
+    fn take_usual(&mut self, dst: &mut [u8], started: bool) -> usize {
+        if !self.bulk {
+            return 0;
+        }
+        take_usual_plain(&self.ring, self.head, &mut self.tail, dst, started)
+    }
+}
+
 #[test]
 fn pushing_a_stream_matches_pushing_byte_by_byte() {
     // `push_from` (the usual bytes in a loop with the length in a
-    // register) against `push_slow` for every byte, over random streams
-    // handed over in random runs (a run ends when the ring is empty).
+    // register, or copied in runs by the source) against `push_slow` for
+    // every byte, over random streams handed over in random runs (a run
+    // ends when the ring is empty).
     let mut rng = crate::test_util::XorShift(0x5EED);
     let special = [b'\n', b'\r', b' ', b'\t', b'(', b')', b';', b'*', b'N', 0xFF, 0xEF, 0xBB, 0xBF, 0x80, 0x7F, 0x01, 0x20, 0x21, 0x7E];
-    for round in 0..300u32 {
+    for round in 0..600u32 {
         let long = round.is_multiple_of(3);
+        let bulk = !round.is_multiple_of(2);
         let bytes: Vec<u8> = (0..4000)
             .map(|_| {
                 let r = rng.next();
@@ -618,16 +649,20 @@ fn pushing_a_stream_matches_pushing_byte_by_byte() {
         let mut got = Vec::new();
         let mut i = 0;
         while i < bytes.len() {
-            // A run of 1..=64 bytes, as the RX ring may hold.
+            // A run of 1..=64 bytes, as the RX ring may hold, from any slot.
             let end = (i + 1 + (rng.next() % 64) as usize).min(bytes.len());
-            let mut it = bytes[i..end].iter().copied();
-            let mut used = i;
-            while let Some(done) = fast.push_from(|| {
-                used += 1;
-                it.next()
-            }) {
+            let t0 = rng.next() as u8;
+            let mut src = Ring { ring: [0; 256], head: t0.wrapping_add((end - i) as u8), tail: t0, bulk };
+            for (k, &b) in bytes[i..end].iter().enumerate() {
+                src.ring[t0.wrapping_add(k as u8) as usize] = b;
+            }
+            // The slot after the run holds a usual byte the copy must not take.
+            src.ring[src.head as usize] = b'7';
+            while let Some(done) = fast.push_from(&mut src) {
+                let used = i + src.tail.wrapping_sub(t0) as usize;
                 got.push((used - 1, done, fast.line().to_vec(), fast.dropped_numbered(), fast.has_marks()));
             }
+            assert_eq!(src.tail, src.head, "round {round}: the run was not all taken");
             i = end;
         }
         assert_eq!(got, want, "round {round}");
