@@ -12,10 +12,10 @@ use ufmt::{uwrite, uwriteln};
 
 impl Machine {
     /// Feed received bytes as long as `bytes` gives them (the firmware's RX
-    /// ring, or any byte iterator); runs complete
-    /// lines as they end. `scratch` holds the line while it runs (the
-    /// firmware passes the SD job's line buffer: the two are never in use
-    /// at once, and a copy on the stack cost 256 bytes of stack high-water).
+    /// ring, or any byte iterator); runs complete lines as they end.
+    /// `scratch` holds the line while it runs (the firmware passes the SD
+    /// job's line buffer: the two are never in use at once, and a copy on
+    /// the stack cost 256 bytes of stack high-water).
     ///
     /// The per-byte path is only the assembler's loop
     /// (`LineAssembler::push_from`; a call per byte cost ~20 cycles on the
