@@ -157,12 +157,16 @@ impl Machine {
         Ok(())
     }
 
-    /// Let the queue drain, then wait `ms` milliseconds, serving realtime
-    /// requests and sending the keepalive (G4, the canned cycles' P).
+    /// Let the queue drain, then wait at least `ms` milliseconds, serving
+    /// realtime requests and sending the keepalive (G4, the canned cycles'
+    /// P, the spindle's delays). The clock's first tick may come right
+    /// after the start, so one tick more is counted: the wait is `ms` to
+    /// `ms` + 1 ms, never less (a G4 S0.3 took 299.97 ms with the reply).
     pub(super) fn wait_ms(&mut self, io: &mut impl Io, ms: f32) -> CmdResult {
         self.wait_idle(io)?;
         let start = io.millis();
-        while (io.millis().wrapping_sub(start) as f32) < ms {
+        let ticks = ms + 1.0;
+        while (io.millis().wrapping_sub(start) as f32) < ticks {
             self.wait_step(io)?;
         }
         Ok(())

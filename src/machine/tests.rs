@@ -817,6 +817,27 @@ fn g4_dwells_its_seconds_on_the_board_clock() {
     assert_eq!(r.io.phys[0], 3000);
 }
 
+/// A dwell lasts at least its time whenever it starts: also when the
+/// millisecond clock ticks right after the start (the first tick is then
+/// almost no time), at every phase of the tick.
+///
+/// Checked to fail: with `wait_ms` ending when `ms` ticks have passed
+/// (G4 S0.3 took 299.97 ms in tests/corpus.rs, reply included).
+#[test]
+fn a_dwell_is_never_shorter_than_its_time() {
+    let mut r = ready_rig();
+    for k in 0..32u64 {
+        // The next dwell starts k/32 of a tick into a millisecond.
+        let c = r.io.cycles;
+        r.io.advance(MS - c % MS + k * MS / 32);
+        let a = r.io.cycles;
+        r.send("G4 P0.02");
+        let b = r.io.cycles;
+        assert!(b - a >= 20 * MS, "phase {k}/32: dwell {} ms", (b - a) as f64 / MS as f64);
+        assert!(b - a <= 22 * MS, "phase {k}/32: dwell {} ms", (b - a) as f64 / MS as f64);
+    }
+}
+
 /// M0 waits for `~`: a `?` meanwhile says Hold, nothing moves until the
 /// resume (scripted 1 s later), then the program goes on.
 ///
