@@ -64,17 +64,9 @@ pub fn lex_plain_plain(s: &[u8]) -> (u32, u8, u8) {
     let mut mantissa: u32 = 0;
     // Digits read.
     let mut n: u8 = 0;
-    while let [c, tail @ ..] = rest {
-        let d = c.wrapping_sub(b'0');
-        if d > 9 {
-            break;
-        }
-        if n == MAX_SIG_DIGITS {
-            return NOT_PLAIN;
-        }
+    while let Some(d) = next_digit(&mut rest, &mut n) {
+        let Ok(d) = d else { return NOT_PLAIN };
         mantissa = crate::math::times10_plus(mantissa, d);
-        n += 1;
-        rest = tail;
     }
     // Over MAX_INT_DIGITS significant digits before the point.
     if mantissa >= 1_000_000 {
@@ -86,16 +78,8 @@ pub fn lex_plain_plain(s: &[u8]) -> (u32, u8, u8) {
     let point = matches!(rest, [b'.', ..]);
     if let [b'.', tail @ ..] = rest {
         rest = tail;
-        while let [c, tail @ ..] = rest {
-            let d = c.wrapping_sub(b'0');
-            if d > 9 {
-                break;
-            }
-            if n == MAX_SIG_DIGITS {
-                return NOT_PLAIN;
-            }
-            n += 1;
-            rest = tail;
+        while let Some(d) = next_digit(&mut rest, &mut n) {
+            let Ok(d) = d else { return NOT_PLAIN };
             if d == 0 {
                 pending += 1;
                 continue;
@@ -128,6 +112,23 @@ pub fn lex_plain_plain(s: &[u8]) -> (u32, u8, u8) {
         _ => {}
     }
     (mantissa, n - int_digits - pending, n + point as u8)
+}
+
+/// [`lex_plain_plain`]'s digit: the one at the front of `rest`, taken, `n`
+/// counting it; `None` at anything else, `Some(Err(()))` for a digit past
+/// [`MAX_SIG_DIGITS`] (the number is not plain).
+fn next_digit(rest: &mut &[u8], n: &mut u8) -> Option<Result<u8, ()>> {
+    let [c, tail @ ..] = *rest else { return None };
+    let d = c.wrapping_sub(b'0');
+    if d > 9 {
+        return None;
+    }
+    if *n == MAX_SIG_DIGITS {
+        return Some(Err(()));
+    }
+    *n += 1;
+    *rest = tail;
+    Some(Ok(d))
 }
 
 /// [`quotient_f32_plain`]; on the AVR its steps in assembly
