@@ -32,7 +32,7 @@ use display::Display;
 use embedded_sdmmc::{SdCard, VolumeManager};
 use io::SerialOut;
 use mill::machine::Machine;
-use mill::protocol::MAX_LINE_LEN;
+use mill::protocol::{LineAssembler, MAX_LINE_LEN};
 use mill::ui::files::FileList;
 use mill::ui::menu::{Cmd, Ui, View};
 use mill::ui::sd::{SdJob, Turn};
@@ -58,6 +58,8 @@ struct Hw {
 static mut MACHINE: core::mem::MaybeUninit<Machine> = core::mem::MaybeUninit::uninit();
 /// Zero-initialised (in .bss, no flash image); written once in `run`.
 static mut HW: core::mem::MaybeUninit<Hw> = core::mem::MaybeUninit::uninit();
+/// The serial line being assembled (`Machine::push_bytes`).
+static mut ASM: LineAssembler = LineAssembler::new();
 
 /// Start the machine: the hardware side built, then the settings, the
 /// banner and the tool changer's journal (`Machine::boot`). A frame of its
@@ -126,17 +128,18 @@ fn init_hw() -> &'static mut Hw {
 /// Run the firmware. Never returns.
 pub fn run() -> ! {
     let (m, hw) = boot();
+    // SAFETY: ASM is used only here, from the main context.
+    let asm = unsafe { &mut *core::ptr::addr_of_mut!(ASM) };
     // The SD job's line buffer lives here, not in `job_turn`'s frame: zeroing
-    // it on every turn of the loop cost ~1.4k cycles per streamed line. The
-    // serial line runs from it too (`push_bytes`): never both at once.
+    // it on every turn of the loop cost ~1.4k cycles per streamed line.
     let mut job_line = [0u8; MAX_LINE_LEN];
     #[cfg(feature = "panic-test")]
     let mut last = 0u64;
     loop {
         #[cfg(not(feature = "panic-test"))]
-        m.push_bytes(serial::Rx, hw, &mut job_line);
+        m.push_bytes(asm, serial::Rx, hw);
         #[cfg(feature = "panic-test")]
-        m.push_bytes(core::iter::from_fn(|| serial::read().inspect(|&b| panic_test(&mut last, b))), hw, &mut job_line);
+        m.push_bytes(asm, core::iter::from_fn(|| serial::read().inspect(|&b| panic_test(&mut last, b))), hw);
         job_turn(m, hw, &mut job_line);
         menu::ui_turn(m, hw);
         m.idle(hw);

@@ -49,7 +49,7 @@ use crate::fixed::Micros;
 use crate::flash::FStr;
 use crate::gcode::interp::{self, Interp};
 use crate::planner::Planner;
-use crate::protocol::{LineAssembler, LineChecker};
+use crate::protocol::LineChecker;
 use crate::stepper::Prep;
 use crate::N_AXES;
 use ufmt::{uwrite, uwriteln};
@@ -167,7 +167,6 @@ pub struct Machine {
     pub atc: crate::atc::Atc,
     /// Tool setter position and calibration.
     pub setter: crate::toolsetter::Setter,
-    asm: LineAssembler,
     chk: LineChecker,
     pub state: State,
     pub alarm: Option<Alarm>,
@@ -228,6 +227,10 @@ pub struct Machine {
     /// `line_aborts`, the count when the current line started.
     pub aborts: u8,
     line_aborts: u8,
+    /// A soft reset flushed the input: the line being assembled (in the
+    /// caller's assembler, see [`Machine::push_bytes`]) is dropped before
+    /// the next byte.
+    input_flushed: bool,
     /// Run from line: what the scan keeps (4 bytes).
     pub rebuild: rebuild::Rebuild,
 }
@@ -277,7 +280,6 @@ impl Machine {
             interp: Interp::new(),
             atc: crate::atc::Atc::new(),
             setter: crate::toolsetter::Setter { x_um: 0, y_um: 0, beam_z_um: 0, beam_width_um: 0, ref_length_um: 0, ref_diameter_um: 0 },
-            asm: LineAssembler::new(),
             chk: LineChecker::new(),
             state: State::Idle,
             alarm: None,
@@ -303,6 +305,7 @@ impl Machine {
             abort_keeps_spindle: false,
             aborts: 0,
             line_aborts: 0,
+            input_flushed: false,
             rebuild: rebuild::Rebuild::OFF,
         }
     }

@@ -323,6 +323,23 @@ fn ctrl_x_during_a_dwell_ends_the_line_without_an_ok_and_drops_what_was_queued()
 }
 
 #[test]
+fn ctrl_x_drops_the_half_received_line() {
+    let mut vm = unlocked();
+    let p0 = steps(&vm);
+    // Half a line: its bytes reach the line assembler, which waits for the
+    // line end.
+    vm.send(b"G91 G0 X5");
+    vm.run_for(0.1).unwrap();
+    vm.send([0x18]);
+    vm.wait_line(|l| l.starts_with("Grbl 1.1h"), 0.5).unwrap();
+    vm.take_lines();
+    // What follows the reset is a line of its own, not the end of that one.
+    ok(&mut vm, "G91 G0 Y1");
+    ok(&mut vm, "M400");
+    assert_eq!(moved(&vm, p0), [0, 100, 0, 0]);
+}
+
+#[test]
 fn dollar_g_hash_and_i_answer_in_grbl_formats() {
     let mut vm = unlocked();
     let r = ok(&mut vm, "$G");

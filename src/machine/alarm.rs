@@ -193,7 +193,7 @@ impl Machine {
         self.tripped = false;
         self.apply_watch(io, 0, false);
         io.flush_rx();
-        self.asm.reset();
+        self.input_flushed = true;
         self.aborts = self.aborts.wrapping_add(1);
         if self.source == LineSource::Serial {
             self.source = LineSource::SerialReset;

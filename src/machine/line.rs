@@ -7,24 +7,28 @@
 
 use super::{Alarm, CmdResult, Io, LineSource, Machine, SdJobFlags, State};
 use crate::gcode::interp::{self, Command};
-use crate::protocol::{Assembled, RxBytes};
+use crate::protocol::{Assembled, LineAssembler, RxBytes};
 use ufmt::{uwrite, uwriteln};
 
 impl Machine {
     /// Feed received bytes as long as `bytes` gives them (the firmware's RX
-    /// ring, or any byte iterator); runs complete lines as they end.
-    /// `scratch` holds the line while it runs (the firmware passes the SD
-    /// job's line buffer: the two are never in use at once, and a copy on
-    /// the stack cost 256 bytes of stack high-water).
+    /// ring, or any byte iterator) into `asm`; runs complete lines as they
+    /// end. The assembler is the caller's, not the machine's, so that a
+    /// line runs from its buffer while the machine is borrowed mutably (a
+    /// copy into a buffer of its own cost ~130 cycles a streamed line on
+    /// the AVR); a soft reset drops its line in progress here, before the
+    /// next byte (`input_flushed`).
     ///
     /// The per-byte path is only the assembler's loop
     /// (`LineAssembler::push_from`; a call per byte cost ~20 cycles on the
     /// AVR); the end of a line goes through [`Machine::line_end`].
     // stack: the line path's frames stay apart (this file's attributes removed: +24 B stack, +110 B flash)
     #[inline(never)]
-    pub fn push_bytes(&mut self, mut bytes: impl RxBytes, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
-        while let Some(done) = self.asm.push_from(&mut bytes) {
-            self.line_end(done, io, scratch);
+    pub fn push_bytes(&mut self, asm: &mut LineAssembler, mut bytes: impl RxBytes, io: &mut impl Io) {
+        self.sync_input(asm);
+        while let Some(done) = asm.push_from(&mut bytes) {
+            self.line_end(asm, done, io);
+            self.sync_input(asm);
             // Lines back to back (a host with many bytes in flight): the
             // ISR must not run dry meanwhile (as in an SD job's batch), so
             // the main loop takes its turn (the top-up, realtime requests,
@@ -40,22 +44,9 @@ impl Machine {
     // save at a line's end (profile --trace 20 165 → 20 123 cycles a line,
     // stack peak 1 542 → 1 536 B)
     #[inline(always)]
-    pub(super) fn line_end(&mut self, done: Assembled, io: &mut impl Io, scratch: &mut [u8; crate::protocol::MAX_LINE_LEN]) {
+    pub(super) fn line_end(&mut self, asm: &LineAssembler, done: Assembled, io: &mut impl Io) {
         match done {
-            Assembled::Line => {
-                // The line is copied out of the assembler (running it needs
-                // `&mut self`).
-                let (raw, marks) = (self.asm.line(), self.asm.has_marks());
-                let n = raw.len().min(scratch.len());
-                let line = match (scratch.get_mut(..n), raw.get(..n)) {
-                    (Some(d), Some(r)) => {
-                        d.copy_from_slice(r);
-                        &*d
-                    }
-                    _ => &[][..],
-                };
-                self.run_raw_line(line, marks, io);
-            }
+            Assembled::Line => self.run_raw_line(asm.line(), asm.has_marks(), io),
             other => {
                 let msg = match other {
                     Assembled::TooLong => F!("line too long (max 256 characters), ignored"),
@@ -64,7 +55,7 @@ impl Machine {
                 };
                 // Numbered if it began with N; after an overrun (its start may
                 // be lost) as the line before it was.
-                self.numbered |= self.asm.dropped_numbered();
+                self.numbered |= asm.dropped_numbered();
                 if self.grbl_replies && !self.numbered {
                     // grbl: error 11 (line overflow), or 1 for the rest.
                     let code = if other == Assembled::TooLong { 11u8 } else { 1 };
@@ -74,6 +65,16 @@ impl Machine {
                 self.reject_line(io, msg);
                 uwriteln!(io, "ok").ok();
             }
+        }
+    }
+
+    /// Drop the line `asm` is assembling if a soft reset flushed the input
+    /// since the last call.
+    // speed: a test per line of push_bytes' loop
+    #[inline(always)]
+    fn sync_input(&mut self, asm: &mut LineAssembler) {
+        if core::mem::take(&mut self.input_flushed) {
+            asm.reset();
         }
     }
 

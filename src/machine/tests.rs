@@ -15,12 +15,13 @@ use crate::atc::tools::{
 };
 use crate::fake_board::{At, Beam, Event, FakeBoard, Input, Output, Tool};
 use crate::machine::{Machine, State};
-use crate::protocol::MAX_LINE_LEN;
+use crate::protocol::LineAssembler;
 
 /// A machine on a fake board.
 struct Rig {
     m: Box<Machine>,
     io: FakeBoard,
+    asm: LineAssembler,
 }
 
 impl Rig {
@@ -28,15 +29,14 @@ impl Rig {
     fn boot(mut io: FakeBoard) -> Rig {
         let mut m = Box::new(Machine::new());
         m.boot(&mut io, F!("power-on"), false);
-        Rig { m, io }
+        Rig { m, io, asm: LineAssembler::new() }
     }
 
     /// Send `line` as a host does; what the firmware printed until its `ok`.
     fn send(&mut self, line: &str) -> String {
         self.io.take_out();
-        let mut scratch = [0u8; MAX_LINE_LEN];
         let bytes = format!("{line}\n");
-        self.m.push_bytes(bytes.bytes(), &mut self.io, &mut scratch);
+        self.m.push_bytes(&mut self.asm, bytes.bytes(), &mut self.io);
         let r = self.io.take_out();
         assert!(r.ends_with("ok\n"), "{line:?}: no ok: {r:?}");
         r
