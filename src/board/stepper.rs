@@ -2,7 +2,7 @@
 //!
 //! Pipeline position: the main loop's `stepper::prep` makes `StepperCmd`s;
 //! [`push`] hands them to `mill::stepper::rings::Rings` (host-tested: the
-//! splitter, heads, free slots, retiring, position, trips), which writes
+//! splitter, heads, free slots, position, trips), which writes
 //! [`Chunk`]s (the Bresenham of a block, ≤ 32767 events, 16-bit) and
 //! [`Seg`]s (`ticks` events at one timer period) into the two rings here.
 //! This file keeps only the statics, the registers, the ISR and one-line
@@ -26,10 +26,10 @@
 //!    before the next one (DRV8825: 650 ns setup and hold).
 //!
 //! The ISR does not count position. The main loop knows every chunk it
-//! queued: [`position`] (`Rings::position`) adds up the finished ones and,
-//! for the chunk in progress, what its error counters say
-//! ([`Chunk::steps_done`]), minus the computed-but-not-yet-output `pending`
-//! step.
+//! queued: [`position`] (`Rings::position`) takes the queued ones from the
+//! position at their end and adds, for the chunk in progress, what its
+//! error counters say ([`Chunk::steps_done`]), minus the
+//! computed-but-not-yet-output `pending` step.
 //!
 //! The timer never stops: with nothing to do it ticks at 1 kHz and polls the
 //! ring, so there is no start/stop race with the main loop. OCR1A never goes
@@ -188,11 +188,12 @@ impl RingMem for Mem {
         unsafe { read_volatile(addr_of!(ST.cur)) }
     }
 
-    // speed: LLVM makes it a call (one per chunk retired) otherwise
+    // speed: LLVM makes it a call (one per queued chunk the position passes) otherwise
     #[inline(always)]
     fn chunk(&self, i: u8) -> &Chunk {
         // SAFETY: the rings ask only for slots the ISR has finished (before
-        // its current one) or not yet reached, or with the ISR unable to run.
+        // its current one) or not yet reached, or with the ISR unable to run;
+        // the ISR writes only the error counters of its running chunk.
         unsafe { &*addr_of!(CHUNKS[i as usize]) }
     }
 

@@ -64,6 +64,10 @@ impl Stepper for Hw {
         }
     }
 
+    fn stepper_busy(&self) -> bool {
+        stepper::busy()
+    }
+
     fn set_stepper_position(&mut self, p: [i32; 4]) {
         stepper::set_position(p);
     }

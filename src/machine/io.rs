@@ -84,6 +84,11 @@ pub trait Stepper {
     }
     /// Stepper position and activity.
     fn stepper(&self) -> StepperStatus;
+    /// [`StepperStatus::busy`] alone (the position costs a pass over the
+    /// queued chunks on the board).
+    fn stepper_busy(&self) -> bool {
+        self.stepper().busy
+    }
     /// Overwrite the stepper's position counter (only while stopped).
     fn set_stepper_position(&mut self, p: [i32; N_AXES]);
     /// Stop stepping at once, dropping queued segments.

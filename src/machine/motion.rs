@@ -254,7 +254,7 @@ impl Machine {
 
     /// True when nothing is planned, prepared or stepping.
     pub fn motion_done(&self, io: &impl Stepper) -> bool {
-        self.planner.is_empty() && !self.prep.is_busy() && !io.stepper().busy
+        self.planner.is_empty() && !self.prep.is_busy() && !io.stepper_busy()
     }
 
     /// Wait until every queued move has been stepped out.

@@ -40,7 +40,7 @@ impl Machine {
                 self.spindle_stopped = false;
                 io.spindle(crate::overrides::spindle_duty(self.spindle_duty, self.spindle_pct));
             }
-            if self.prep.is_held() || !io.stepper().busy {
+            if self.prep.is_held() || !io.stepper_busy() {
                 self.planner.cycle_reinitialize();
             }
             self.prep.resume();
@@ -66,7 +66,7 @@ impl Machine {
                 self.prep.hold();
             }
         }
-        if self.aborting && (self.prep.is_held() || self.motion_done(io)) && !io.stepper().busy {
+        if self.aborting && (self.prep.is_held() || self.motion_done(io)) && !io.stepper_busy() {
             self.finish_abort(io);
         }
         if self.limits_held != 0 {

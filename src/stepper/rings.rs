@@ -19,19 +19,21 @@
 //! - **Queued motion time.** Each segment's CPU cycles are kept beside its
 //!   slot, with their running total, so [`Rings::space`] can cap what waits in
 //!   the ring at [`MAX_QUEUED_CYCLES`] in O(1) amortised.
-//! - **Position.** The ISR does not count steps. Chunks the ISR has finished
-//!   are *retired* into `base` (only when the chunk ring runs short of room,
-//!   or when the position is asked for); [`Rings::position`] adds the running
-//!   chunk's progress from its error counters ([`Chunk::steps_done`]) and
-//!   takes off the step computed but not yet output (`pending`).
+//! - **Position.** The ISR does not count steps, and neither does this side
+//!   per chunk: the splitter keeps the position at the end of everything
+//!   queued ([`Splitter::plan_position`]), and [`Rings::position`] takes off
+//!   the chunks from the ISR's running one on, adds the running chunk's
+//!   progress from its error counters ([`Chunk::steps_done`]) and takes off
+//!   the step computed but not yet output (`pending`). (Adding each finished
+//!   chunk into a counted position instead cost ~190 cycles a streamed line
+//!   on the AVR; the position is asked for a few times a second.)
 //! - **Trips.** The position at a homing or probe trip is latched the first
 //!   time it is asked for; [`Rings::clear`] forgets it with the queue.
 //! - **Watch.** What the ISR watches ([`Watch`]) and the hard-limit masks of
 //!   new chunks ([`ChunkWatch`], computed by the splitter).
 //!
-//! RAM on AVR: [`Rings`] is 187 B (16 × 4 B of segment cycles, the splitter's
-//! 72 B, base and trip 2 × 16 B, the watch 11 B, indices); the same as the
-//! statics it replaced in `board::stepper`.
+//! RAM on AVR: [`Rings`] is 171 B (16 × 4 B of segment cycles, the splitter's
+//! 72 B, the trip position 16 B, the watch 11 B, indices).
 
 use super::queue::{Chunk, ChunkWatch, Seg, Sink, Splitter, StepMap};
 use super::StepperCmd;
@@ -132,10 +134,6 @@ pub trait RingMem {
 /// Main-loop bookkeeping of the rings (one static in the board).
 #[derive(Clone, Copy, Debug)]
 pub struct Rings {
-    /// Counted position at the start of chunk `retire`, steps.
-    base: [i32; N_AXES],
-    /// Oldest chunk not yet added to `base` (≤ the ISR's running chunk).
-    retire: u8,
     /// What the sink writes.
     w: Writer,
     split: Splitter,
@@ -226,8 +224,6 @@ impl Rings {
     /// Empty rings at position 0; the ISR starts on chunk slot 0 (empty).
     pub const fn new() -> Self {
         Rings {
-            base: [0; N_AXES],
-            retire: 0,
             w: Writer { chunk_head: 1, seg_done: 0, seg_queued: 0, seg_cycles: [0; SEG_RING_LEN] },
             split: Splitter::new(),
             chunk_watch: ChunkWatch { limits: 0, homed: 0, invert_dir: 0, release: [0; 3] },
@@ -236,35 +232,6 @@ impl Rings {
             invert_inputs: 0,
             trip: [0; N_AXES],
             trip_latched: false,
-        }
-    }
-
-    /// Add the chunks the ISR has finished (before `cur`) to `base`.
-    fn retire_to(&mut self, mem: &impl RingMem, cur: u8) {
-        while self.retire != cur {
-            let c = mem.chunk(self.retire);
-            if !c.take_up {
-                // One axis, its index and bit constants: written out (the
-                // loop tested `axis_dir` by a variable shift, a loop on the
-                // AVR: ~170 cycles a chunk, one chunk a streamed line).
-                macro_rules! retire_axis {
-                    ($i:literal) => {{
-                        let d = c.steps[$i] as i32;
-                        if d != 0 {
-                            if c.axis_dir & (1 << $i) != 0 {
-                                self.base[$i] -= d;
-                            } else {
-                                self.base[$i] += d;
-                            }
-                        }
-                    }};
-                }
-                retire_axis!(0);
-                retire_axis!(1);
-                retire_axis!(2);
-                retire_axis!(3);
-            }
-            self.retire = (self.retire + 1) & CHUNK_MASK;
         }
     }
 
@@ -280,17 +247,13 @@ impl Rings {
         w.seg_queued
     }
 
-    /// Free (segment, chunk) slots. Finished chunks are retired only when the
-    /// chunk ring looks short of room (retiring costs ~130 cycles per call).
+    /// Free (segment, chunk) slots: a chunk's slot is free once the ISR
+    /// has moved past it.
     // flash: left to LLVM (with `push`), `Rings::space` grows by 4 B
     #[inline(always)]
     fn free_slots(&mut self, mem: &impl RingMem) -> (u8, u8) {
         let seg_free = SEG_MASK - (mem.seg_head().wrapping_sub(mem.seg_tail()) & SEG_MASK);
-        let mut chunk_free = CHUNK_MASK - (self.w.chunk_head.wrapping_sub(self.retire) & CHUNK_MASK);
-        if chunk_free < 2 {
-            self.retire_to(mem, mem.chunk_cur());
-            chunk_free = CHUNK_MASK - (self.w.chunk_head.wrapping_sub(self.retire) & CHUNK_MASK);
-        }
+        let chunk_free = CHUNK_MASK - (self.w.chunk_head.wrapping_sub(mem.chunk_cur()) & CHUNK_MASK);
         (seg_free, chunk_free)
     }
 
@@ -344,11 +307,24 @@ impl Rings {
         }
     }
 
-    /// Machine position in steps: what has been output on the pins.
-    pub fn position(&mut self, map: &StepMap, mem: &impl RingMem) -> [i32; N_AXES] {
+    /// Machine position in steps: what has been output on the pins. The
+    /// splitter's plan (the position at the end of every chunk queued)
+    /// less the chunks from the ISR's running one on, plus the running
+    /// chunk's progress: O(chunks queued) when asked, nothing per chunk.
+    pub fn position(&self, map: &StepMap, mem: &impl RingMem) -> [i32; N_AXES] {
         let s = mem.snapshot();
-        self.retire_to(mem, s.cur);
-        let mut p = self.base;
+        let mut p = self.split.plan_position();
+        let mut i = s.cur;
+        while i != self.w.chunk_head {
+            let c = if i == s.cur { &s.chunk } else { mem.chunk(i) };
+            if !c.take_up {
+                let t = c.total();
+                for a in 0..N_AXES {
+                    p[a] -= t[a];
+                }
+            }
+            i = (i + 1) & CHUNK_MASK;
+        }
         let chunk = &s.chunk;
         if !chunk.take_up {
             let done = chunk.signed(chunk.steps_done(s.k));
@@ -388,7 +364,6 @@ impl Rings {
         let q = self.position(map, mem);
         let mut plan = self.split.plan_position();
         for i in 0..N_AXES {
-            self.base[i] += p[i] - q[i];
             plan[i] += p[i] - q[i];
         }
         self.split.reset(plan);
@@ -397,15 +372,13 @@ impl Rings {
     /// After a stop: forget everything queued; the position stays `q`, what
     /// was output. Call with the ISR unable to run and its state reset to "no
     /// segment" on chunk `cur`. The interrupted chunk is accounted for in
-    /// `q`: its slot is emptied so that retiring it later (when the ISR moves
-    /// on) adds nothing.
+    /// `q`: its slot is emptied so that it neither counts as queued nor as
+    /// progress.
     pub fn clear(&mut self, cur: u8, q: [i32; N_AXES], mem: &mut impl RingMem) {
         let mut c = *mem.chunk(cur);
         c.steps = [0; N_AXES];
         mem.set_chunk(cur, &c);
-        self.retire = cur;
         self.w.chunk_head = (cur + 1) & CHUNK_MASK;
-        self.base = q;
         self.split.reset(q);
         self.trip_latched = false;
     }
@@ -432,7 +405,7 @@ impl Rings {
 }
 
 #[cfg(target_arch = "avr")]
-const _: () = assert!(core::mem::size_of::<Rings>() == 188);
+const _: () = assert!(core::mem::size_of::<Rings>() == 171);
 
 impl Default for Rings {
     fn default() -> Self {
