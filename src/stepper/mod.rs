@@ -51,7 +51,7 @@
 //!
 //! RAM on AVR: the ISR's rings are 16 [`queue::Seg`]s (8 B) and 16
 //! [`queue::Chunk`]s (26 B), 544 B (`board::stepper`); [`rings::Rings`]
-//! 187 B; `Prep` about 80 B.
+//! 171 B; `Prep` about 80 B.
 
 pub mod bresenham;
 pub mod prep;
