@@ -43,11 +43,12 @@
 //! home switch closes), `pos` is the firmware's counted position (moved by
 //! [`Stepper::set_stepper_position`]). The board counts no steps: [`Rings`]
 //! rebuilds the position from the splitter's plan, the queued chunks and
-//! `Chunk::steps_done` of the running one ([`FakeBoard::reconstructed_position`]); the fake counts
-//! them as well, and after every timer event that steps, and on every
-//! [`Stepper::stepper`], it asserts that the two agree (and that the latched trip
-//! position is where the ISR stopped), so every controller test also checks
-//! the board's bookkeeping.
+//! `Chunk::steps_done` of the running one
+//! ([`FakeBoard::reconstructed_position`]); the fake counts them as well,
+//! and after every timer event that steps, and on every
+//! [`Stepper::stepper`], it asserts that the two agree (and that the
+//! latched trip position is where the ISR stopped), so every controller
+//! test also checks the board's bookkeeping.
 
 use crate::machine::{Host, Inputs, Outputs, Realtime, Stepper, StepperStatus, Storage, Switches};
 use crate::stepper::queue::{Seg, StepMap};

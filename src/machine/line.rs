@@ -15,7 +15,7 @@ impl Machine {
     /// ring, or any byte iterator) into `asm`; runs complete lines as they
     /// end. The assembler is the caller's, not the machine's, so that a
     /// line runs from its buffer while the machine is borrowed mutably (a
-    /// copy into a buffer of its own cost ~130 cycles a streamed line on
+    /// copy into a buffer of its own cost ~110 cycles a streamed line on
     /// the AVR); a soft reset drops its line in progress here, before the
     /// next byte (`input_flushed`).
     ///
