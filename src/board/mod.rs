@@ -34,6 +34,16 @@ pub mod stepper;
 pub mod twi;
 pub mod wdt;
 
+/// GPIOR1 and GPIOR2 (I/O 0x2A and 0x2B, datasheet §10.4): where the
+/// assembly fast paths of the step, RX and millisecond interrupts keep r24
+/// and SREG while they run (`out` and `in`, a cycle each, instead of a
+/// push and a pop, two each: 4 cycles an interrupt). Interrupts never
+/// nest (no handler sets I), each fast path takes its values back before
+/// its `reti` or its jump to a Rust handler, and nothing else uses the two
+/// registers (GPIOR0 is the bootloader landing pad's mark).
+const ISR_R24_IO: u8 = 0x2A;
+const ISR_SREG_IO: u8 = 0x2B;
+
 use avr_device::atmega2560::{Peripherals, TC0, TC2};
 use avr_device::interrupt::Mutex;
 use core::cell::Cell;
@@ -224,22 +234,24 @@ static mut ENC_LAST: u8 = 0xFF;
 // 1 kHz tick (`__vector_21`, TIMER0_COMPA), fast path: the millisecond
 // clock, and when the encoder's pins read as in the last sample and that
 // sample left the decoder settled, nothing else (a sample would change
-// nothing: `settled_levels_again_change_nothing`). Written out with 2
-// registers saved: ~45 cycles entry to `reti`, against ~157 for the Rust
+// nothing: `settled_levels_again_change_nothing`). Written out with r24
+// and SREG kept in GPIOR1/2 (`ISR_R24_IO`) and r25 pushed: ~41 cycles
+// entry to `reti`, against ~157 for the Rust
 // handler (which saved 13 registers and sampled every tick). Otherwise the
 // registers and SREG are restored and a jump enters `timer0_sample` as if
 // the hardware had, so that its `reti` ends the interrupt.
 //
-// SAFETY: writes only MILLIS (read elsewhere with interrupts off), keeps
-// interrupts off, and leaves every register and SREG as it found them.
+// SAFETY: writes only MILLIS (read elsewhere with interrupts off) and
+// GPIOR1/2 (the interrupts' scratch, `ISR_R24_IO`), keeps interrupts off,
+// and leaves every register and SREG as it found them.
 core::arch::global_asm!(
     ".pushsection .text.__vector_21,\"ax\",@progbits",
     ".global __vector_21",
     ".type __vector_21, @function",
     "__vector_21:",
-    "    push r24",
+    "    out  {r24_io}, r24",      // r24 and SREG kept in GPIOR1/2 (board::ISR_R24_IO)
     "    in   r24, 0x3f",          // SREG
-    "    push r24",
+    "    out  {sreg_io}, r24",
     "    lds  r24, {ms}",          // MILLIS += 1, a byte at a time
     "    subi r24, 0xff",
     "    sts  {ms}, r24",
@@ -259,14 +271,14 @@ core::arch::global_asm!(
     "    cp   r24, r25",
     "    pop  r25",
     "    brne .Ltick_sample",
-    "    pop  r24",
+    "    in   r24, {sreg_io}",
     "    out  0x3f, r24",
-    "    pop  r24",
+    "    in   r24, {r24_io}",
     "    reti",
     ".Ltick_sample:",
-    "    pop  r24",
+    "    in   r24, {sreg_io}",
     "    out  0x3f, r24",
-    "    pop  r24",
+    "    in   r24, {r24_io}",
     "    jmp  {sample}",
     ".size __vector_21, . - __vector_21",
     ".popsection",
@@ -275,6 +287,8 @@ core::arch::global_asm!(
     mask = const ENC_MASK,
     last = sym ENC_LAST,
     sample = sym timer0_sample,
+    r24_io = const ISR_R24_IO,
+    sreg_io = const ISR_SREG_IO,
 );
 
 /// The 1 kHz tick's slow path: one sample of the encoder and its button

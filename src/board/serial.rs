@@ -416,7 +416,8 @@ const DOR0: u8 = 3;
 // it (`MCodeScanner::ignores` it, `RxText::classify` leaves its state alone,
 // `protocol::tests::the_fast_path_bytes_change_nothing`, and
 // `RxStore::store` with no gap pending is a plain enqueue), written out
-// with 4 registers saved instead of the 9 the Rust handler saves (a Rust
+// with 2 registers pushed and r24 and SREG kept in GPIOR1/2
+// (`board::ISR_R24_IO`) instead of the 9 the Rust handler saves (a Rust
 // ISR saves every register any of its paths uses). The two bytes of every
 // line that change `RX_TEXT` are also taken here when nothing else is
 // pending (`RX_SLOW` is `RX_FAST` or `RX_LINE_START`): a line end (`\n`,
@@ -431,18 +432,20 @@ const DOR0: u8 = 3;
 // a jump enters the slow path as if the hardware had, so that its `reti`
 // ends the interrupt.
 //
-// Budget: 72 cycles per ordinary byte, entry to `reti` (64 before the
-// comment/numbered-line tracking of `RxText`; 164 in Rust alone), 60 for a
-// digit, `.` or `-` (tested first: most of a G-code line), ~80 for a line
-// end or a line's first byte (~200 through the slow path). Per
+// Budget: 68 cycles per ordinary byte, entry to `reti` (72 with r24 and
+// SREG pushed, 64 before the comment/numbered-line tracking of `RxText`;
+// 164 in Rust alone), 56 for a digit, `.` or `-` (tested first: most of a
+// G-code line), ~76 for a line end or a line's first byte (~200 through
+// the slow path). Per
 // streamed G1 line (`cargo run -p sim --release --bin profile -- --trace
 // 500:300`, `__vector_25` inclusive): see docs/ARCHITECTURE.md "Benchmark". A byte
-// for the slow path costs ~38 cycles here plus ~165 in `usart0_rx_slow`.
+// for the slow path costs ~34 cycles here plus ~165 in `usart0_rx_slow`.
 //
 // SAFETY: the fast path writes only what the RX interrupt owns (the ring
 // slot at RX_HEAD, then RX_HEAD, and RX_PREV / RX_TEXT / RX_SLOW / RX_IN /
-// RX_IN_LOST), keeps interrupts off, and leaves every register and SREG as
-// it found them. `RxText` is `repr(transparent)` over its state byte.
+// RX_IN_LOST) and GPIOR1/2 (the interrupts' scratch, `board::ISR_R24_IO`),
+// keeps interrupts off, and leaves every register and SREG as it found
+// them. `RxText` is `repr(transparent)` over its state byte.
 core::arch::global_asm!(
     // Store r24 in the ring and RX_PREV (r25, r30, r31 free; r30 and r31
     // pushed); a full ring jumps to .Lrx_full.
@@ -464,9 +467,9 @@ core::arch::global_asm!(
     ".global __vector_25",
     ".type __vector_25, @function",
     "__vector_25:",
-    "    push r24",
+    "    out  {r24_io}, r24",      // r24 and SREG kept in GPIOR1/2 (board::ISR_R24_IO)
     "    in   r24, 0x3f",          // SREG
-    "    push r24",
+    "    out  {sreg_io}, r24",
     "    push r25",
     "    lds  r25, {ucsr0a}",
     "    lds  r24, {udr0}",
@@ -506,9 +509,9 @@ core::arch::global_asm!(
     "    pop  r30",
     ".Lrx_done:",
     "    pop  r25",
-    "    pop  r24",
+    "    in   r24, {sreg_io}",
     "    out  0x3f, r24",
-    "    pop  r24",
+    "    in   r24, {r24_io}",
     "    reti",
     ".Lrx_full:",
     "    pop  r31",
@@ -519,9 +522,9 @@ core::arch::global_asm!(
     "    sts  {lost}, r25",
     "    sts  {byte}, r24",
     "    pop  r25",
-    "    pop  r24",
+    "    in   r24, {sreg_io}",
     "    out  0x3f, r24",
-    "    pop  r24",
+    "    in   r24, {r24_io}",
     "    jmp  {slow_path}",
     // A control byte: a line end is taken here unless all goes slow. (The
     // blocks sit here, after the usual byte's path, within the branches'
@@ -583,6 +586,8 @@ core::arch::global_asm!(
     lost = sym RX_IN_LOST,
     byte = sym RX_IN,
     slow_path = sym usart0_rx_slow,
+    r24_io = const super::ISR_R24_IO,
+    sreg_io = const super::ISR_SREG_IO,
     fast = const RX_FAST,
     all_slow = const RX_ALL_SLOW,
     line_start = const RX_LINE_START,

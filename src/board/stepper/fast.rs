@@ -6,8 +6,9 @@ use super::{motion, pins, step_slow, step_tripped, Chunk, Isr, MOTION, ST};
 
 // One step event, the usual one, in assembly: not stopped, nothing homed
 // or probed, the running segment not used up (so no segment to load). It
-// does what the Rust path (`step_slow`) does for that case, with 11 registers
-// saved instead of 17 and the switch test written out: rising edges, the
+// does what the Rust path (`step_slow`) does for that case, with 9 registers
+// pushed and r24 and SREG kept in GPIOR1/2 (`board::ISR_R24_IO`) instead
+// of 17 saved, and the switch test written out: rising edges, the
 // hard-limit switches of the running chunk (a closed one: the Rust path
 // `step_tripped` takes over), the next event (`tick`'s Bresenham,
 // each partial axis reading the event count itself), falling edges. The
@@ -17,7 +18,8 @@ use super::{motion, pins, step_slow, step_tripped, Chunk, Isr, MOTION, ST};
 //
 // SAFETY: writes only what the step interrupt owns (ST's pending,
 // ticks_left; the running chunk's error counters; the step pins through
-// PINx), keeps interrupts off, and leaves every register and SREG as it
+// PINx) and GPIOR1/2 (the interrupts' scratch, `board::ISR_R24_IO`),
+// keeps interrupts off, and leaves every register and SREG as it
 // found them.
 core::arch::global_asm!(
     // The registers and SREG as the interrupt found them.
@@ -31,25 +33,25 @@ core::arch::global_asm!(
     "    pop  r19",
     "    pop  r18",
     "    pop  r25",
-    "    pop  r24",
+    "    in   r24, {sreg_io}",
     "    out  0x3f, r24",
-    "    pop  r24",
+    "    in   r24, {r24_io}",
     ".endm",
     ".pushsection .text.__vector_17,\"ax\",@progbits",
     // The way to the Rust path first: the branches to it must reach.
     ".Lstep_slow25:",
     "    pop  r25",
     ".Lstep_slow:",
-    "    pop  r24",
+    "    in   r24, {sreg_io}",
     "    out  0x3f, r24",
-    "    pop  r24",
+    "    in   r24, {r24_io}",
     "    jmp  {slow}",
     ".global __vector_17",
     ".type __vector_17, @function",
     "__vector_17:",
-    "    push r24",
+    "    out  {r24_io}, r24",      // r24 and SREG kept in GPIOR1/2 (board::ISR_R24_IO)
     "    in   r24, 0x3f",
-    "    push r24",
+    "    out  {sreg_io}, r24",
     // The segment used up first, with the fewest steps before the jump:
     // loading the next one is the longest path of the Rust one.
     "    lds  r24, {st}+{ticks}",
@@ -230,6 +232,8 @@ core::arch::global_asm!(
     e = const pins::E_STEP.mask,
     tripped = sym step_tripped,
     slow = sym step_slow,
+    r24_io = const crate::board::ISR_R24_IO,
+    sreg_io = const crate::board::ISR_SREG_IO,
 );
 
 // The fast path's switch test is `pins::home_closed`'s (X, Y, Z in bits
