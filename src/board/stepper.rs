@@ -42,10 +42,10 @@
 //! it to the Rust path (`step_slow`), which does the same steps.
 //!
 //! Cycle budget (simavr, 16 MHz, interrupt response and RETI included,
-//! measured by `tools/bench` over all its runs): min 143, mean 170, max 365
+//! measured by `tools/bench` over all its runs): min 139, mean 166, max 361
 //! (docs/SPEC.md §11: 400). The longest is a segment load with a new chunk
 //! on the Rust path, ~22 cycles after the assembly's tests and jump. On a
-//! streamed 0.1 mm G1 line the interrupt averages 181 cycles (it was 204
+//! streamed 0.1 mm G1 line the interrupt averages 177 cycles (it was 204
 //! in Rust alone: `profile --count 254 --feed 12000 --accel 5000 --trace
 //! 500:300`, `__vector_17`). Idle polling at 1 kHz takes the Rust path.
 
