@@ -14,9 +14,9 @@
 // that is not plain (the twin's `(0, 0, 0)`). m·10 + d is four byte
 // products on the hardware multiplier (r17 = 10, r16 = 0), two while the
 // mantissa fits 16 bits (its first four digits: ~12 cycles a digit fewer,
-// ~90 a streamed line). The T flag is
-// the point. `tests/soft_float.rs` calls it in the ELF against the twin on
-// random and edge texts, bit for bit, and times it.
+// ~90 a streamed line). The T flag is the point. `tests/soft_float.rs`
+// calls it in the ELF against the twin on random and edge texts, bit for
+// bit, and times it.
 //
 // SAFETY: reads only the `len` bytes at the pointer; changes only the
 // call-clobbered registers of avr-gcc's convention (r18–r27, r30, r31, r0)
