@@ -236,8 +236,8 @@ static mut ENC_LAST: u8 = 0xFF;
 // sample left the decoder settled, nothing else (a sample would change
 // nothing: `settled_levels_again_change_nothing`). Written out with r24
 // and SREG kept in GPIOR1/2 (`ISR_R24_IO`) and r25 pushed: ~41 cycles
-// entry to `reti`, against ~157 for the Rust
-// handler (which saved 13 registers and sampled every tick). Otherwise the
+// entry to `reti`, against ~157 for the Rust handler (which saved 13
+// registers and sampled every tick). Otherwise the
 // registers and SREG are restored and a jump enters `timer0_sample` as if
 // the hardware had, so that its `reti` ends the interrupt.
 //
