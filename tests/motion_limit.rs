@@ -45,3 +45,11 @@ fn the_bench_motion_limit_has_this_planners_junction_speeds() {
     }
     assert!(checked > 1900, "{checked}");
 }
+
+/// The model's look-ahead (`sim::ceiling::RING_AHEAD`, what `tools/bench`
+/// prints the look-ahead-bound limit for) is this planner's: a full ring
+/// less the running block.
+#[test]
+fn the_bench_look_ahead_is_this_planners_ring() {
+    assert_eq!(sim::ceiling::RING_AHEAD, BLOCK_BUFFER_LEN - 1);
+}

@@ -128,7 +128,50 @@ pub fn lines_per_s(feed: f64, accel: f64, path: Path) -> f64 {
     for k in 0..n {
         entry[k + 1] = entry[k + 1].min(entry[k] + 2.0 * c[k].accel * c[k].len);
     }
-    // Each chord's time along its trapezoid (or triangle).
+    middle_rate(&c, &entry)
+}
+
+/// Chords the firmware's planner holds ahead of the running one while a
+/// host keeps its ring full: `planner::BLOCK_BUFFER_LEN` − 1
+/// (`tests/motion_limit.rs` holds the two together).
+pub const RING_AHEAD: usize = 33;
+
+/// The goal of `tools/bench`'s in-flight and SD rows at F6000, lines/s.
+pub const GOAL_LINES_PER_S: f64 = 900.0;
+
+/// The fewest chords ahead with which the job reaches `rate` lines/s
+/// with joints from `path` (`None`: not below 200).
+pub fn ahead_for(feed: f64, accel: f64, path: Path, rate: f64) -> Option<usize> {
+    (1..=200).find(|&a| lines_per_s_ahead(feed, accel, path, a) >= rate)
+}
+
+/// [`lines_per_s`] with a look-ahead of `ahead` chords, as a streaming
+/// firmware plans: while a chord runs, the planner holds it and the next
+/// `ahead` (the host keeps the ring full), the newest of them must be able
+/// to stop at its end, and the running chord leaves at the speed that
+/// plan allows. A ring of n blocks has n − 1 ahead of the running one.
+pub fn lines_per_s_ahead(feed: f64, accel: f64, path: Path, ahead: usize) -> f64 {
+    let c = chords(feed, accel, path);
+    let n = c.len();
+    let joint = joint_limits(&c);
+    let mut speed = vec![0.0f64; n + 1];
+    for k in 0..n {
+        // Backward from a stop at the end of the newest chord queued.
+        let newest = (k + ahead).min(n - 1);
+        let mut e = 0.0f64;
+        for j in (k + 1..=newest).rev() {
+            e = joint[j].min(e + 2.0 * c[j].accel * c[j].len);
+        }
+        speed[k + 1] = e.min(speed[k] + 2.0 * c[k].accel * c[k].len);
+    }
+    middle_rate(&c, &speed)
+}
+
+/// Lines per second over the middle half of the job by time, each chord
+/// along its trapezoid (or triangle) from entry speed² `entry[k]` to
+/// `entry[k + 1]`.
+fn middle_rate(c: &[Chord], entry: &[f64]) -> f64 {
+    let n = c.len();
     let mut ends = Vec::with_capacity(n);
     let mut t = 0.0;
     for (k, ch) in c.iter().enumerate() {
@@ -148,7 +191,7 @@ pub fn lines_per_s(feed: f64, accel: f64, path: Path) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{lines_per_s, Path};
+    use super::{lines_per_s, lines_per_s_ahead, Path};
 
     #[test]
     fn a_circle_planned_from_its_commanded_path_runs_at_the_feed() {
@@ -158,5 +201,33 @@ mod tests {
         assert!((commanded - 500.0).abs() < 1.0, "{commanded}");
         let steps = lines_per_s(6000.0, 1000.0, Path::Steps);
         assert!(steps < 0.9 * lines_per_s(6000.0, 1000.0, Path::Commanded), "{steps}");
+    }
+
+    #[test]
+    fn a_look_ahead_as_long_as_the_job_is_the_unbounded_plan() {
+        for path in [Path::Steps, Path::Commanded] {
+            let (full, long) = (lines_per_s(6000.0, 1000.0, path), lines_per_s_ahead(6000.0, 1000.0, path, 2000));
+            assert!((full - long).abs() < 0.5, "{full} {long}");
+        }
+    }
+
+    #[test]
+    fn a_short_look_ahead_holds_the_smooth_circle_below_the_feed() {
+        // A ring's 33 chords of 0.1 mm ahead must stop the tool within
+        // 3.3 mm: at 1000 mm/s² on each axis (up to √2 times that along a
+        // diagonal) that is at most √(2·1414·3.3) = 97 mm/s, below the
+        // feed's 100 even with smooth joints.
+        let smooth = lines_per_s_ahead(6000.0, 1000.0, Path::Commanded, 33);
+        assert!(smooth < 970.0, "{smooth}");
+        let mut last = 0.0;
+        for ahead in [10, 20, 33, 40, 60] {
+            let r = lines_per_s_ahead(6000.0, 1000.0, Path::Commanded, ahead);
+            assert!(r > last, "{ahead}: {r}");
+            last = r;
+        }
+        // With the joints from the steps, the look-ahead and the joints
+        // both bind: below either limit alone.
+        let steps = lines_per_s_ahead(6000.0, 1000.0, Path::Steps, 33);
+        assert!(steps < smooth && steps < lines_per_s(6000.0, 1000.0, Path::Steps), "{steps}");
     }
 }

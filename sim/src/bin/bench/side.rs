@@ -349,4 +349,14 @@ pub fn print(rows: &[Row]) {
         ceiling::lines_per_s(FEED, 1000.0, Joints::Steps),
         ceiling::lines_per_s(FEED, 1000.0, Joints::Commanded)
     );
+    let ahead = ceiling::RING_AHEAD;
+    let need = |j| ceiling::ahead_for(FEED, 1000.0, j, ceiling::GOAL_LINES_PER_S).map_or("none up to 200".to_string(), |a| a.to_string());
+    println!(
+        "With this firmware's look-ahead ({ahead} chords ahead of the running one): {:.1}/s with the step joints, {:.1}/s with the commanded ones. Chords ahead for {:.0}/s: {} with the step joints, {} with the commanded ones.",
+        ceiling::lines_per_s_ahead(FEED, 1000.0, Joints::Steps, ahead),
+        ceiling::lines_per_s_ahead(FEED, 1000.0, Joints::Commanded, ahead),
+        ceiling::GOAL_LINES_PER_S,
+        need(Joints::Steps),
+        need(Joints::Commanded)
+    );
 }
