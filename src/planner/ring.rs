@@ -12,8 +12,11 @@ use core::mem::size_of;
 /// Blocks in the ring. RAM: 41 B a block on AVR (34 × 41 = 1 394 B;
 /// [`Block`]). grbl-Mega keeps 36, Marlin and Repetier 16 (docs/SPEC.md
 /// §11). The newest block must be able to stop, so with n blocks of 0.1 mm
-/// behind the executing one at 1000 mm/s² it runs at most
-/// √(2 · 1000 · n · 0.1) mm/s: 33 blocks ahead allow 81 mm/s, 810 lines/s.
+/// behind the executing one at 1000 mm/s² an axis-parallel stream runs at
+/// most √(2 · 1000 · n · 0.1) mm/s: 33 blocks ahead allow 81 mm/s, 810
+/// lines/s (on the benchmark's circle, whose path may accelerate faster
+/// off the axes, 860/s with smooth joints and 775/s with grbl's:
+/// `sim::ceiling::lines_per_s_ahead`).
 /// A longer ring re-plans longer on an override byte (each change re-plans
 /// the whole ring, ~0.5 ms a block on the AVR), which can keep the main
 /// loop away from the RX ring for longer than it lasts at 250000 baud: a
