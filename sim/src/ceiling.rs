@@ -45,6 +45,14 @@ struct Chord {
     nominal: f64,
 }
 
+impl Chord {
+    /// The speed² the chord's acceleration gains or sheds over its length,
+    /// (mm/s)².
+    fn reach(&self) -> f64 {
+        2.0 * self.accel * self.len
+    }
+}
+
 /// The job's point `k` (0: the start) as the planner sees it, mm.
 fn point(k: usize, path: Path) -> [f64; 2] {
     let (x, y) = circle::point(k);
@@ -123,10 +131,10 @@ pub fn lines_per_s(feed: f64, accel: f64, path: Path) -> f64 {
     entry.push(0.0);
     // Time-optimal: what the joint allows, reachable from both ends.
     for k in (0..n).rev() {
-        entry[k] = entry[k].min(entry[k + 1] + 2.0 * c[k].accel * c[k].len);
+        entry[k] = entry[k].min(entry[k + 1] + c[k].reach());
     }
     for k in 0..n {
-        entry[k + 1] = entry[k + 1].min(entry[k] + 2.0 * c[k].accel * c[k].len);
+        entry[k + 1] = entry[k + 1].min(entry[k] + c[k].reach());
     }
     middle_rate(&c, &entry)
 }
@@ -136,13 +144,13 @@ pub fn lines_per_s(feed: f64, accel: f64, path: Path) -> f64 {
 /// (`tests/motion_limit.rs` holds the two together).
 pub const RING_AHEAD: usize = 33;
 
-/// The goal of `tools/bench`'s in-flight and SD rows at F6000, lines/s.
-pub const GOAL_LINES_PER_S: f64 = 900.0;
+/// The longest look-ahead [`ahead_for`] tries, chords.
+pub const MAX_AHEAD: usize = 200;
 
 /// The fewest chords ahead with which the job reaches `rate` lines/s
-/// with joints from `path` (`None`: not below 200).
+/// with joints from `path` (`None`: not with [`MAX_AHEAD`]).
 pub fn ahead_for(feed: f64, accel: f64, path: Path, rate: f64) -> Option<usize> {
-    (1..=200).find(|&a| lines_per_s_ahead(feed, accel, path, a) >= rate)
+    (1..=MAX_AHEAD).find(|&a| lines_per_s_ahead(feed, accel, path, a) >= rate)
 }
 
 /// [`lines_per_s`] with a look-ahead of `ahead` chords, as a streaming
@@ -160,9 +168,9 @@ pub fn lines_per_s_ahead(feed: f64, accel: f64, path: Path, ahead: usize) -> f64
         let newest = (k + ahead).min(n - 1);
         let mut e = 0.0f64;
         for j in (k + 1..=newest).rev() {
-            e = joint[j].min(e + 2.0 * c[j].accel * c[j].len);
+            e = joint[j].min(e + c[j].reach());
         }
-        speed[k + 1] = e.min(speed[k] + 2.0 * c[k].accel * c[k].len);
+        speed[k + 1] = e.min(speed[k] + c[k].reach());
     }
     middle_rate(&c, &speed)
 }
@@ -180,7 +188,7 @@ fn middle_rate(c: &[Chord], entry: &[f64]) -> f64 {
         t += if up + down <= len {
             (vn - e0.sqrt()) / a + (len - up - down) / vn + (vn - e1.sqrt()) / a
         } else {
-            let peak = ((2.0 * a * len + e0 + e1) / 2.0).sqrt();
+            let peak = ((ch.reach() + e0 + e1) / 2.0).sqrt();
             (2.0 * peak - e0.sqrt() - e1.sqrt()) / a
         };
         ends.push(t);
